@@ -1,1 +1,16 @@
-"""TODO"""
+"""procgen: procedural modeling, and the bottom layer every other package stands on.
+
+Packages: :mod:`procgen.noise` (exact Perlin and the noise family). Shared
+infrastructure, public to the other packages: :mod:`procgen.validate` (argument
+checks), :mod:`procgen.files` (atomic outputs, TOML/JSON), :mod:`procgen.meshes`
+(the canonical mesh type and its conversions), :mod:`procgen.mesh_io` (mesh,
+point and image files).
+
+procgen imports no other scanamp package.
+"""
+
+import os as _os
+
+# numba's TBB layer is too old on Debian 12 and warns on first use; OpenMP is
+# present (libgomp1 is a set-up requirement). A user's own choice still wins.
+_os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")

@@ -1,0 +1,161 @@
+"""Files: atomic outputs and config reading, shared by every package.
+
+Outputs are written to a temporary sibling and renamed into place, so an
+interrupted or failed run leaves no half-written file or folder. Config readers
+raise :class:`procgen.validate.InputError` naming the file (and the field when
+one is at fault).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from procgen.validate import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "atomic_dir",
+    "atomic_file",
+    "write_json",
+    "read_json",
+    "read_toml",
+    "write_toml",
+    "require",
+]
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary sibling folder; on success it replaces ``path``.
+
+    On an exception the temporary folder is removed and ``path`` is left as it was.
+
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> with atomic_dir(root / "out") as tmp:
+    ...     _ = (tmp / "a.txt").write_text("x")
+    >>> sorted(p.name for p in (root / "out").iterdir())
+    ['a.txt']
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=path.parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if path.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=path.parent))
+        os.replace(path, old / "x")
+    os.replace(tmp, path)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def atomic_file(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (same suffix); renamed into place on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.tmp-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    os.replace(tmp, path)
+
+
+def _jsonable(obj: Any) -> Any:
+    import numpy as np
+
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def write_json(path: str | os.PathLike, data: Any) -> Path:
+    """Write ``data`` as indented JSON atomically (numpy arrays and scalars allowed)."""
+    with atomic_file(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, default=_jsonable, allow_nan=True) + "\n")
+    return Path(path)
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """Read JSON; a missing or malformed file raises InputError naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    try:
+        return json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"malformed JSON: {exc}", path=path) from None
+
+
+def read_toml(path: str | os.PathLike) -> dict:
+    """Read TOML; a missing or malformed file raises InputError naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    try:
+        return tomllib.loads(path.read_text())
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"malformed TOML: {exc}", path=path) from None
+
+
+def write_toml(path: str | os.PathLike, data: dict) -> Path:
+    """Write ``data`` as TOML atomically."""
+    import tomli_w
+
+    with atomic_file(path) as tmp:
+        tmp.write_bytes(tomli_w.dumps(data).encode())
+    return Path(path)
+
+
+def require(table: dict, key: str, kind: type | tuple[type, ...], *, path: Any = None,
+            prefix: str = "", default: Any = ...) -> Any:
+    """Fetch ``table[key]`` checked against ``kind``; InputError naming file and field.
+
+    ``prefix`` is the dotted location of ``table`` (``"objects[2]"``), so the error
+    names the full field (``objects[2].radius``). ``default`` makes the key optional.
+    """
+    field = f"{prefix}.{key}" if prefix else key
+    if key not in table:
+        if default is not ...:
+            return default
+        raise InputError("missing", path=path, field=field)
+    value = table[key]
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if isinstance(value, bool) and bool not in kinds:
+        raise InputError(f"expected {_kind_name(kinds)}, got {value!r}", path=path, field=field)
+    if not isinstance(value, kinds):
+        raise InputError(f"expected {_kind_name(kinds)}, got {value!r}", path=path, field=field)
+    return value
+
+
+def _kind_name(kinds: tuple[type, ...]) -> str:
+    names = {float: "a number", int: "an integer", str: "a string", bool: "true or false",
+             list: "a list", dict: "a table"}
+    return " or ".join(names.get(k, k.__name__) for k in kinds)

@@ -1,0 +1,110 @@
+"""Mesh, point-cloud and image files: the one place that knows these formats.
+
+Meshes: PLY, OBJ, glTF/GLB (``.gltf``/``.glb``), STL, OFF. Point clouds: PLY, PCD, XYZ.
+Images: PNG/JPEG via OpenCV (8- or 16-bit). Every writer is atomic.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from procgen.files import atomic_file
+from procgen.validate import InputError
+
+__all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image", "write_image",
+           "MESH_SUFFIXES"]
+
+MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
+
+
+def read_mesh(path: str | os.PathLike):
+    """Read a triangle mesh; InputError naming the file when missing, unreadable or empty."""
+    import open3d as o3d
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise InputError(f"expected a mesh file ({', '.join(MESH_SUFFIXES)}), got {path.suffix!r}",
+                         path=path)
+    mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False, print_progress=False)
+    if len(mesh.vertices) == 0:
+        raise InputError("no vertices read (empty or corrupt mesh file)", path=path)
+    return mesh
+
+
+def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
+    """Write ``mesh`` atomically; the format follows the suffix."""
+    import open3d as o3d
+
+    path = Path(path)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise ValueError(f"path: expected a suffix in {MESH_SUFFIXES}, got {path.suffix!r}")
+    with atomic_file(path) as tmp:
+        ok = o3d.io.write_triangle_mesh(str(tmp), mesh, write_ascii=ascii, print_progress=False)
+        if not ok:
+            raise RuntimeError(f"open3d failed to write {path}")
+    return path
+
+
+def read_points(path: str | os.PathLike):
+    """Read a point cloud (``open3d.geometry.PointCloud``); InputError when empty."""
+    import open3d as o3d
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    pcd = o3d.io.read_point_cloud(str(path))
+    if len(pcd.points) == 0:
+        raise InputError("no points read (empty or corrupt point file)", path=path)
+    return pcd
+
+
+def write_points(path: str | os.PathLike, points: np.ndarray, *, normals=None, colors=None):
+    """Write ``points (n, 3)`` (optionally normals and colours in [0, 1]) as a point cloud."""
+    import open3d as o3d
+
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
+    if normals is not None:
+        pcd.normals = o3d.utility.Vector3dVector(np.asarray(normals, np.float64))
+    if colors is not None:
+        pcd.colors = o3d.utility.Vector3dVector(np.clip(np.asarray(colors, np.float64), 0, 1))
+    with atomic_file(path) as tmp:
+        if not o3d.io.write_point_cloud(str(tmp), pcd, print_progress=False):
+            raise RuntimeError(f"open3d failed to write {path}")
+    return Path(path)
+
+
+def read_image(path: str | os.PathLike, *, grayscale: bool = False) -> np.ndarray:
+    """Read an image as stored (uint8 or uint16; RGB order for colour images)."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    flag = cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_UNCHANGED
+    img = cv2.imread(str(path), flag | (cv2.IMREAD_ANYDEPTH if not grayscale else 0))
+    if img is None:
+        raise InputError("unreadable image (corrupt or unsupported format)", path=path)
+    if img.ndim == 3 and img.shape[2] >= 3:
+        img = np.ascontiguousarray(img[..., 2::-1] if img.shape[2] == 3 else
+                                   img[..., [2, 1, 0, 3]])
+    return img
+
+
+def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
+    """Write a uint8/uint16 image (RGB order for colour) atomically; PNG is lossless."""
+    import cv2
+
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"image: expected uint8 or uint16, got {img.dtype}")
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = np.ascontiguousarray(img[..., ::-1])
+    with atomic_file(path) as tmp:
+        if not cv2.imwrite(str(tmp), img):
+            raise RuntimeError(f"OpenCV failed to write {path}")
+    return Path(path)

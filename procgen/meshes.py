@@ -1,0 +1,155 @@
+"""The one in-memory mesh type and its conversions.
+
+scanamp's canonical mesh is :class:`open3d.geometry.TriangleMesh` (float64
+vertices in metres, int32 triangles). Every conversion to pymeshlab or pyvista
+lives here and nowhere else; file formats live in :mod:`procgen.mesh_io`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from procgen.validate import check_array
+
+if TYPE_CHECKING:  # pragma: no cover
+    import open3d as o3d
+
+__all__ = [
+    "make_mesh",
+    "mesh_arrays",
+    "merge_meshes",
+    "transform_mesh",
+    "to_pymeshlab",
+    "from_pymeshlab",
+    "to_pyvista",
+    "from_pyvista",
+    "surface_area",
+]
+
+
+def _o3d():
+    import open3d as o3d
+
+    return o3d
+
+
+def make_mesh(
+    vertices: np.ndarray,
+    triangles: np.ndarray,
+    *,
+    vertex_normals: np.ndarray | None = None,
+    vertex_colors: np.ndarray | None = None,
+    compute_normals: bool = True,
+) -> "o3d.geometry.TriangleMesh":
+    """Build the canonical mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    triangles : (m, 3) int
+        Counter-clockwise seen from outside (normals point out).
+    vertex_normals : (n, 3) float64, optional
+    vertex_colors : (n, 3) float64 in [0, 1], optional
+    compute_normals : bool
+        Compute vertex normals when none are given.
+    """
+    o3d = _o3d()
+    v = check_array(vertices, "vertices", shape=(None, 3))
+    f = check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError(f"triangles: expected indices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
+    mesh = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.ascontiguousarray(v)),
+        o3d.utility.Vector3iVector(np.ascontiguousarray(f.astype(np.int32))),
+    )
+    if vertex_normals is not None:
+        n = check_array(vertex_normals, "vertex_normals", shape=(len(v), 3))
+        mesh.vertex_normals = o3d.utility.Vector3dVector(n)
+    elif compute_normals and len(f):
+        mesh.compute_vertex_normals()
+    if vertex_colors is not None:
+        c = check_array(vertex_colors, "vertex_colors", shape=(len(v), 3))
+        mesh.vertex_colors = o3d.utility.Vector3dVector(np.clip(c, 0.0, 1.0))
+    return mesh
+
+
+def mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(vertices (n, 3) float64, triangles (m, 3) int64)`` copies of a mesh."""
+    return (np.asarray(mesh.vertices, dtype=np.float64).copy(),
+            np.asarray(mesh.triangles, dtype=np.int64).copy())
+
+
+def merge_meshes(meshes) -> "o3d.geometry.TriangleMesh":
+    """Concatenate meshes into one (colours kept when every part has them)."""
+    meshes = list(meshes)
+    if not meshes:
+        raise ValueError("meshes: expected at least one mesh, got none")
+    vs, fs, cs = [], [], []
+    offset = 0
+    for m in meshes:
+        v, f = mesh_arrays(m)
+        vs.append(v)
+        fs.append(f + offset)
+        offset += len(v)
+        cs.append(np.asarray(m.vertex_colors) if m.has_vertex_colors() else None)
+    colors = np.vstack(cs) if all(c is not None for c in cs) else None
+    return make_mesh(np.vstack(vs), np.vstack(fs), vertex_colors=colors)
+
+
+def transform_mesh(mesh, world_from_local: np.ndarray) -> "o3d.geometry.TriangleMesh":
+    """Return a copy of ``mesh`` moved by the 4x4 transform ``world_from_local``."""
+    import copy
+
+    T = check_array(world_from_local, "world_from_local", shape=(4, 4))
+    out = copy.deepcopy(mesh)
+    out.transform(T)
+    return out
+
+
+def surface_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Per-triangle areas ``(m,) float64`` of a mesh given as arrays."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(triangles, dtype=np.int64)
+    e1 = v[f[:, 1]] - v[f[:, 0]]
+    e2 = v[f[:, 2]] - v[f[:, 0]]
+    return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+
+
+def to_pymeshlab(mesh):
+    """Return a ``pymeshlab.MeshSet`` holding ``mesh`` as its current mesh."""
+    import pymeshlab
+
+    v, f = mesh_arrays(mesh)
+    kwargs = {}
+    if mesh.has_vertex_normals():
+        kwargs["v_normals_matrix"] = np.asarray(mesh.vertex_normals, dtype=np.float64)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f.astype(np.int32), **kwargs))
+    return ms
+
+
+def from_pymeshlab(ms_or_mesh) -> "o3d.geometry.TriangleMesh":
+    """Convert a ``pymeshlab.MeshSet`` (its current mesh) or ``pymeshlab.Mesh``."""
+    m = ms_or_mesh.current_mesh() if hasattr(ms_or_mesh, "current_mesh") else ms_or_mesh
+    return make_mesh(m.vertex_matrix(), m.face_matrix())
+
+
+def to_pyvista(mesh):
+    """Return a ``pyvista.PolyData`` of ``mesh`` (vertex colours as point data 'rgb')."""
+    import pyvista as pv
+
+    v, f = mesh_arrays(mesh)
+    faces = np.hstack([np.full((len(f), 1), 3, dtype=np.int64), f]).ravel()
+    pd = pv.PolyData(v, faces)
+    if mesh.has_vertex_colors():
+        pd.point_data["rgb"] = (np.asarray(mesh.vertex_colors) * 255).astype(np.uint8)
+    return pd
+
+
+def from_pyvista(polydata) -> "o3d.geometry.TriangleMesh":
+    """Convert a ``pyvista.PolyData`` (triangulated first if needed)."""
+    pd = polydata.triangulate()
+    faces = np.asarray(pd.faces).reshape(-1, 4)[:, 1:]
+    return make_mesh(np.asarray(pd.points, dtype=np.float64), faces)
