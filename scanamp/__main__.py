@@ -1,0 +1,5 @@
+import sys
+
+from scanamp.cli import main
+
+sys.exit(main())
