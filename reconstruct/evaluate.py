@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = [
     "EvaluationResult",
@@ -91,6 +91,8 @@ class EvaluationResult:
         Samples used; ``n_reference_samples`` counts those the visibility mask kept.
     density : float
         Sampling density used for meshes, samples per m^2 (spacing ``1 / sqrt``).
+    distance : {"surface", "samples"}
+        How distances were measured (see :func:`evaluate`).
     icp_fitness, icp_inlier_rmse : float or None
         Open3D ICP figures when aligned (fraction of inliers, their RMS distance).
     icp_reference_from_recon : (4, 4) tuple of tuples or None
@@ -113,6 +115,7 @@ class EvaluationResult:
     n_recon_samples: int
     n_reference_samples: int
     density: float
+    distance: str = "surface"
     icp_fitness: float | None = None
     icp_inlier_rmse: float | None = None
     icp_reference_from_recon: tuple | None = None
@@ -141,6 +144,8 @@ class EvaluationResult:
             ("recon samples", f"{self.n_recon_samples}"),
             ("reference samples", f"{self.n_reference_samples}"),
             ("sample spacing", _m(1.0 / np.sqrt(self.density))),
+            ("distances to", "mesh surface / nearest point" if self.distance == "surface"
+             else "nearest sample"),
         ]
         if self.icp_fitness is not None:
             t = np.asarray(self.icp_reference_from_recon)
@@ -339,6 +344,7 @@ def evaluate(
     icp_threshold: float | None = None,
     reference_mask: Callable[[np.ndarray], np.ndarray] | None = None,
     thin_points: bool = True,
+    distance: str = "surface",
     rng: np.random.Generator | None = None,
     max_samples: int | None = DEFAULT_MAX_SAMPLES,
 ) -> EvaluationResult:
@@ -368,6 +374,13 @@ def evaluate(
     thin_points : bool
         Voxel-thin point clouds to the sample spacing (first point per voxel), so
         a dense cloud does not outweigh a sparse region.
+    distance : {"surface", "samples"}
+        ``"surface"`` (default): a sample's distance to a mesh is to the closest
+        point of its triangles (exact: a mesh scored against itself gives 0 whatever
+        the density), to a point cloud the nearest point. ``"samples"``: to the
+        nearest sample of the other side, the Tanks and Temples / DTU protocol,
+        which adds a sampling error of about ``1 / (2 pi density d)`` to a gap ``d``
+        and about half the spacing to a gap of 0.
     rng : numpy.random.Generator, optional
         Sampling randomness; default ``numpy.random.default_rng(0)``.
     max_samples : int or None
@@ -385,6 +398,7 @@ def evaluate(
         keeps no sample. Messages start with ``recon`` or ``reference``.
     """
     rng = np.random.default_rng(0) if rng is None else rng
+    check_choice(distance, "distance", {"surface", "samples"})
     rec = _as_geom(recon, "recon")
     ref = _as_geom(reference, "reference")
     tau = default_tau(ref) if tau is None else check_positive(tau, "tau")
@@ -407,14 +421,15 @@ def evaluate(
         reference_from_recon, fitness, rmse = _icp(rec_pts, ref_pts, ref_nrm, threshold, rng)
         rot, t = reference_from_recon[:3, :3], reference_from_recon[:3, 3]
         rec_pts = rec_pts @ rot.T + t
+        rec = _Geom(rec.name, rec.vertices @ rot.T + t, rec.triangles,
+                    None if rec.normals is None else rec.normals @ rot.T)
         if rec_nrm is not None:
             rec_nrm = rec_nrm @ rot.T
         icp_fields = dict(icp_fitness=fitness, icp_inlier_rmse=rmse,
                           icp_reference_from_recon=tuple(map(tuple, reference_from_recon.tolist())))
 
-    from scipy.spatial import cKDTree
-
-    acc, acc_idx = cKDTree(ref_pts).query(rec_pts, workers=-1)
+    surface = distance == "surface"
+    acc, acc_nrm = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
     visible = np.ones(len(ref_pts), dtype=bool)
     if reference_mask is not None:
         visible = np.asarray(reference_mask(ref_pts))
@@ -423,13 +438,13 @@ def evaluate(
                              f"{visible.shape} {visible.dtype}")
         if not visible.any():
             raise ValueError("reference_mask: expected to keep some reference samples, kept none")
-    comp, comp_idx = cKDTree(rec_pts).query(ref_pts[visible], workers=-1)
+    comp, comp_nrm = _nearest(ref_pts[visible], rec_pts, rec_nrm, rec if surface else None)
 
     precision, recall, fscore = fscore_at(acc, comp, tau)
     consistency = None
     if rec_nrm is not None and ref_nrm is not None:
-        c_acc = np.abs(np.einsum("ij,ij->i", rec_nrm, ref_nrm[acc_idx]))
-        c_comp = np.abs(np.einsum("ij,ij->i", ref_nrm[visible], rec_nrm[comp_idx]))
+        c_acc = np.abs(np.einsum("ij,ij->i", rec_nrm, acc_nrm))
+        c_comp = np.abs(np.einsum("ij,ij->i", ref_nrm[visible], comp_nrm))
         consistency = float(0.5 * (c_acc.mean() + c_comp.mean()))
     acc_mean, comp_mean = float(acc.mean()), float(comp.mean())
     return EvaluationResult(
@@ -441,7 +456,29 @@ def evaluate(
         hausdorff_95=float(max(np.percentile(acc, 95), np.percentile(comp, 95))),
         normal_consistency=consistency,
         n_recon_samples=len(rec_pts), n_reference_samples=int(visible.sum()),
-        density=float(density), **icp_fields)
+        density=float(density), distance=distance, **icp_fields)
+
+
+def _nearest(query: np.ndarray, samples: np.ndarray, sample_normals: np.ndarray | None,
+             mesh: _Geom | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Distances from ``query (n, 3)`` to the mesh surface when ``mesh`` is one, else to
+    the nearest of ``samples``; with the normal there (None when unknown)."""
+    if mesh is None or not mesh.is_mesh:
+        from scipy.spatial import cKDTree
+
+        dist, idx = cKDTree(samples).query(query, workers=-1)
+        return dist, None if sample_normals is None else sample_normals[idx]
+    import open3d as o3d
+
+    # Embree works in float32: centre the coordinates so large offsets cost no precision
+    centre = mesh.vertices.mean(axis=0)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor((mesh.vertices - centre).astype(np.float32)),
+                        o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
+    q = query - centre
+    ans = scene.compute_closest_points(o3d.core.Tensor(q.astype(np.float32)))
+    dist = np.linalg.norm(q - ans["points"].numpy().astype(np.float64), axis=1)
+    return dist, ans["primitive_normals"].numpy().astype(np.float64)
 
 
 def _icp(src: np.ndarray, dst: np.ndarray, dst_normals: np.ndarray | None, threshold: float,
