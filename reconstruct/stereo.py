@@ -27,7 +27,7 @@ from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = ["StereoCalibration", "Rectification", "rectify", "rectify_pair", "match",
            "MatchOptions", "disparity_to_depth", "depth_to_points", "lr_consistency",
-           "disparity_range"]
+           "disparity_range", "texture_mask"]
 
 _log = logging.getLogger(__name__)
 
@@ -216,6 +216,14 @@ class MatchOptions:
         SGBM speckle filter (0 window = off).
     mode : str
         "sgbm" (5 directions), "hh" (8 directions, full DP) or "3way".
+    min_texture : float
+        Drop disparities where the left image's local std (DN, block-size window) is
+        below this (no signal to match: dark background, textureless surface); 0 = off.
+    pad : bool
+        Pad both images on the left by ``min + num`` disparities so that SGBM also
+        matches the left border it otherwise leaves empty.
+    p1_scale, p2_scale : float
+        SGBM smoothness penalties per channel and window pixel.
     """
 
     min_disparity: int = 0
@@ -230,6 +238,8 @@ class MatchOptions:
     speckle_window: int = 100
     speckle_range: int = 2
     mode: str = "sgbm"
+    pad: bool = True
+    min_texture: float = 1.5
     p1_scale: float = 8.0
     p2_scale: float = 32.0
 
@@ -286,13 +296,44 @@ def match(left_rect: np.ndarray, right_rect: np.ndarray, options: MatchOptions |
     (H, W) float32
         Disparity in pixels (1/16 sub-pixel from SGBM), NaN where invalid.
     """
-    import cv2
 
     opts = options or MatchOptions()
     if left_rect.shape != right_rect.shape:
         raise ValueError(f"right_rect: expected the left image's shape {left_rect.shape}, "
                          f"got {right_rect.shape}")
     channels = 1 if left_rect.ndim == 2 else left_rect.shape[2]
+    pad = int(opts.min_disparity + opts.num_disparities) if opts.pad else 0
+    if pad:  # SGBM leaves min+num columns on the left unmatched: match padded images
+        cfg = ((0, 0), (pad, 0)) + (((0, 0),) if left_rect.ndim == 3 else ())
+        left_rect = np.pad(left_rect, cfg, mode="edge")
+        right_rect = np.pad(right_rect, cfg, mode="edge")
+    d = _match(left_rect, right_rect, opts, channels)
+    d = d[:, pad:] if pad else d
+    if opts.min_texture > 0:
+        d[~texture_mask(left_rect[:, pad:], opts.min_texture, opts.block_size)] = np.nan
+    return d
+
+
+def texture_mask(image: np.ndarray, min_std: float, window: int = 5) -> np.ndarray:
+    """``(H, W) bool``: pixels whose ``window`` x ``window`` intensity std >= ``min_std``.
+
+    Matching is meaningless where the image carries no signal (a dark background,
+    a textureless surface); SGBM would otherwise smear disparities into it.
+    """
+    import cv2
+
+    g = image.astype(np.float32)
+    if g.ndim == 3:
+        g = g.mean(axis=2)
+    k = (max(int(window), 3) | 1,) * 2
+    m = cv2.blur(g, k)
+    v = cv2.blur(g * g, k) - m * m
+    return np.sqrt(np.maximum(v, 0)) >= min_std
+
+
+def _match(left_rect, right_rect, opts, channels):
+    import cv2
+
     left_m = _sgbm(opts, channels)
     raw = left_m.compute(left_rect, right_rect)
     invalid_raw = (opts.min_disparity - 1) * 16

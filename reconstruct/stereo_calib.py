@@ -162,8 +162,55 @@ def calibrate_turntable_axis(object_points: list, image_points: list, angles_deg
     cam_from_table = np.eye(4)
     cam_from_table[:3, :3] = np.stack([x, y, n], axis=1)
     cam_from_table[:3, 3] = c
+    cam_from_table = _refine_axis(cam_from_table, Rs[0], ts[0], object_points, image_points, a,
+                                  K, D)
     return np.linalg.inv(cam_from_table), {"angle_rms_deg": float(np.sqrt(np.mean(err**2))),
                                            "views": len(Rs)}
+
+
+def _rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def _refine_axis(cam_from_table, R0, t0, object_points, image_points, angles, K, D):
+    """Minimise the reprojection error of ``cam_from_table @ Rz(a_i) @ table_from_board``
+    over both transforms (the stage angles are known)."""
+    import cv2
+    from scipy.optimize import least_squares
+
+    table_from_cam = np.linalg.inv(cam_from_table)
+    # table_from_board at angle 0: Rz(-a0) @ table_from_cam @ cam_from_board_0
+    cfb = np.eye(4)
+    cfb[:3, :3], cfb[:3, 3] = R0, t0
+    tfb = np.eye(4)
+    tfb[:3, :3] = _rz(-angles[0])
+    tfb = tfb @ table_from_cam @ cfb
+
+    def pack(T):
+        return np.concatenate([cv2.Rodrigues(T[:3, :3])[0].ravel(), T[:3, 3]])
+
+    def unpack(p):
+        T = np.eye(4)
+        T[:3, :3] = cv2.Rodrigues(p[:3])[0]
+        T[:3, 3] = p[3:6]
+        return T
+
+    def resid(p):
+        Tct, Ttb = unpack(p[:6]), unpack(p[6:])
+        out = []
+        for op, ip, a in zip(object_points, image_points, angles, strict=True):
+            Rz = np.eye(4)
+            Rz[:3, :3] = _rz(a)
+            T = Tct @ Rz @ Ttb
+            proj, _ = cv2.projectPoints(np.asarray(op, np.float64), cv2.Rodrigues(T[:3, :3])[0],
+                                        T[:3, 3], K, D)
+            out.append((proj.reshape(-1, 2) - np.asarray(ip, np.float64)).ravel())
+        return np.concatenate(out)
+
+    p0 = np.concatenate([pack(cam_from_table), pack(tfb)])
+    sol = least_squares(resid, p0, method="trf", x_scale="jac")
+    return unpack(sol.x[:6])
 
 
 def world_from_cam_at(table_from_cam: np.ndarray, angle_deg: float) -> np.ndarray:

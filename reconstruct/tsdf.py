@@ -54,7 +54,7 @@ def undistort_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
 def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
                     voxel_size: float, sdf_trunc: float | None = None,
                     depth_max: float = 10.0, colors: Sequence[np.ndarray] | None = None,
-                    weight_threshold: float = 0.5, block_count: int = 40000):
+                    weight_threshold: float = 0.5, block_count: int = 2000):
     """Fuse depth maps into a truncated signed distance volume and extract its mesh.
 
     Parameters
@@ -75,7 +75,8 @@ def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
     weight_threshold : float
         Minimum integration weight of a voxel to take part in the mesh.
     block_count : int
-        Initial hash-map capacity (blocks of 16^3 voxels); grows as needed.
+        Initial hash-map capacity (blocks of 16^3 voxels, 80 kB each with colour);
+        the hash map grows as needed, a large value only costs memory and time.
 
     Returns
     -------
