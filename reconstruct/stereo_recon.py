@@ -401,6 +401,33 @@ def _calib_errors(calib: StereoCalibration, gt: dict) -> dict:
             "fx2_rel_err": float(abs(calib.K2[0, 0] - true.K2[0, 0]) / true.K2[0, 0])}
 
 
+def _coarse_align(mesh, ref, size):
+    """Coarse-to-fine point-to-plane ICP (10 %, 3 %, 1 % of the object size) of the
+    reconstruction onto the reference, so the final fine ICP starts in its basin."""
+    import copy
+
+    import open3d as o3d
+
+    from reconstruct.evaluate import sample_surface
+
+    rng = np.random.default_rng(0)
+    pts = [sample_surface(np.asarray(m.vertices), np.asarray(m.triangles), 30000, rng=rng)
+           for m in (mesh, ref)]
+    src, dst = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
+        np.asarray(p[0] if isinstance(p, tuple) else p, np.float64))) for p in pts)
+    dst.estimate_normals()
+    T = np.eye(4)
+    reg = o3d.pipelines.registration
+    for frac in (0.1, 0.03, 0.01):
+        r = reg.registration_icp(src, dst, frac * size, T,
+                                 reg.TransformationEstimationPointToPlane(),
+                                 reg.ICPConvergenceCriteria(max_iteration=50))
+        T = r.transformation
+    out = copy.deepcopy(mesh)
+    out.transform(T)
+    return out, np.asarray(T)
+
+
 def _score(mesh, ref, visible, size):
     from reconstruct.evaluate import evaluate
 
@@ -410,8 +437,10 @@ def _score(mesh, ref, visible, size):
     # The reconstruction lives in the calibrated left camera's frame; that frame differs
     # from the true one by the calibration's datum (a fraction of a degree, mm), so the
     # shape is scored after a rigid ICP alignment; the unaligned score is kept too.
-    d = evaluate(mesh, ref, tau=tau, reference_mask=visible, icp=True).to_dict()
     raw = evaluate(mesh, ref, tau=tau, reference_mask=visible)
+    aligned, T = _coarse_align(mesh, ref, size)
+    d = evaluate(aligned, ref, tau=tau, reference_mask=visible, icp=True).to_dict()
+    d["coarse_alignment"] = T
     d["fscore_without_icp"] = raw.fscore
     d["tau_fraction_of_object_size"] = 0.01
     d["object_size"] = size
