@@ -35,6 +35,7 @@ __all__ = ["DenseOptions", "select_neighbors", "pair_depth", "consistency_filter
            "depth_maps"]
 
 log = logging.getLogger(__name__)
+_DBG = {}
 
 
 @dataclass
@@ -135,7 +136,7 @@ def _texture_mask(gray: np.ndarray, min_std: float) -> np.ndarray:
 
 def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_src: Camera,
                depth_range: tuple[float, float], *, block_size: int = 5,
-               uniqueness: int = 10) -> np.ndarray:
+               uniqueness: int = 10, min_gradient: float = 2.0) -> np.ndarray:
     """Z-depth of the reference view from one rectified pair and SGBM.
 
     Parameters
@@ -146,6 +147,11 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
         Posed, calibrated cameras (OpenCV convention, distortion allowed).
     depth_range : (float, float)
         Expected z-depths in the reference view; sets the disparity search range.
+    block_size, uniqueness : int
+        SGBM window and uniqueness ratio (percent).
+    min_gradient : float
+        Reference pixels whose 7x7 grey-level standard deviation is lower get no
+        depth (flat regions and black background match anything).
 
     Returns
     -------
@@ -161,51 +167,77 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
     R, t = T[:3, :3], T[:3, 3]
     # is the source to the right (x > 0) of the reference? SGBM wants the reference left
     src_in_ref = -R.T @ t
-    flip = src_in_ref[0] < 0
-    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(cam_ref.K, cam_ref.dist, cam_src.K, cam_src.dist,
-                                                size, R, t, flags=cv2.CALIB_ZERO_DISPARITY,
-                                                alpha=0.0)
-    f = P1[0, 0]
-    baseline = abs(P2[0, 3] / P2[0, 0])
-    m1 = cv2.initUndistortRectifyMap(cam_ref.K, cam_ref.dist, R1, P1, size, cv2.CV_32FC1)
-    m2 = cv2.initUndistortRectifyMap(cam_src.K, cam_src.dist, R2, P2, size, cv2.CV_32FC1)
+    R1, R2, _, _, _, _, _ = cv2.stereoRectify(cam_ref.K, cam_ref.dist, cam_src.K, cam_src.dist,
+                                              size, R, t, flags=cv2.CALIB_ZERO_DISPARITY)
+    # our own projections: the reference's focal length, and a rectified image that holds
+    # the whole reference view (stereoRectify's alpha zooms badly for converging views)
+    f = 0.5 * (cam_ref.fx + cam_ref.fy)
+    W, H = size
+    corners = np.array([[0, 0], [W - 1, 0], [0, H - 1], [W - 1, H - 1], [W / 2, 0],
+                        [W / 2, H - 1], [0, H / 2], [W - 1, H / 2]], np.float64)[:, None]
+    rc = cv2.undistortPoints(corners, cam_ref.K, cam_ref.dist, R=R1).reshape(-1, 2) * f
+    lo, hi = rc.min(0), rc.max(0)
+    rw = int(min(np.ceil(hi[0] - lo[0]) + 1, 2 * W))
+    rh = int(min(np.ceil(hi[1] - lo[1]) + 1, 2 * H))
+    cx = -lo[0] if rw < 2 * W else rw / 2.0
+    cy = -lo[1] if rh < 2 * H else rh / 2.0
+    P = np.array([[f, 0, cx, 0], [0, f, cy, 0], [0, 0, 1, 0]], np.float64)
+    src_rect = R1 @ src_in_ref
+    baseline = abs(src_rect[0])
+    flip = src_rect[0] < 0
+    rsize = (rw, rh)
+    # rectified z differs from the reference's z by the rectifying rotation: widen
+    dmin = f * baseline / (zmax * 1.15)
+    dmax = f * baseline / (zmin * 0.85)
+    # the source is rectified shifted right by the smallest expected disparity, so that
+    # its content is not cut off and SGBM searches [0, num)
+    shift = max(int(np.floor(dmin)), 0)
+    P2 = P.copy()
+    P2[0, 2] += -shift if flip else shift
+    m1 = cv2.initUndistortRectifyMap(cam_ref.K, cam_ref.dist, R1, P[:, :3], rsize, cv2.CV_32FC1)
+    m2 = cv2.initUndistortRectifyMap(cam_src.K, cam_src.dist, R2, P2[:, :3], rsize, cv2.CV_32FC1)
     left = cv2.remap(gray_ref, m1[0], m1[1], cv2.INTER_LINEAR)
     right = cv2.remap(gray_src, m2[0], m2[1], cv2.INTER_LINEAR)
     if flip:
         left, right = left[:, ::-1].copy(), right[:, ::-1].copy()
-    # rectified z of the reference camera is close to its z; widen for the rotation
-    dmin = f * baseline / (zmax * 1.1)
-    dmax = f * baseline / (zmin * 0.9)
-    if flip:  # flipping mirrors x: x' = W-1-x, disparity d' = d + (cx terms) -> same d here
-        pass
-    min_disp = int(np.floor(dmin))
-    num = int(np.ceil((dmax - min_disp) / 16.0)) * 16
-    num = max(16, min(num, 16 * ((size[0] - 1) // 16)))
+    min_disp = int(np.floor(dmin)) - shift
+    num = int(np.ceil((dmax - shift - min_disp) / 16.0)) * 16
+    num = max(16, min(num, 16 * ((2 * rw) // 16)))
     bs = int(block_size)
     sgbm = cv2.StereoSGBM_create(minDisparity=min_disp, numDisparities=num, blockSize=bs,
                                  P1=8 * bs * bs, P2=32 * bs * bs, disp12MaxDiff=1,
                                  uniquenessRatio=int(uniqueness), speckleWindowSize=100,
                                  speckleRange=2, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    disp = sgbm.compute(left, right).astype(np.float32) / 16.0
+    log.debug("pair: f=%.1f B=%.4f disparities %d + [%d, %d) flip=%s", f, baseline, shift,
+              min_disp, min_disp + num, flip)
+    _DBG.update(left=left, right=right, rsize=rsize, min_disp=min_disp, num=num)
+    # SGBM leaves a left border of min_disp + num columns invalid: pad it away
+    pad = max(min_disp, 0) + num
+    padded = [np.concatenate([np.zeros((rh, pad), np.uint8), im], 1) for im in (left, right)]
+    disp = sgbm.compute(*padded)[:, pad:].astype(np.float32) / 16.0
+    valid = disp >= min_disp
+    disp += shift
+    valid &= disp > 0
+    _DBG["disp"] = disp
     if flip:
-        disp = disp[:, ::-1]
-    valid = disp > min_disp
-    # rectified 3-D points; with flipped images the disparity keeps its magnitude
-    # because CALIB_ZERO_DISPARITY gives both rectified views the same principal point
-    cx, cy = P1[0, 2], P1[1, 2]
+        disp, valid = disp[:, ::-1], valid[:, ::-1]
+    # rectified 3-D points; flipping keeps the disparity's magnitude because both
+    # rectified views share the principal point
     Z = np.where(valid, f * baseline / np.where(valid, disp, 1.0), 0.0)
-    u, v = np.meshgrid(np.arange(size[0], dtype=np.float64), np.arange(size[1], dtype=np.float64))
+    u, v = np.meshgrid(np.arange(rw, dtype=np.float64), np.arange(rh, dtype=np.float64))
     X = (u - cx) * Z / f
-    Y = (v - cy) * Z / P1[1, 1]
+    Y = (v - cy) * Z / f
     # z in the reference camera frame: p_ref = R1^T p_rect
     zref = (R1[0, 2] * X + R1[1, 2] * Y + R1[2, 2] * Z).astype(np.float32)
     zref[~valid] = 0.0
     # back to the reference's own pixels: rectified coordinates of every original pixel
-    px = np.stack([u.ravel(), v.ravel()], 1).astype(np.float64)[:, None, :]
-    rect = cv2.undistortPoints(px, cam_ref.K, cam_ref.dist, R=R1, P=P1).reshape(size[1], size[0], 2)
+    uo, vo = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    px = np.stack([uo.ravel(), vo.ravel()], 1)[:, None, :]
+    rect = cv2.undistortPoints(px, cam_ref.K, cam_ref.dist, R=R1, P=P[:, :3]).reshape(H, W, 2)
     out = cv2.remap(zref, rect[..., 0].astype(np.float32), rect[..., 1].astype(np.float32),
                     cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     out[(out < zmin * 0.8) | (out > zmax * 1.2)] = 0.0
+    out[~_texture_mask(gray_ref, min_gradient)] = 0.0
     return out
 
 
@@ -299,8 +331,7 @@ def depth_maps(grays: Sequence[np.ndarray], cameras: Sequence[Camera],
         rng_ = (max(lo * (1 - m), 1e-6), hi * (1 + m))
         j = neighbors[i][0]
         d = pair_depth(grays[i], grays[j], cam, cameras[j], rng_, block_size=opt.block_size,
-                       uniqueness=opt.uniqueness)
-        d[~_texture_mask(grays[i], opt.min_gradient)] = 0.0
+                       uniqueness=opt.uniqueness, min_gradient=opt.min_gradient)
         raw.append(d)
     filtered = consistency_filter(raw, cameras, neighbors, tol=opt.consistency_tol,
                                   min_views=opt.min_views)
