@@ -24,6 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write the figures to this JSON file")
     parser.add_argument("--icp", action="store_true",
                         help="align RECON to the reference with ICP before scoring")
+    parser.add_argument("--distance", choices=("surface", "samples"), default="surface",
+                        help="measure to the other mesh's surface (default, exact) or to its "
+                             "nearest sample (the Tanks and Temples / DTU protocol)")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     parser.add_argument("--density", type=float, default=None, metavar="PER_M2",
                         help="samples per square metre (default: 8 / tau^2)")
@@ -44,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     max_samples = DEFAULT_MAX_SAMPLES if args.max_samples is None else args.max_samples
     try:
         result = evaluate(recon, reference, tau=args.tau, density=args.density, icp=args.icp,
+                          distance=args.distance,
                           rng=np.random.default_rng(args.seed), max_samples=max_samples)
     except ValueError as exc:  # name the file the library's message is about
         msg = str(exc)
