@@ -53,7 +53,7 @@ def transforms_dict(cameras: Sequence[Camera], image_paths: Sequence[str]) -> di
     intr = [_intrinsics(c) for c in cameras]
     shared = {k: v for k, v in intr[0].items() if all(i.get(k) == v for i in intr)}
     out = {"camera_model": "OPENCV", **shared, "frames": []}
-    for cam, path, i in zip(cameras, image_paths, intr):
+    for cam, path, i in zip(cameras, image_paths, intr, strict=False):
         frame = {"file_path": str(path),
                  "transform_matrix": (cam.world_from_cam @ GL_FROM_CV).tolist()}
         frame.update({k: v for k, v in i.items() if k not in shared})

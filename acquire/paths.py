@@ -90,7 +90,7 @@ def hemisphere(target, radius: float, n: int, *, min_elevation_deg: float = 10.0
     el = np.arcsin(s)
     az = golden * k
     poses = []
-    for e, a in zip(el, az):
+    for e, a in zip(el, az, strict=False):
         eye = target + radius * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
         poses.append(look_at_cam_from_world(eye, target))
     return np.array(poses)

@@ -298,7 +298,7 @@ def camera_from_colmap(cam, cam_from_world: np.ndarray | None = None) -> Camera:
     if name not in CAMERA_MODELS:
         raise ValueError(f"camera model: expected one of {', '.join(CAMERA_MODELS)}, "
                          f"got {name}")
-    p = dict(zip(CAMERA_MODELS[name], np.asarray(cam.params, float)))
+    p = dict(zip(CAMERA_MODELS[name], np.asarray(cam.params, float), strict=False))
     fx = p.get("fx", p.get("f"))
     fy = p.get("fy", p.get("f"))
     dist = np.array([p.get("k1", p.get("k", 0.0)), p.get("k2", 0.0), p.get("p1", 0.0),

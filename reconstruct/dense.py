@@ -35,7 +35,6 @@ __all__ = ["DenseOptions", "select_neighbors", "pair_depth", "consistency_filter
            "depth_maps"]
 
 log = logging.getLogger(__name__)
-_DBG = {}
 
 
 @dataclass
@@ -210,7 +209,6 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
                                  speckleRange=2, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
     log.debug("pair: f=%.1f B=%.4f disparities %d + [%d, %d) flip=%s", f, baseline, shift,
               min_disp, min_disp + num, flip)
-    _DBG.update(left=left, right=right, rsize=rsize, min_disp=min_disp, num=num)
     # SGBM leaves a left border of min_disp + num columns invalid: pad it away
     pad = max(min_disp, 0) + num
     padded = [np.concatenate([np.zeros((rh, pad), np.uint8), im], 1) for im in (left, right)]
@@ -218,7 +216,6 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
     valid = disp >= min_disp
     disp += shift
     valid &= disp > 0
-    _DBG["disp"] = disp
     if flip:
         disp, valid = disp[:, ::-1], valid[:, ::-1]
     # rectified 3-D points; flipping keeps the disparity's magnitude because both

@@ -187,7 +187,7 @@ def align_cameras(est_cam_from_world: Mapping[str, np.ndarray],
 
     sim = umeyama(np.array([centre(T) for T in est]), np.array([centre(T) for T in true]))
     rot, cerr = [], []
-    for Te, Tt in zip(est, true):
+    for Te, Tt in zip(est, true, strict=False):
         Ta = sim.apply_cam_from_world(Te)
         rot.append(rotation_angle_deg(Tt[:3, :3] @ Ta[:3, :3].T))
         cerr.append(np.linalg.norm(centre(Ta) - centre(Tt)))
