@@ -363,8 +363,8 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
             true_cams = None
             if gt and "cameras" in gt:
                 true_cams = {n: Camera.from_dict(c) for n, c in gt["cameras"].items()}
-                errs = align_cameras({im.name: c.cam_from_world for im, c in zip(images, cams, strict=False)},
-                                     {n: c.cam_from_world for n, c in true_cams.items()})
+                est = {im.name: c.cam_from_world for im, c in zip(images, cams, strict=True)}
+                errs = align_cameras(est, {n: c.cam_from_world for n, c in true_cams.items()})
                 report["metrics"] = {"poses": errs.summary(gt.get("scene_size")),
                                      "frame": "aligned to the true cameras by Sim(3)"}
                 sim = errs.alignment
@@ -397,8 +397,9 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
                     mesh = _clean_mesh(mesh)
                 report["timings"]["dense"] = time.perf_counter() - t
                 report["dense"] = {"depth_pixels": [int((d > 0).sum()) for d in depths],
-                                   "stereo_partner": {im.name: images[nb[0]].name if nb else None
-                                                      for im, nb in zip(images, neighbors, strict=False)},
+                                   "stereo_partner": {
+                                       im.name: images[nb[0]].name if nb else None
+                                       for im, nb in zip(images, neighbors, strict=True)},
                                    "voxel_size": extent * config.voxel_fraction,
                                    "triangles": 0 if mesh is None else len(mesh.triangles)}
                 if mesh is None or len(mesh.triangles) == 0:
