@@ -68,6 +68,9 @@ class PathConfig:
         Fraction of the time between frames the shutter is open.
     supersample : int
         Anti-aliasing rays per pixel side.
+    texture_boost : float
+        Feature-rich textures for SfM: every solid procedural material gets this many
+        times its texture frequency at full contrast (1 keeps the scene's materials).
     sensor : Sensor
     """
 
@@ -87,6 +90,7 @@ class PathConfig:
     shutter: float = 0.5
     supersample: int = 2
     auto_exposure: bool = True
+    texture_boost: float = 4.0
     sensor: Sensor = field(default_factory=Sensor)
 
     def __post_init__(self):
@@ -147,6 +151,24 @@ def _poses(cfg: PathConfig, target, radius, rng) -> np.ndarray:
                                 roll_jitter_deg=cfg.walk_roll_deg)
 
 
+def _boost_textures(render_scene, factor: float):
+    import dataclasses
+
+    from acquire.materials import Material
+    from acquire.scene import RenderScene
+
+    check_positive(factor, "texture_boost")
+    objs = []
+    for o in render_scene.objects:
+        m = o.material
+        if m.kind == "solid":
+            m = Material("solid", albedo=m.albedo, texture=m.texture, scale=m.scale * factor,
+                         contrast=1.0, seed=m.seed)
+        objs.append(dataclasses.replace(o, material=m))
+    return RenderScene(objs, list(render_scene.lights), render_scene.ambient,
+                       render_scene.background)
+
+
 def capture(render_scene, config: PathConfig, out_dir: str | os.PathLike, *,
             rng: np.random.Generator, scene_ref: dict | None = None, gt_mesh=None,
             seed: int | None = None) -> Path:
@@ -171,6 +193,8 @@ def capture(render_scene, config: PathConfig, out_dir: str | os.PathLike, *,
     -------
     Path
     """
+    if config.texture_boost != 1.0:
+        render_scene = _boost_textures(render_scene, config.texture_boost)
     bounds = render_scene.bounds()
     target = bounds.mean(axis=0)
     bradius = 0.5 * float(np.linalg.norm(bounds[1] - bounds[0]))

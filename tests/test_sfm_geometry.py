@@ -109,7 +109,7 @@ def test_transforms_json_round_trip_and_opengl_axes(tmp_path):
     write_transforms(tmp_path / "transforms.json", cams, ["a.png", "b.png", "c.png"])
     data = json.loads((tmp_path / "transforms.json").read_text())
     assert data["cx"] == 31.5 and data["fl_y"] == 51.0  # half-pixel shift, shared intrinsics
-    for cam, fr in zip(cams, data["frames"]):
+    for cam, fr in zip(cams, data["frames"], strict=False):
         M = np.asarray(fr["transform_matrix"])
         # OpenGL: the camera looks down its -z axis, y is up in the image
         look = -M[:3, 2]
@@ -118,7 +118,7 @@ def test_transforms_json_round_trip_and_opengl_axes(tmp_path):
         assert M[2, 1] > 0  # image up has a positive world-z component
     back, paths = read_transforms(tmp_path / "transforms.json")
     assert paths == ["a.png", "b.png", "c.png"]
-    for a, b in zip(cams, back):
+    for a, b in zip(cams, back, strict=False):
         np.testing.assert_allclose(b.cam_from_world, a.cam_from_world, atol=1e-12)
         np.testing.assert_allclose(b.K, a.K, atol=1e-12)
         np.testing.assert_allclose(b.dist, a.dist, atol=1e-15)
