@@ -152,6 +152,7 @@ def _stages(X: np.ndarray, D: int, delta: float, hurst: float, addition: bool,
     drawn from ``rng`` in one call, so the result depends only on the seed.
     """
     r = 0.5 ** (0.5 * hurst)
+    normals = _Normals(rng)
     while D > 1:
         d = D // 2
         m_r = (X.shape[0] - 1) // D
@@ -159,20 +160,56 @@ def _stages(X: np.ndarray, D: int, delta: float, hurst: float, addition: bool,
         count = m_r * m_c + (m_r + 1) * m_c + m_r * (m_c + 1)
         delta_c = delta * r
         delta_e = delta_c * r
+        noise = normals(count)
         if addition:
             # Saupe's order: lattice points get noise after the diamond step, and every
             # point of the finer lattice after the square step.
             G = X[::D, ::D]
-            noise = rng.standard_normal(count)
             _stage_diamond_only(X, D, delta_c, noise)
             G += delta_c * rng.standard_normal(G.shape)
             _stage_square_only(X, D, delta_e, noise)
             X[::d, ::d] += delta_e * rng.standard_normal(X[::d, ::d].shape)
         else:
-            _stage(X, D, delta_c, delta_e, rng.standard_normal(count))
+            _stage(X, D, delta_c, delta_e, noise)
         delta = delta_e
         D = d
+    normals.close()
     return X
+
+
+class _Normals:
+    """Standard normals for the stages, drawn in two halves on two threads when large.
+
+    The halves come from two child generators spawned from ``rng`` once, so the values
+    depend only on the seed (not on the number of cores).
+    """
+
+    _SPLIT = 1 << 20
+
+    def __init__(self, rng: np.random.Generator):
+        self.rng = rng
+        self.kids = None
+        self.pool = None
+
+    def __call__(self, count: int) -> np.ndarray:
+        if count < self._SPLIT:
+            return self.rng.standard_normal(count)
+        if self.kids is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self.kids = self.rng.spawn(2)
+            self.pool = ThreadPoolExecutor(2)
+        out = np.empty(count)
+        h = count // 2
+        jobs = [self.pool.submit(k.standard_normal, out=part)
+                for k, part in ((self.kids[0], out[:h]), (self.kids[1], out[h:]))]
+        for j in jobs:
+            j.result()
+        return out
+
+    def close(self):
+        if self.pool is not None:
+            self.pool.shutdown()
 
 
 def _stage_diamond_only(X, D, delta_c, noise):
