@@ -46,10 +46,25 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
     path = Path(path)
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"path: expected a suffix in {MESH_SUFFIXES}, got {path.suffix!r}")
-    with atomic_file(path) as tmp:
-        ok = o3d.io.write_triangle_mesh(str(tmp), mesh, write_ascii=ascii, print_progress=False)
+    # Write into a temporary folder under the final name (OBJ names its .mtl and
+    # textures after the file), then move every file into place.
+    import shutil
+    import tempfile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.tmp-", dir=path.parent))
+    try:
+        target = tmpdir / path.name
+        ok = o3d.io.write_triangle_mesh(str(target), mesh, write_ascii=ascii,
+                                        print_progress=False)
         if not ok:
             raise RuntimeError(f"open3d failed to write {path}")
+        for f in sorted(tmpdir.iterdir()):
+            if f.name != path.name:
+                os.replace(f, path.parent / f.name)
+        os.replace(target, path)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
     return path
 
 
