@@ -35,3 +35,9 @@ __all__ = [
     "load_grammar", "example_names", "LString", "GrowthLimitError", "derive",
     "derive_reference", "axiom_string", "ExprError", "parse_expr", "evaluate", "evaluate_array",
 ]
+
+from procgen.lsystem.geometry import polygon_arrays, to_mesh, tube_arrays  # noqa: E402
+from procgen.lsystem.turtle import INITIAL_FRAME, TurtleResult, interpret  # noqa: E402
+
+__all__ += ["interpret", "TurtleResult", "INITIAL_FRAME", "to_mesh", "tube_arrays",
+            "polygon_arrays"]
