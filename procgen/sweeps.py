@@ -291,7 +291,7 @@ def _tubes(p0, p1, frames, r0, r1, parent, sides, caps):
     n_caps = (n_own + n_end_caps) if caps else 0
     nrings = m + n_own
     verts = np.empty((nrings * sides + n_caps, 3))
-    tris = np.empty((m * 2 * sides + n_caps * sides, 3), np.int64)
+    tris = np.empty((m * 2 * sides + n_caps * sides, 3), np.int32)
     cs = np.cos(2 * np.pi * np.arange(sides) / sides)
     sn = np.sin(2 * np.pi * np.arange(sides) / sides)
     a = np.empty(3)
@@ -394,7 +394,7 @@ def segment_tubes(starts: np.ndarray, ends: np.ndarray, frames: np.ndarray,
     Returns
     -------
     vertices : (k, 3) float64
-    triangles : (t, 3) int64
+    triangles : (t, 3) int32
     """
     m = len(starts)
     if sides < 3:

@@ -207,7 +207,8 @@ def _derive_d0l(grammar, s, n, max_symbols, max_bytes) -> LString:
                 new[a] = exp[a]
         exp = new
     if len(s.codes) == 1:
-        return LString(np.array(exp[int(s.codes[0])], copy=True))
+        a = int(s.codes[0])
+        return LString(exp[a] if a in succ else exp[a].copy())
     return LString(np.concatenate([exp[a] for a in s.codes.tolist()]))
 
 
