@@ -203,7 +203,8 @@ def _check_symbol(ch: str, col: int, ctx: _Ctx):
                         "characters other than ( ) < > , : ; #)", col)
 
 
-def _split_args(text: str, start: int, ctx: _Ctx) -> tuple[list[tuple[str, int]], int]:
+def _split_args(text: str, start: int, ctx: _Ctx,
+                offset: int = 0) -> tuple[list[tuple[str, int]], int]:
     """``text[start] == '('``: return [(arg text, column)], index after ')'."""
     depth = 0
     args = []
@@ -220,7 +221,7 @@ def _split_args(text: str, start: int, ctx: _Ctx) -> tuple[list[tuple[str, int]]
         elif c == "," and depth == 1:
             args.append((text[begin:i], begin))
             begin = i + 1
-    raise ctx.error("unbalanced '(': missing ')'", start + 1)
+    raise ctx.error("unbalanced '(': missing ')'", offset + start + 1)
 
 
 def _parse_modules(text: str, offset: int, ctx: _Ctx) -> tuple[Module, ...]:
@@ -237,7 +238,7 @@ def _parse_modules(text: str, offset: int, ctx: _Ctx) -> tuple[Module, ...]:
         args: tuple[Node, ...] = ()
         i += 1
         if i < len(text) and text[i] == "(":
-            raw, i = _split_args(text, i, ctx)
+            raw, i = _split_args(text, i, ctx, offset)
             nodes = []
             for arg, start in raw:
                 try:
@@ -264,7 +265,7 @@ def _parse_patterns(text: str, offset: int, ctx: _Ctx, *, brackets: bool) -> tup
         params: tuple[str, ...] = ()
         i += 1
         if i < len(text) and text[i] == "(":
-            raw, i = _split_args(text, i, ctx)
+            raw, i = _split_args(text, i, ctx, offset)
             names = []
             for arg, start in raw:
                 name = arg.strip()
