@@ -36,6 +36,9 @@ def polygon_arrays(result: TurtleResult) -> tuple[np.ndarray, np.ndarray]:
         return np.empty((0, 3)), np.empty((0, 3), np.int64)
     order = np.argsort(ids, kind="stable")
     v, ids = v[order], ids[order]
+    # drop repeated vertices ('.' right after an f that already recorded the point)
+    same = np.r_[False, (ids[1:] == ids[:-1]) & np.all(np.abs(v[1:] - v[:-1]) < 1e-12, axis=1)]
+    v, ids = v[~same], ids[~same]
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     counts = np.diff(np.r_[starts, len(ids)])
     ntri = np.maximum(counts - 2, 0)

@@ -12,7 +12,7 @@ HELP = "grow an L-system grammar (a .lsys file or a shipped example name) into a
 
 def add_arguments(p):
     p.add_argument("grammar", help="grammar file (.lsys) or example name, e.g. abop_1_24a")
-    p.add_argument("--out", type=Path, help="mesh file: .ply, .obj, .gltf or .glb")
+    p.add_argument("--out", type=Path, help="mesh file: .ply, .obj, .gltf (or .stl, .off)")
     p.add_argument("-n", type=int, default=None, help="derivation steps (default: the grammar's n)")
     p.add_argument("--seed", type=int, default=0, help="seed of stochastic productions")
     p.add_argument("--sides", type=int, default=8, help="tube ring resolution")
@@ -33,6 +33,9 @@ def run(args) -> int:
     if args.out is not None and args.out.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"--out: expected a suffix in {', '.join(MESH_SUFFIXES)}, "
                          f"got {args.out.suffix!r}")
+    if args.out is not None and args.out.suffix.lower() == ".glb":
+        raise ValueError("--out: open3d 0.20 writes .glb files without their binary chunk; "
+                         "write .gltf instead")
     grammar = load_grammar(args.grammar)
     rng = np.random.default_rng(args.seed)
     string = derive(grammar, args.n, rng=rng)
