@@ -31,10 +31,13 @@ def test_shape_classes():
     # patelliform: most of the surface belongs to the last half turn (rapid expansion)
     p = SHAPES["patelliform"]
     assert np.exp(np.pi / np.tan(np.radians(p.alpha))) > 8
-    # tubular: successive whorls do not touch (radial gap larger than the tube diameter)
+    # tubular: successive whorls do not touch (centre lines farther apart than the two
+    # tube radii, which grow with the whorl)
     t = SHAPES["tubular"]
     growth = np.exp(2 * np.pi / np.tan(np.radians(t.alpha)))
-    assert t.A * np.sin(np.radians(t.beta)) * (growth - 1) > 2 * max(t.a, t.b)
+    thin = CortieParams(**{**t.__dict__, "a": 1e-9, "b": 1e-9})
+    c = cortie_points(thin, np.array([0.0, 2 * np.pi]), np.zeros(1))[:, 0]
+    assert np.linalg.norm(c[1] - c[0]) > t.a * (1 + growth)
     # spherical: the aperture is large against the distance to the axis
     s = SHAPES["spherical"]
     assert max(s.a, s.b) > 0.4 * s.A
