@@ -17,7 +17,7 @@ seen from outside) for counter-clockwise profiles.
 >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
 >>> circle = np.c_[np.cos(t), np.sin(t)]
 >>> v, f = sweep(circle, np.c_[np.zeros(2), np.zeros(2), [0.0, 2.0]])
->>> abs(mesh_volume(v, f) - 64 / 2 * np.sin(2 * np.pi / 64) * 2) < 1e-9
+>>> bool(abs(mesh_volume(v, f) - 64 / 2 * np.sin(2 * np.pi / 64) * 2) < 1e-9)
 True
 """
 

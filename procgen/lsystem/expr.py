@@ -24,7 +24,7 @@ fast. Division or modulo by zero raises :class:`ExprError` instead of producing 
 >>> evaluate(tree, {"x": 3.0, "y": 0.5})
 7.0
 >>> to_text(parse_expr("-(1+2)^2"))
-'(-((1 + 2) ^ 2))'
+'(-((1.0 + 2.0) ^ 2.0))'
 """
 
 from __future__ import annotations
