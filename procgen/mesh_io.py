@@ -20,6 +20,8 @@ __all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image
            "read_geometry", "MESH_SUFFIXES", "POINT_SUFFIXES"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
+# open3d 0.20 writes .glb without its binary chunk (unreadable by open3d and VTK).
+WRITE_SUFFIXES = (".ply", ".obj", ".gltf", ".stl", ".off")
 POINT_SUFFIXES = (".ply", ".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts")
 
 
@@ -44,8 +46,10 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
     import open3d as o3d
 
     path = Path(path)
-    if path.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"path: expected a suffix in {MESH_SUFFIXES}, got {path.suffix!r}")
+    if path.suffix.lower() not in WRITE_SUFFIXES:
+        raise ValueError(f"path: expected a suffix in {WRITE_SUFFIXES}, got {path.suffix!r}"
+                         + (" (open3d 0.20 writes broken .glb files; use .gltf)"
+                            if path.suffix.lower() == ".glb" else ""))
     # Write into a temporary folder under the final name (OBJ names its .mtl and
     # textures after the file), then move every file into place.
     import shutil
