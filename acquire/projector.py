@@ -82,16 +82,29 @@ class PatternProjector:
         """The same projector showing another image."""
         return PatternProjector(self.camera, pattern, self.intensity, self.color)
 
-    def irradiance(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        """Unshadowed irradiance ``(n, 3)`` at ``points (n, 3)`` with unit ``normals (n, 3)``."""
+    def footprint(self, points: np.ndarray, normals: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Where points fall in the projector image and how much a white pixel lights them.
+
+        Returns
+        -------
+        pixels : (n, 2) float64   projector pixels (NaN behind the projector)
+        factor : (n,) float64     ``intensity * cos / r^2`` (0 facing away)
+
+        ``irradiance = sample_bilinear(pattern, pixels) * factor * color``: renderers of
+        many patterns compute the footprint once.
+        """
         px, z = self.camera.project(points)
-        value = np.where(z > 1e-9, sample_bilinear(self.pattern, np.where(z[:, None] > 1e-9,
-                                                                          px, np.nan)), 0.0)
+        px = np.where(z[:, None] > 1e-9, px, np.nan)
         d = self.camera.center - points
         r2 = np.einsum("ij,ij->i", d, d)
         cos = np.einsum("ij,ij->i", d, normals) / np.sqrt(np.maximum(r2, 1e-300))
-        e = self.intensity * value * np.clip(cos, 0.0, None) / np.maximum(r2, 1e-12)
-        return e[:, None] * self.color
+        return px, self.intensity * np.clip(cos, 0.0, None) / np.maximum(r2, 1e-12)
+
+    def irradiance(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """Unshadowed irradiance ``(n, 3)`` at ``points (n, 3)`` with unit ``normals (n, 3)``."""
+        px, factor = self.footprint(points, normals)
+        return (sample_bilinear(self.pattern, px) * factor)[:, None] * self.color
 
     def shadow_rays(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rays from the points to the projector centre (occluded if hit with t < 1)."""

@@ -21,7 +21,7 @@ from acquire.camera import Camera
 from procgen.progress import track
 from procgen.validate import check_positive
 
-__all__ = ["fuse_depth_maps", "undistort_depth"]
+__all__ = ["fuse_depth_maps", "TSDFVolume", "undistort_depth"]
 
 _log = logging.getLogger(__name__)
 
@@ -51,10 +51,97 @@ def undistort_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
+class TSDFVolume:
+    """An incremental TSDF volume (Open3D VoxelBlockGrid on the CPU).
+
+    >>> vol = TSDFVolume(voxel_size=0.01)          # doctest: +SKIP
+    >>> vol.integrate(depth, camera)               # doctest: +SKIP
+    >>> mesh = vol.extract_mesh()                  # doctest: +SKIP
+    """
+
+    def __init__(self, *, voxel_size: float, sdf_trunc: float | None = None,
+                 depth_max: float = 10.0, with_color: bool = False, block_count: int = 2000):
+        import open3d as o3d
+        import open3d.core as o3c
+
+        self.voxel_size = check_positive(voxel_size, "voxel_size")
+        self.sdf_trunc = (4.0 * self.voxel_size if sdf_trunc is None
+                          else check_positive(sdf_trunc, "sdf_trunc"))
+        self.depth_max = check_positive(depth_max, "depth_max")
+        self.with_color = bool(with_color)
+        names = ("tsdf", "weight", "color") if with_color else ("tsdf", "weight")
+        self._vbg = o3d.t.geometry.VoxelBlockGrid(
+            names, (o3c.float32,) * len(names), ((1), (1), (3))[:len(names)],
+            voxel_size=self.voxel_size, block_resolution=16, block_count=int(block_count),
+            device=o3c.Device("CPU:0"))
+        self.n_integrated = 0
+
+    def integrate(self, depth: np.ndarray, camera: Camera, color: np.ndarray | None = None,
+                  *, name: str = "depth") -> bool:
+        """Integrate one z-depth map ``(H, W)`` of ``camera``; False when it had no depth."""
+        import open3d as o3d
+        import open3d.core as o3c
+
+        cam = camera
+        d = np.asarray(depth, dtype=np.float32)
+        if d.shape != (cam.height, cam.width):
+            raise ValueError(f"{name}: expected shape ({cam.height}, {cam.width}) of its "
+                             f"camera, got {d.shape}")
+        d = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
+        d = np.ascontiguousarray(undistort_depth(d, cam))
+        if not np.any(d > 0):
+            _log.debug("%s is empty; skipped", name)
+            return False
+        depth_img = o3d.t.geometry.Image(o3c.Tensor(d))
+        K = o3c.Tensor(cam.K, o3c.float64)
+        T = o3c.Tensor(np.asarray(cam.cam_from_world, np.float64), o3c.float64)
+        mult = self.sdf_trunc / self.voxel_size
+        coords = self._vbg.compute_unique_block_coordinates(depth_img, K, T, 1.0,
+                                                            self.depth_max, mult)
+        if self.with_color:
+            if color is None:
+                raise ValueError(f"{name}: this volume fuses colours; pass one per depth map")
+            c = np.asarray(color)
+            c = (c.astype(np.float32) / 255.0) if c.dtype == np.uint8 else c.astype(np.float32)
+            if c.shape != (cam.height, cam.width, 3):
+                raise ValueError(f"{name}: expected a colour image ({cam.height}, {cam.width}, "
+                                 f"3), got {c.shape}")
+            if np.any(cam.dist):
+                import cv2
+
+                mx, my = cv2.initUndistortRectifyMap(cam.K, cam.dist, None, cam.K,
+                                                     (cam.width, cam.height), cv2.CV_32FC1)
+                c = cv2.remap(c, mx, my, cv2.INTER_LINEAR)
+            color_img = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(c)))
+            self._vbg.integrate(coords, depth_img, color_img, K, K, T, 1.0, self.depth_max, mult)
+        else:
+            self._vbg.integrate(coords, depth_img, K, T, 1.0, self.depth_max, mult)
+        self.n_integrated += 1
+        return True
+
+    def extract_mesh(self, *, weight_threshold: float = 0.5):
+        """Marching cubes of the zero level set (empty mesh when nothing was integrated)."""
+        import open3d as o3d
+
+        if self.n_integrated == 0:
+            _log.warning("no valid depth in any view: empty mesh")
+            return o3d.geometry.TriangleMesh()
+        try:
+            mesh = self._vbg.extract_triangle_mesh(
+                weight_threshold=float(weight_threshold)).to_legacy()
+        except RuntimeError as exc:  # open3d raises on an empty level set
+            if "shape {0}" not in str(exc):
+                raise
+            _log.warning("the fused volume has no surface: empty mesh")
+            return o3d.geometry.TriangleMesh()
+        mesh.compute_vertex_normals()
+        return mesh
+
+
 def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
                     voxel_size: float, sdf_trunc: float | None = None,
                     depth_max: float = 10.0, colors: Sequence[np.ndarray] | None = None,
-                    weight_threshold: float = 0.5, block_count: int = 40000):
+                    weight_threshold: float = 0.5, block_count: int = 2000):
     """Fuse depth maps into a truncated signed distance volume and extract its mesh.
 
     Parameters
@@ -75,7 +162,8 @@ def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
     weight_threshold : float
         Minimum integration weight of a voxel to take part in the mesh.
     block_count : int
-        Initial hash-map capacity (blocks of 16^3 voxels); grows as needed.
+        Initial hash-map capacity (blocks of 16^3 voxels, 80 kB each with colour);
+        the hash map grows as needed, a large value only costs memory and time.
 
     Returns
     -------
@@ -83,65 +171,13 @@ def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
         The zero level set (marching cubes), in the world frame. Empty when no
         depth was valid.
     """
-    import open3d as o3d
-    import open3d.core as o3c
-
-    voxel_size = check_positive(voxel_size, "voxel_size")
-    sdf_trunc = 4.0 * voxel_size if sdf_trunc is None else check_positive(sdf_trunc, "sdf_trunc")
-    depth_max = check_positive(depth_max, "depth_max")
     if len(depths) != len(cameras):
         raise ValueError(f"cameras: expected one per depth map ({len(depths)}), got {len(cameras)}")
     if colors is not None and len(colors) != len(depths):
         raise ValueError(f"colors: expected one per depth map ({len(depths)}), got {len(colors)}")
-    names = ("tsdf", "weight", "color") if colors is not None else ("tsdf", "weight")
-    dtypes = (o3c.float32,) * len(names)
-    channels = ((1), (1), (3))[:len(names)]
-    vbg = o3d.t.geometry.VoxelBlockGrid(names, dtypes, channels, voxel_size=voxel_size,
-                                        block_resolution=16, block_count=int(block_count),
-                                        device=o3c.Device("CPU:0"))
-    mult = sdf_trunc / voxel_size
-    n_used = 0
+    vol = TSDFVolume(voxel_size=voxel_size, sdf_trunc=sdf_trunc, depth_max=depth_max,
+                     with_color=colors is not None, block_count=block_count)
     for i in track(range(len(depths)), "TSDF fusion", total=len(depths)):
-        cam = cameras[i]
-        d = np.asarray(depths[i], dtype=np.float32)
-        if d.shape != (cam.height, cam.width):
-            raise ValueError(f"depths[{i}]: expected shape ({cam.height}, {cam.width}) "
-                             f"of cameras[{i}], got {d.shape}")
-        d = np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
-        d = np.ascontiguousarray(undistort_depth(d, cam))
-        if not np.any(d > 0):
-            _log.debug("depth map %d is empty; skipped", i)
-            continue
-        n_used += 1
-        depth_img = o3d.t.geometry.Image(o3c.Tensor(d))
-        K = o3c.Tensor(cam.K, o3c.float64)
-        T = o3c.Tensor(np.asarray(cam.cam_from_world, np.float64), o3c.float64)
-        coords = vbg.compute_unique_block_coordinates(depth_img, K, T, 1.0, depth_max, mult)
-        if colors is not None:
-            c = np.asarray(colors[i])
-            c = (c.astype(np.float32) / 255.0) if c.dtype == np.uint8 else c.astype(np.float32)
-            if c.shape != (cam.height, cam.width, 3):
-                raise ValueError(f"colors[{i}]: expected shape ({cam.height}, {cam.width}, 3), "
-                                 f"got {c.shape}")
-            if np.any(cam.dist):
-                import cv2
-
-                mx, my = cv2.initUndistortRectifyMap(cam.K, cam.dist, None, cam.K,
-                                                     (cam.width, cam.height), cv2.CV_32FC1)
-                c = cv2.remap(c, mx, my, cv2.INTER_LINEAR)
-            color_img = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(c)))
-            vbg.integrate(coords, depth_img, color_img, K, K, T, 1.0, depth_max, mult)
-        else:
-            vbg.integrate(coords, depth_img, K, T, 1.0, depth_max, mult)
-    if n_used == 0:
-        _log.warning("no valid depth in any view: empty mesh")
-        return o3d.geometry.TriangleMesh()
-    try:
-        mesh = vbg.extract_triangle_mesh(weight_threshold=float(weight_threshold)).to_legacy()
-    except RuntimeError as exc:  # open3d raises on an empty level set instead of returning one
-        if "shape {0}" not in str(exc):
-            raise
-        _log.warning("the fused volume has no surface: empty mesh")
-        return o3d.geometry.TriangleMesh()
-    mesh.compute_vertex_normals()
-    return mesh
+        vol.integrate(depths[i], cameras[i], None if colors is None else colors[i],
+                      name=f"depths[{i}]")
+    return vol.extract_mesh(weight_threshold=weight_threshold)

@@ -1,0 +1,123 @@
+"""Rendering helpers shared by the stereo and structured-light captures (private)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from acquire.camera import Camera
+from acquire.lights import PointLight
+from acquire.render import cast, shade
+from acquire.scene import RenderScene
+from acquire.stereo_rig import RigConfig, rot_z
+
+__all__ = ["write_gt_meshes", "turntable_scene", "render_light_sets", "rig_lamp", "board_scene",
+           "calibration_board_poses", "axis_board_poses"]
+
+
+def turntable_scene(scene: RenderScene, angle_rad: float) -> RenderScene:
+    """Every object turned by ``angle_rad`` about the turntable axis (world +Z)."""
+    R = rot_z(angle_rad)
+    objs = [dataclasses.replace(o, world_from_object=R @ o.world_from_object)
+            for o in scene.objects]
+    return RenderScene(objs, list(scene.lights), scene.ambient, scene.background)
+
+
+def rig_lamp(cfg: RigConfig, intensity: float = 0.12) -> PointLight:
+    """A lamp just above the rig centre (a ring light, in effect)."""
+    Wr = cfg.world_from_rig()
+    return PointLight(Wr[:3, 3] + np.array([0.0, 0.0, 0.05]), intensity)
+
+
+def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersample: int = 2,
+                      ambient: float | None = None):
+    """Render one view under several light sets, casting the camera rays once.
+
+    Returns
+    -------
+    radiances : list of (H, W, 3) float32
+    depth : (H, W) float32   ground-truth z-depth (centre ray), 0 = background
+    """
+    s = int(supersample)
+    H, W = camera.height, camera.width
+    o, d = camera.rays(camera.pixel_grid(supersample=s))
+    hits = cast(scene, o, d)
+    rads = [shade(scene, hits, lights=ls, ambient=ambient).reshape(H, W, s * s, 3).mean(axis=2)
+            .astype(np.float32) for ls in light_sets]
+    if s == 1:
+        centre = hits
+    else:
+        o, d = camera.rays(camera.pixel_grid(supersample=1))
+        centre = cast(scene, o, d)
+    depth = np.where(centre.hit, centre.t, 0.0).reshape(H, W).astype(np.float32)
+    return rads, depth
+
+
+def board_scene(cfg: RigConfig, world_from_target: np.ndarray, lights, ambient: float
+                ) -> RenderScene:
+    obj = cfg.target().scene_object("board", world_from_target, px_per_square=48)
+    return RenderScene([obj], list(lights), ambient)
+
+
+def _board_pose(cfg: RigConfig, centre: np.ndarray, tilt_x: float, tilt_y: float, roll: float
+                ) -> np.ndarray:
+    """world_from_target of a board centred at ``centre`` facing the rig, then tilted."""
+    from acquire.stereo_rig import rot_y
+
+    Wr = cfg.world_from_rig()
+    R = Wr[:3, :3]  # rig axes: board z along the viewing direction (printed face to the rig)
+    cx, sx = np.cos(tilt_x), np.sin(tilt_x)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = rot_y(tilt_y)[:3, :3]
+    cr, sr = np.cos(roll), np.sin(roll)
+    Rz = np.array([[cr, -sr, 0], [sr, cr, 0], [0, 0, 1]])
+    Rb = R @ Rx @ Ry @ Rz
+    w, h = cfg.target().size_m()
+    T = np.eye(4)
+    T[:3, :3] = Rb
+    T[:3, 3] = centre - Rb @ np.array([w / 2, h / 2, 0.0])
+    return T
+
+
+def calibration_board_poses(cfg: RigConfig, n: int, rng: np.random.Generator) -> list:
+    """``n`` board poses in front of the rig, varied in position and tilt."""
+    Wr = cfg.world_from_rig()
+    aim = Wr[:3, 3] + cfg.distance * Wr[:3, 2]
+    out = []
+    for _ in range(n):
+        off = Wr[:3, :3] @ np.array([rng.uniform(-0.04, 0.04), rng.uniform(-0.03, 0.03),
+                                     rng.uniform(-0.08, 0.06)])
+        out.append(_board_pose(cfg, aim + off, np.radians(rng.uniform(-30, 30)),
+                               np.radians(rng.uniform(-30, 30)),
+                               np.radians(rng.uniform(-15, 15))))
+    return out
+
+
+def axis_board_poses(cfg: RigConfig, n: int) -> tuple[list, list]:
+    """A board fixed on the turntable, seen at ``n`` stage angles in [-40, 40] degrees.
+
+    Returns ``(world_from_target list, angles_deg list)``.
+    """
+    Wr = cfg.world_from_rig()
+    base = _board_pose(cfg, np.array([0.02, 0.01, cfg.aim_height]), np.radians(-10.0),
+                       np.radians(10.0), 0.0)
+    angles = np.linspace(-40.0, 40.0, n)
+    del Wr
+    return [rot_z(np.radians(a)) @ base for a in angles], [float(a) for a in angles]
+
+
+def write_gt_meshes(out: Path, scene: RenderScene, object_name: str | None) -> dict:
+    """World-frame ground-truth meshes (stage angle 0): ``gt/mesh.ply``, ``gt/object.ply``."""
+    from procgen.mesh_io import write_mesh
+    from procgen.meshes import merge_meshes, transform_mesh
+
+    meshes = {o.name: transform_mesh(o.mesh, o.world_from_object) for o in scene.objects}
+    write_mesh(out / "gt" / "mesh.ply", merge_meshes(list(meshes.values())))
+    info = {"mesh": "gt/mesh.ply"}
+    if object_name is not None:
+        scene.object(object_name)
+        write_mesh(out / "gt" / "object.ply", meshes[object_name])
+        info["object_mesh"] = "gt/object.ply"
+    return info

@@ -1,0 +1,159 @@
+"""Virtual structured-light capture: a camera and a Gray-code + phase-shift projector.
+
+Pattern sequence per view (``projectors.proj.sequence`` in capture.json): white, black,
+the Gray-code images of :func:`acquire.patterns.gray_code_patterns` (columns then rows,
+pattern and inverse per bit), then ``n_steps`` phase-shift images along x and
+``n_steps`` along y. The rendering casts the camera rays once per view and evaluates
+the projector's footprint and shadows once; each pattern is then a lookup.
+Calibration entries: ``kind = "projector"`` (a board at several poses, each with the
+full sequence) and ``kind = "axis"`` (a board on the turntable, white light).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from acquire._rig_render import (
+    axis_board_poses,
+    board_scene,
+    calibration_board_poses,
+    rig_lamp,
+    turntable_scene,
+    write_gt_meshes,
+)
+from acquire.camera import Camera
+from acquire.capture_io import write_capture
+from acquire.patterns import gray_code_bits, gray_code_patterns, phase_shift_patterns, white_black
+from acquire.projector import PatternProjector, sample_bilinear
+from acquire.render import albedo, cast, visibility
+from acquire.scene import RenderScene
+from acquire.stereo_rig import RigConfig
+from procgen.files import atomic_dir
+from procgen.mesh_io import write_image
+from procgen.progress import track
+
+__all__ = ["capture", "pattern_sequence"]
+
+
+def pattern_sequence(rig: RigConfig) -> tuple[list, dict]:
+    """All projected images and their description (stored in capture.json)."""
+    w, h = rig.projector_width, rig.projector_height
+    nc, nr = gray_code_bits(w, h)
+    pats = (white_black(w, h) + gray_code_patterns(w, h)
+            + phase_shift_patterns(w, h, period_px=rig.period_px, n_steps=rig.n_steps, axis="x")
+            + phase_shift_patterns(w, h, period_px=rig.period_px, n_steps=rig.n_steps, axis="y"))
+    info = {"width": w, "height": h, "n_col_bits": nc, "n_row_bits": nr,
+            "period_px": rig.period_px, "n_steps": rig.n_steps,
+            "sequence": ["white", "black", f"gray[{2 * (nc + nr)}]", f"phase_x[{rig.n_steps}]",
+                         f"phase_y[{rig.n_steps}]"]}
+    return pats, info
+
+
+def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector, patterns,
+                     sensor, rng, *, supersample: int, ambient: float):
+    """Sensor images of one view under each pattern, and the GT depth."""
+    s = int(supersample)
+    H, W = camera.height, camera.width
+    o, d = camera.rays(camera.pixel_grid(supersample=s))
+    hits = cast(scene, o, d)
+    h = np.flatnonzero(hits.hit)
+    alb = albedo(scene, hits)[h].mean(axis=1)  # a monochrome sensor
+    px, factor = proj.footprint(hits.points[h], hits.normals[h])
+    lit = factor > 0
+    vis = np.zeros(len(h), bool)
+    if lit.any():
+        vis[lit] = visibility(scene, proj, hits.points[h][lit], hits.geo_normals[h][lit])
+    factor = factor * vis
+    base = np.zeros(len(hits.hit))
+    base[h] = alb * ambient
+    out = []
+    for pat in patterns:
+        rad = base.copy()
+        rad[h] += alb * sample_bilinear(pat, px) * factor
+        img = rad.reshape(H, W, s * s).mean(axis=2)
+        out.append(sensor.apply(img, rng))
+    o, d = camera.rays(camera.pixel_grid())
+    c = cast(scene, o, d)
+    depth = np.where(c.hit, c.t, 0.0).reshape(H, W).astype(np.float32)
+    return out, depth
+
+
+def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generator, *,
+            scene_info: dict | None = None, seed: int | None = None,
+            object_name: str | None = None) -> Path:
+    """Render a structured-light capture folder (see the module docstring)."""
+    sensor = rig.make_sensor()
+    sensor.mono = True
+    cam, pcam = rig.sl_devices()
+    pats, info = pattern_sequence(rig)
+    proj = PatternProjector(pcam, pats[0], rig.projector_intensity)
+    lamp = rig_lamp(rig)
+    out_dir = Path(out_dir)
+    with atomic_dir(out_dir) as tmp:
+        (tmp / "images").mkdir()
+        (tmp / "gt").mkdir()
+
+        def save(prefix, imgs):
+            rels = []
+            for k, im in enumerate(imgs):
+                rel = f"images/{prefix}_{k:02d}.png"
+                write_image(tmp / rel, im)
+                rels.append(rel)
+            return rels
+
+        cal = []
+        poses = calibration_board_poses(rig, rig.calib_views, rng)
+        for i, T in enumerate(track(poses, "projector calibration views", total=len(poses))):
+            sc = board_scene(rig, T, [], rig.ambient)
+            imgs, _ = _render_patterns(sc, cam, proj, pats, sensor, rng,
+                                       supersample=rig.supersample, ambient=rig.ambient)
+            cal.append(save(f"cal_{i:03d}", imgs))
+        axis_imgs = []
+        aposes, angles = axis_board_poses(rig, rig.axis_views)
+        for i, T in enumerate(aposes):
+            sc = board_scene(rig, T, [lamp], rig.ambient)
+            imgs, _ = _render_patterns(sc, cam, proj, pats[:1], sensor, rng,
+                                       supersample=rig.supersample, ambient=rig.ambient)
+            axis_imgs += save(f"axis_{i:03d}", imgs)
+        frames, gt_frames = [], []
+        for i, ang in enumerate(track(rig.stage_angles_deg, "structured-light frames",
+                                      total=len(rig.stage_angles_deg))):
+            sc = turntable_scene(scene, np.radians(ang))
+            imgs, depth = _render_patterns(sc, cam, proj, pats, sensor, rng,
+                                           supersample=rig.supersample, ambient=rig.ambient)
+            _, pdepth = _render_patterns(sc, pcam, proj, [], sensor, rng, supersample=1,
+                                         ambient=0.0)
+            frames.append({"stage_angle_deg": float(ang), "camera": "cam",
+                           "images": save(f"pose_{i:03d}", imgs)})
+            g = [f"gt/pose_{i:03d}_cam_depth.npy", f"gt/pose_{i:03d}_proj_depth.npy"]
+            np.save(tmp / g[0], depth)
+            np.save(tmp / g[1], pdepth)
+            gt_frames.append({"depth": g})
+        data = {
+            "kind": "structured-light", "seed": seed, "scene": scene_info or {},
+            "sensor": sensor.to_dict(),
+            "cameras": {"cam": {"width": rig.width, "height": rig.height}},
+            "projectors": {"proj": info},
+            "rig": {"kind": "turntable-structured-light",
+                    "stage_angles_deg": list(rig.stage_angles_deg),
+                    "working_range": list(rig.working_range)},
+            "frames": frames,
+            "calibration": [
+                {"kind": "projector", "images": cal, "camera": "cam", "projector": "proj",
+                 "target": rig.target().to_dict()},
+                {"kind": "axis", "images": axis_imgs, "camera": "cam",
+                 "stage_angles_deg": angles, "target": rig.target().to_dict()},
+            ],
+            "ground_truth": {
+                # "left"/"right" = camera/projector, as for stereo (the projector's depth
+                # map is its shadow map: what it lights)
+                "cameras": {"left": cam.to_dict(), "right": pcam.to_dict()},
+                "frames": gt_frames, "rig_config": rig.to_dict(),
+                "calibration_board_poses": [T.tolist() for T in poses],
+            },
+        }
+        data["ground_truth"].update(write_gt_meshes(tmp, scene, object_name))
+        write_capture(tmp, data)
+    return out_dir

@@ -1,0 +1,383 @@
+"""Passive and active stereo: rectification, dense matching, disparity to points.
+
+Conventions: ``R, T`` map left-camera coordinates into the right camera
+(``right_from_left``, as ``cv2.stereoCalibrate`` returns them). Disparity is
+``x_left - x_right`` in rectified pixels, float32, NaN where invalid. The
+rectified left camera is a distortion-free :class:`acquire.camera.Camera` whose
+frame is the left camera frame rotated by ``R1``; depth maps are z-depth in it.
+
+>>> import numpy as np
+>>> calib = StereoCalibration(np.array([[100., 0, 31.5], [0, 100, 23.5], [0, 0, 1]]), np.zeros(5),
+...     np.array([[100., 0, 31.5], [0, 100, 23.5], [0, 0, 1]]), np.zeros(5), np.eye(3),
+...     np.array([-0.1, 0, 0]), (64, 48))
+>>> rect = rectify(calib)
+>>> float(disparity_to_depth(np.full((48, 64), 10.0, np.float32), rect)[0, 0])
+1.0
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acquire.camera import Camera
+from procgen.validate import check_array, check_choice, check_positive
+
+__all__ = ["StereoCalibration", "Rectification", "rectify", "rectify_pair", "match",
+           "MatchOptions", "disparity_to_depth", "depth_to_points", "lr_consistency",
+           "disparity_range", "texture_mask"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(eq=False)
+class StereoCalibration:
+    """Intrinsics and relative pose of a stereo pair (OpenCV conventions).
+
+    Parameters
+    ----------
+    K1, K2 : (3, 3) float64
+    D1, D2 : (5,) float64
+        ``k1, k2, p1, p2, k3``.
+    R : (3, 3) float64
+    T : (3,) float64
+        ``right_from_left``: ``x_right = R @ x_left + T`` (metres).
+    image_size : (int, int)
+        ``(width, height)``.
+    rms : float, optional
+        Reprojection RMS of the calibration, pixels.
+    """
+
+    K1: np.ndarray
+    D1: np.ndarray
+    K2: np.ndarray
+    D2: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    image_size: tuple[int, int]
+    rms: float | None = None
+
+    def __post_init__(self):
+        self.K1 = check_array(self.K1, "K1", shape=(3, 3))
+        self.K2 = check_array(self.K2, "K2", shape=(3, 3))
+        self.D1 = check_array(np.ravel(self.D1)[:5] if np.size(self.D1) >= 5 else self.D1, "D1",
+                              shape=(5,))
+        self.D2 = check_array(np.ravel(self.D2)[:5] if np.size(self.D2) >= 5 else self.D2, "D2",
+                              shape=(5,))
+        self.R = check_array(self.R, "R", shape=(3, 3))
+        self.T = check_array(np.ravel(self.T), "T", shape=(3,))
+        w, h = (int(v) for v in self.image_size)
+        if w <= 0 or h <= 0:
+            raise ValueError(f"image_size: expected positive (width, height), "
+                             f"got {self.image_size}")
+        self.image_size = (w, h)
+
+    @property
+    def baseline(self) -> float:
+        """Distance between the camera centres, metres."""
+        return float(np.linalg.norm(self.T))
+
+    def cameras(self, world_from_left: np.ndarray | None = None) -> tuple[Camera, Camera]:
+        """The two cameras, the left one at ``world_from_left`` (identity by default)."""
+        Wl = np.eye(4) if world_from_left is None else np.asarray(world_from_left, float)
+        left_from_world = np.linalg.inv(Wl)
+        right_from_left = np.eye(4)
+        right_from_left[:3, :3] = self.R
+        right_from_left[:3, 3] = self.T
+        w, h = self.image_size
+
+        def cam(K, D, T):
+            return Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], D, T)
+
+        return cam(self.K1, self.D1, left_from_world), \
+            cam(self.K2, self.D2, right_from_left @ left_from_world)
+
+    @classmethod
+    def from_cameras(cls, left: Camera, right: Camera) -> StereoCalibration:
+        """The calibration of two posed cameras (same image size)."""
+        if (left.width, left.height) != (right.width, right.height):
+            raise ValueError(f"right: expected the left image size {left.width}x{left.height}, "
+                             f"got {right.width}x{right.height}")
+        rfl = right.cam_from_world @ left.world_from_cam
+        return cls(left.K, left.dist, right.K, right.dist, rfl[:3, :3], rfl[:3, 3],
+                   (left.width, left.height))
+
+
+@dataclass(eq=False)
+class Rectification:
+    """Rectifying transforms and remap tables of a calibrated pair.
+
+    Attributes
+    ----------
+    R1, R2 : (3, 3)    rotations rectified_from_camera
+    P1, P2 : (3, 4)    projections in the rectified frames
+    Q : (4, 4)         disparity-to-depth matrix
+    maps : tuple       (map1x, map1y, map2x, map2y) float32 remap tables
+    calibration : StereoCalibration
+    """
+
+    R1: np.ndarray
+    R2: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+    Q: np.ndarray
+    maps: tuple = field(repr=False)
+    calibration: StereoCalibration = field(repr=False)
+
+    @property
+    def focal(self) -> float:
+        return float(self.P1[0, 0])
+
+    @property
+    def baseline(self) -> float:
+        """Rectified baseline (metres, positive)."""
+        return float(abs(self.P2[0, 3] / self.P2[0, 0]))
+
+    def left_camera(self, world_from_left: np.ndarray | None = None) -> Camera:
+        """The rectified left camera (no distortion), posed in the world."""
+        Wl = np.eye(4) if world_from_left is None else np.asarray(world_from_left, float)
+        rect_from_left = np.eye(4)
+        rect_from_left[:3, :3] = self.R1
+        w, h = self.calibration.image_size
+        P = self.P1
+        return Camera(w, h, P[0, 0], P[1, 1], P[0, 2], P[1, 2], np.zeros(5),
+                      rect_from_left @ np.linalg.inv(Wl))
+
+
+def rectify(calibration: StereoCalibration, *, alpha: float = 0.0) -> Rectification:
+    """Rectification of a calibrated pair (``cv2.stereoRectify`` + remap tables).
+
+    ``alpha = 0`` keeps only valid pixels (zoomed in); 1 keeps every source pixel.
+    """
+    import cv2
+
+    c = calibration
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(c.K1, c.D1, c.K2, c.D2, c.image_size, c.R, c.T,
+                                                flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+    m1 = cv2.initUndistortRectifyMap(c.K1, c.D1, R1, P1, c.image_size, cv2.CV_32FC1)
+    m2 = cv2.initUndistortRectifyMap(c.K2, c.D2, R2, P2, c.image_size, cv2.CV_32FC1)
+    return Rectification(R1, R2, P1, P2, Q, (m1[0], m1[1], m2[0], m2[1]), c)
+
+
+def rectify_pair(left: np.ndarray, right: np.ndarray, rect: Rectification, *,
+                 interpolation: str = "linear") -> tuple[np.ndarray, np.ndarray]:
+    """Remap a raw pair into the rectified frames (``interpolation``: linear or nearest)."""
+    import cv2
+
+    check_choice(interpolation, "interpolation", {"linear", "nearest"})
+    w, h = rect.calibration.image_size
+    for name, img in (("left", left), ("right", right)):
+        if img.shape[:2] != (h, w):
+            raise ValueError(f"{name}: expected an image of {w}x{h} (the calibration's "
+                             f"image_size), got {img.shape[1]}x{img.shape[0]}")
+    flag = cv2.INTER_LINEAR if interpolation == "linear" else cv2.INTER_NEAREST
+    m = rect.maps
+    return (cv2.remap(left, m[0], m[1], flag, borderMode=cv2.BORDER_CONSTANT),
+            cv2.remap(right, m[2], m[3], flag, borderMode=cv2.BORDER_CONSTANT))
+
+
+def disparity_range(rect: Rectification, z_min: float, z_max: float) -> tuple[int, int]:
+    """``(min_disparity, num_disparities)`` for SGBM covering depths [z_min, z_max].
+
+    ``num_disparities`` is rounded up to a multiple of 16 as SGBM requires.
+    """
+    z_min = check_positive(z_min, "z_min")
+    z_max = check_positive(z_max, "z_max")
+    fb = rect.focal * rect.baseline
+    lo = int(np.floor(fb / z_max)) - 2
+    hi = int(np.ceil(fb / z_min)) + 2
+    lo = max(lo, 0)
+    num = int(np.ceil((hi - lo) / 16.0)) * 16
+    return lo, max(num, 16)
+
+
+@dataclass
+class MatchOptions:
+    """Options of :func:`match`.
+
+    Attributes
+    ----------
+    min_disparity, num_disparities : int
+        Search range (``num_disparities`` a multiple of 16).
+    block_size : int
+        Odd matching window (3..11 typical).
+    wls : bool
+        Edge-aware weighted-least-squares filtering (ximgproc); densifies.
+    wls_lambda, wls_sigma : float
+    lr_check : bool
+        Left-right consistency: drop pixels whose right-view disparity disagrees.
+    lr_tol : float
+        Pixels.
+    uniqueness : int
+        SGBM uniqueness ratio (percent).
+    speckle_window, speckle_range : int
+        SGBM speckle filter (0 window = off).
+    mode : str
+        "sgbm" (5 directions), "hh" (8 directions, full DP) or "3way".
+    min_texture : float
+        Drop disparities where the left image's local std (DN, block-size window) is
+        below this (no signal to match: dark background, textureless surface); 0 = off.
+    pad : bool
+        Pad both images on the left by ``min + num`` disparities so that SGBM also
+        matches the left border it otherwise leaves empty.
+    p1_scale, p2_scale : float
+        SGBM smoothness penalties per channel and window pixel.
+    """
+
+    min_disparity: int = 0
+    num_disparities: int = 64
+    block_size: int = 5
+    wls: bool = False
+    wls_lambda: float = 8000.0
+    wls_sigma: float = 1.2
+    lr_check: bool = False
+    lr_tol: float = 1.0
+    uniqueness: int = 5
+    speckle_window: int = 100
+    speckle_range: int = 2
+    mode: str = "sgbm"
+    pad: bool = True
+    min_texture: float = 1.5
+    p1_scale: float = 8.0
+    p2_scale: float = 32.0
+
+
+def _sgbm(opts: MatchOptions, channels: int):
+    import cv2
+
+    mode = {"sgbm": cv2.StereoSGBM_MODE_SGBM, "hh": cv2.StereoSGBM_MODE_HH,
+            "3way": cv2.StereoSGBM_MODE_SGBM_3WAY}[check_choice(opts.mode, "mode",
+                                                                {"sgbm", "hh", "3way"})]
+    if opts.num_disparities <= 0 or opts.num_disparities % 16:
+        raise ValueError(f"num_disparities: expected a positive multiple of 16, got "
+                         f"{opts.num_disparities}")
+    if opts.block_size < 1 or opts.block_size % 2 == 0:
+        raise ValueError(f"block_size: expected an odd integer >= 1, got {opts.block_size}")
+    b2 = opts.block_size ** 2
+    return cv2.StereoSGBM.create(
+        minDisparity=int(opts.min_disparity), numDisparities=int(opts.num_disparities),
+        blockSize=int(opts.block_size), P1=int(opts.p1_scale * channels * b2),
+        P2=int(opts.p2_scale * channels * b2), disp12MaxDiff=-1,
+        uniquenessRatio=int(opts.uniqueness), speckleWindowSize=int(opts.speckle_window),
+        speckleRange=int(opts.speckle_range), preFilterCap=63, mode=mode)
+
+
+def lr_consistency(disp_left: np.ndarray, disp_right: np.ndarray, *, tol: float = 1.0
+                   ) -> np.ndarray:
+    """``(H, W) bool``: left disparities confirmed by the right view.
+
+    ``disp_right`` holds, at right pixel ``x_r``, the positive disparity to its left
+    match (``x_l = x_r + d``). A left pixel ``x`` with disparity ``d`` is consistent when
+    ``|disp_right[x - d] - d| <= tol``.
+    """
+    H, W = disp_left.shape
+    xs = np.arange(W)[None, :] - np.nan_to_num(disp_left, nan=-1e9)
+    xr = np.round(xs).astype(np.int64)
+    inside = (xr >= 0) & (xr < W) & np.isfinite(disp_left)
+    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
+    dr = np.full((H, W), np.nan, np.float32)
+    dr[inside] = disp_right[rows[inside], xr[inside]]
+    return inside & np.isfinite(dr) & (np.abs(dr - disp_left) <= tol)
+
+
+def match(left_rect: np.ndarray, right_rect: np.ndarray, options: MatchOptions | None = None
+          ) -> np.ndarray:
+    """Dense disparity of a rectified pair with StereoSGBM (+ WLS, + LR check).
+
+    Parameters
+    ----------
+    left_rect, right_rect : (H, W) or (H, W, 3) uint8
+    options : MatchOptions
+
+    Returns
+    -------
+    (H, W) float32
+        Disparity in pixels (1/16 sub-pixel from SGBM), NaN where invalid.
+    """
+
+    opts = options or MatchOptions()
+    if left_rect.shape != right_rect.shape:
+        raise ValueError(f"right_rect: expected the left image's shape {left_rect.shape}, "
+                         f"got {right_rect.shape}")
+    channels = 1 if left_rect.ndim == 2 else left_rect.shape[2]
+    pad = int(opts.min_disparity + opts.num_disparities) if opts.pad else 0
+    if pad:  # SGBM leaves min+num columns on the left unmatched: match padded images
+        cfg = ((0, 0), (pad, 0)) + (((0, 0),) if left_rect.ndim == 3 else ())
+        left_rect = np.pad(left_rect, cfg, mode="edge")
+        right_rect = np.pad(right_rect, cfg, mode="edge")
+    d = _match(left_rect, right_rect, opts, channels)
+    d = d[:, pad:] if pad else d
+    if opts.min_texture > 0:
+        d[~texture_mask(left_rect[:, pad:], opts.min_texture, opts.block_size)] = np.nan
+    return d
+
+
+def texture_mask(image: np.ndarray, min_std: float, window: int = 5) -> np.ndarray:
+    """``(H, W) bool``: pixels whose ``window`` x ``window`` intensity std >= ``min_std``.
+
+    Matching is meaningless where the image carries no signal (a dark background,
+    a textureless surface); SGBM would otherwise smear disparities into it.
+    """
+    import cv2
+
+    g = image.astype(np.float32)
+    if g.ndim == 3:
+        g = g.mean(axis=2)
+    k = (max(int(window), 3) | 1,) * 2
+    m = cv2.blur(g, k)
+    v = cv2.blur(g * g, k) - m * m
+    return np.sqrt(np.maximum(v, 0)) >= min_std
+
+
+def _match(left_rect, right_rect, opts, channels):
+    import cv2
+
+    left_m = _sgbm(opts, channels)
+    raw = left_m.compute(left_rect, right_rect)
+    invalid_raw = (opts.min_disparity - 1) * 16
+    if not (opts.wls or opts.lr_check):
+        d = raw.astype(np.float32) / 16.0
+        d[raw <= invalid_raw] = np.nan
+        return d
+    right_m = cv2.ximgproc.createRightMatcher(left_m)
+    raw_r = right_m.compute(right_rect, left_rect)
+    if opts.wls:
+        wls = cv2.ximgproc.createDisparityWLSFilter(left_m)
+        wls.setLambda(float(opts.wls_lambda))
+        wls.setSigmaColor(float(opts.wls_sigma))
+        filt = wls.filter(raw, left_rect, disparity_map_right=raw_r)
+        d = filt.astype(np.float32) / 16.0
+        d[filt <= invalid_raw] = np.nan
+    else:
+        d = raw.astype(np.float32) / 16.0
+        d[raw <= invalid_raw] = np.nan
+    if opts.lr_check:
+        dr = -raw_r.astype(np.float32) / 16.0  # right matcher's disparities are negative
+        dr[raw_r >= -(opts.min_disparity - 1) * 16] = np.nan
+        dr[raw_r <= -(opts.min_disparity + opts.num_disparities) * 16] = np.nan
+        base = raw.astype(np.float32) / 16.0
+        base[raw <= invalid_raw] = np.nan
+        ok = lr_consistency(base, dr, tol=opts.lr_tol)
+        d[~ok] = np.nan
+    return d
+
+
+def disparity_to_depth(disparity: np.ndarray, rect: Rectification) -> np.ndarray:
+    """Z-depth ``(H, W) float32`` in the rectified left camera (0 where invalid)."""
+    d = np.asarray(disparity, np.float32)
+    fb = rect.focal * rect.baseline
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(np.isfinite(d) & (d > 0), fb / d, 0.0)
+    return z.astype(np.float32)
+
+
+def depth_to_points(depth: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """World points ``(n, 3)`` of the valid pixels of a z-depth map, and their ``(n, 2)`` pixels."""
+    H, W = depth.shape
+    if (H, W) != (camera.height, camera.width):
+        raise ValueError(f"depth: expected shape ({camera.height}, {camera.width}), got {(H, W)}")
+    v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
+    px = np.stack([u, v], 1).astype(np.float64)
+    return camera.unproject(px, depth[v, u].astype(np.float64)), px

@@ -1,0 +1,225 @@
+"""Calibration of a stereo pair (or camera + projector) and of a turntable axis.
+
+Single-camera intrinsics use ``cv2.calibrateCamera`` directly (the generic camera
+calibration of the project, ``reconstruct.calibrate_camera``, was not available on
+this branch; :func:`calibrate_intrinsics` is the one place to swap it in). The pair
+is then refined with ``cv2.stereoCalibrate`` (intrinsics fixed). The turntable axis
+comes from a board fixed on the turntable seen at known stage angles.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from reconstruct.stereo import StereoCalibration
+
+__all__ = ["calibrate_intrinsics", "calibrate_pair", "calibrate_turntable_axis",
+           "world_from_cam_at"]
+
+_log = logging.getLogger(__name__)
+
+
+def calibrate_intrinsics(object_points: list, image_points: list, image_size: tuple[int, int],
+                         *, name: str = "camera") -> tuple[np.ndarray, np.ndarray, float]:
+    """Intrinsics ``K (3, 3)``, distortion ``(5,)`` and RMS (px) from board views.
+
+    Parameters
+    ----------
+    object_points : list of (k_i, 3) float
+        Board corners in the board frame, per view.
+    image_points : list of (k_i, 2) float
+        Their detected pixels.
+    image_size : (width, height)
+    """
+    import cv2
+
+    if len(object_points) < 3:
+        raise ValueError(f"{name}: expected the board in at least 3 views, got "
+                         f"{len(object_points)}")
+    op = [np.asarray(o, np.float32).reshape(-1, 1, 3) for o in object_points]
+    ip = [np.asarray(p, np.float32).reshape(-1, 1, 2) for p in image_points]
+    rms, K, D, _, _ = cv2.calibrateCamera(op, ip, tuple(image_size), None, None,
+                                          flags=cv2.CALIB_FIX_K3)
+    return K, D.ravel()[:5], float(rms)
+
+
+def calibrate_pair(obj1: list, img1: list, obj2: list, img2: list, common: list,
+                   image_size: tuple[int, int], *, image_size2: tuple[int, int] | None = None
+                   ) -> tuple[StereoCalibration, dict]:
+    """Calibrate two devices from board views.
+
+    Parameters
+    ----------
+    obj1, img1 : lists of (k, 3), (k, 2)
+        Views of device 1 (all its detections, for its intrinsics).
+    obj2, img2 : lists
+        Views of device 2.
+    common : list of ((k, 3), (k, 2), (k, 2))
+        Board corners seen by both in the same view: object points and the two
+        image points (for ``cv2.stereoCalibrate``).
+    image_size, image_size2 : (width, height)
+        Image sizes (the second device may differ, e.g. a projector).
+
+    Returns
+    -------
+    StereoCalibration, dict
+        The calibration (``image_size`` of device 1; device 2's intrinsics refer to
+        ``image_size2``) and a report: per-device RMS and the stereo RMS.
+    """
+    import cv2
+
+    size2 = image_size if image_size2 is None else image_size2
+    K1, D1, rms1 = calibrate_intrinsics(obj1, img1, image_size, name="camera 1")
+    K2, D2, rms2 = calibrate_intrinsics(obj2, img2, size2, name="camera 2")
+    if len(common) < 3:
+        raise ValueError(f"common: expected the board seen by both devices in at least 3 "
+                         f"views, got {len(common)}")
+    op = [np.asarray(c[0], np.float32).reshape(-1, 1, 3) for c in common]
+    p1 = [np.asarray(c[1], np.float32).reshape(-1, 1, 2) for c in common]
+    p2 = [np.asarray(c[2], np.float32).reshape(-1, 1, 2) for c in common]
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-10)
+    rms, K1, D1, K2, D2, R, T, _, _ = cv2.stereoCalibrate(
+        op, p1, p2, K1, D1, K2, D2, tuple(image_size), flags=cv2.CALIB_FIX_INTRINSIC,
+        criteria=crit)
+    calib = StereoCalibration(K1, D1.ravel()[:5], K2, D2.ravel()[:5], R, T.ravel(),
+                              tuple(image_size), rms=float(rms))
+    return calib, {"rms_1": rms1, "rms_2": rms2, "rms_stereo": float(rms),
+                   "views": len(common)}
+
+
+def calibrate_turntable_axis(object_points: list, image_points: list, angles_deg: list,
+                             K: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Turntable frame from a board fixed on the turntable seen at several stage angles.
+
+    The board's pose at stage angle ``a_i`` is ``cam_from_table @ Rz(a_i) @ table_from_board``.
+    The relative rotations between views share the turntable axis; board corners
+    circle around it. Returns ``table_from_cam (4, 4)``: the table frame has Z on the
+    axis (oriented so the stage angle turns counter-clockwise about +Z), its origin on
+    the axis at the height of the board's origin, and X toward the board at angle 0.
+
+    Parameters
+    ----------
+    object_points, image_points : lists per view of (k, 3), (k, 2)
+    angles_deg : list of float
+        Stage angle of each view (as the turntable reports it).
+    K, D : camera intrinsics and distortion
+
+    Returns
+    -------
+    table_from_cam : (4, 4)
+    info : dict  (``angle_rms_deg``: measured vs reported rotation angles)
+    """
+    import cv2
+
+    if len(object_points) < 3:
+        raise ValueError(f"axis views: expected the board in at least 3 views, got "
+                         f"{len(object_points)}")
+    Rs, ts = [], []
+    for op, ip in zip(object_points, image_points, strict=True):
+        ok, rvec, tvec = cv2.solvePnP(np.asarray(op, np.float64), np.asarray(ip, np.float64),
+                                      K, D, flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok:
+            raise RuntimeError("solvePnP failed on an axis calibration view")
+        Rs.append(cv2.Rodrigues(rvec)[0])
+        ts.append(tvec.ravel())
+    a = np.radians(np.asarray(angles_deg, float))
+    # axis direction: rotation vectors of R_i R_0^T, each along +/- axis
+    axes = []
+    for i in range(1, len(Rs)):
+        rv = cv2.Rodrigues(Rs[i] @ Rs[0].T)[0].ravel()
+        da = a[i] - a[0]
+        if np.linalg.norm(rv) > 1e-6 and abs(da) > 1e-6:
+            axes.append(rv / np.linalg.norm(rv) * np.sign(da))
+    if not axes:
+        raise RuntimeError("axis views: the board did not turn between views")
+    n = np.mean(axes, axis=0)
+    n /= np.linalg.norm(n)
+    # a point c on the axis: for board points p, x_i = R_rel_i (x_0 - c) + c
+    A, b = [], []
+    for i in range(1, len(Rs)):
+        Rrel = Rs[i] @ Rs[0].T
+        trel = ts[i] - Rrel @ ts[0]  # x_i = Rrel x_0 + trel
+        A.append(np.eye(3) - Rrel)
+        b.append(trel)
+    A = np.concatenate(A + [n[None, :]])
+    b = np.concatenate(b + [[float(n @ np.mean(ts, axis=0))]])
+    c = np.linalg.lstsq(A, b, rcond=None)[0]
+    # measured rotation angles about n vs reported
+    meas = []
+    for i in range(len(Rs)):
+        rv = cv2.Rodrigues(Rs[i] @ Rs[0].T)[0].ravel()
+        meas.append(np.degrees(rv @ n))
+    err = np.asarray(meas) - np.degrees(a - a[0])
+    # table frame: z = n, x = from the axis toward the board origin at angle 0 (perp. part)
+    v = ts[0] - c
+    x = v - (v @ n) * n
+    if np.linalg.norm(x) < 1e-9:
+        x = np.cross(n, [1.0, 0, 0])
+    x /= np.linalg.norm(x)
+    y = np.cross(n, x)
+    cam_from_table = np.eye(4)
+    cam_from_table[:3, :3] = np.stack([x, y, n], axis=1)
+    cam_from_table[:3, 3] = c
+    cam_from_table = _refine_axis(cam_from_table, Rs[0], ts[0], object_points, image_points, a,
+                                  K, D)
+    return np.linalg.inv(cam_from_table), {"angle_rms_deg": float(np.sqrt(np.mean(err**2))),
+                                           "views": len(Rs)}
+
+
+def _rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def _refine_axis(cam_from_table, R0, t0, object_points, image_points, angles, K, D):
+    """Minimise the reprojection error of ``cam_from_table @ Rz(a_i) @ table_from_board``
+    over both transforms (the stage angles are known)."""
+    import cv2
+    from scipy.optimize import least_squares
+
+    table_from_cam = np.linalg.inv(cam_from_table)
+    # table_from_board at angle 0: Rz(-a0) @ table_from_cam @ cam_from_board_0
+    cfb = np.eye(4)
+    cfb[:3, :3], cfb[:3, 3] = R0, t0
+    tfb = np.eye(4)
+    tfb[:3, :3] = _rz(-angles[0])
+    tfb = tfb @ table_from_cam @ cfb
+
+    def pack(T):
+        return np.concatenate([cv2.Rodrigues(T[:3, :3])[0].ravel(), T[:3, 3]])
+
+    def unpack(p):
+        T = np.eye(4)
+        T[:3, :3] = cv2.Rodrigues(p[:3])[0]
+        T[:3, 3] = p[3:6]
+        return T
+
+    def resid(p):
+        Tct, Ttb = unpack(p[:6]), unpack(p[6:])
+        out = []
+        for op, ip, a in zip(object_points, image_points, angles, strict=True):
+            Rz = np.eye(4)
+            Rz[:3, :3] = _rz(a)
+            T = Tct @ Rz @ Ttb
+            proj, _ = cv2.projectPoints(np.asarray(op, np.float64), cv2.Rodrigues(T[:3, :3])[0],
+                                        T[:3, 3], K, D)
+            out.append((proj.reshape(-1, 2) - np.asarray(ip, np.float64)).ravel())
+        return np.concatenate(out)
+
+    p0 = np.concatenate([pack(cam_from_table), pack(tfb)])
+    sol = least_squares(resid, p0, method="trf", x_scale="jac")
+    return unpack(sol.x[:6])
+
+
+def world_from_cam_at(table_from_cam: np.ndarray, angle_deg: float) -> np.ndarray:
+    """``world_from_cam`` at a stage angle, world = table frame with the object at angle 0.
+
+    The object turned by ``a``: a point seen by the camera maps back to its angle-0
+    position by ``Rz(-a)``.
+    """
+    c, s = np.cos(np.radians(-angle_deg)), np.sin(np.radians(-angle_deg))
+    Rz = np.eye(4)
+    Rz[:2, :2] = [[c, -s], [s, c]]
+    return Rz @ table_from_cam

@@ -1,0 +1,517 @@
+"""Stereo reconstruction pipelines: a turntable capture, or a user's own pair.
+
+Capture pipeline (:func:`run_capture`): stereo calibration from the board views
+(``cv2.stereoCalibrate``), turntable axis from the board on the turntable, then per
+stage angle: rectify, SGBM (+ LR check, + WLS), disparity to depth, and TSDF fusion
+of all depth maps into one mesh in the turntable frame (object at stage angle 0).
+Rig poses come from the calibrated axis and the reported stage angles; ground truth
+is read only to score (disparity metrics, mesh F-score).
+
+Pair pipeline (:func:`run_pair`): a rectified disparity, depth and points from two
+images and a ``stereo.yaml`` (see :mod:`reconstruct.stereo_io`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from acquire.camera import Camera
+from acquire.capture_io import Capture, load_capture
+from acquire.targets import target_from_dict
+from procgen.files import atomic_dir, write_json
+from procgen.mesh_io import read_image, write_mesh, write_points
+from procgen.progress import track
+from procgen.validate import InputError, check_choice
+from reconstruct.disparity_metrics import disparity_metrics, nonoccluded_mask
+from reconstruct.stereo import (
+    MatchOptions,
+    Rectification,
+    StereoCalibration,
+    depth_to_points,
+    disparity_range,
+    disparity_to_depth,
+    match,
+    rectify,
+    rectify_pair,
+)
+from reconstruct.stereo_calib import calibrate_pair, calibrate_turntable_axis, world_from_cam_at
+from reconstruct.tsdf import fuse_depth_maps
+
+__all__ = ["StereoOptions", "run_capture", "run_pair", "calibrate_capture", "gt_disparity",
+           "detect_board", "to_gray"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass
+class StereoOptions:
+    """Options of the stereo pipelines.
+
+    Attributes
+    ----------
+    mode : {"auto", "passive", "active"}
+        Which images to match ("auto": the dot-pattern images when present).
+    compare : bool
+        With a capture holding both, also reconstruct and score the other mode.
+    block_size, wls, lr_check, lr_tol, uniqueness, sgbm_mode :
+        See :class:`reconstruct.stereo.MatchOptions`.
+    voxel_size : float or None
+        TSDF voxel (m); default: far working distance / 500.
+    min_disparity, num_disparities : int or None
+        Search range; default from the rig's nominal working range.
+    """
+
+    mode: str = "auto"
+    compare: bool = True
+    block_size: int = 5
+    wls: bool = False
+    lr_check: bool = True
+    lr_tol: float = 1.0
+    uniqueness: int = 5
+    sgbm_mode: str = "sgbm"
+    voxel_size: float | None = None
+    min_disparity: int | None = None
+    num_disparities: int | None = None
+
+    def match_options(self, lo: int, num: int) -> MatchOptions:
+        return MatchOptions(min_disparity=lo, num_disparities=num, block_size=self.block_size,
+                            wls=self.wls, lr_check=self.lr_check, lr_tol=self.lr_tol,
+                            uniqueness=self.uniqueness, mode=self.sgbm_mode)
+
+
+def to_gray(img: np.ndarray) -> np.ndarray:
+    """uint8 grayscale of an RGB/gray uint8 or uint16 image."""
+    import cv2
+
+    if img.dtype == np.uint16:
+        img = (img / 257).astype(np.uint8)
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    return img
+
+
+def detect_board(target, image: np.ndarray):
+    """``(object_points (k, 3), image_points (k, 2), ids (k,))`` or None."""
+    det = target.detect(to_gray(image))
+    if det is None:
+        return None
+    ids, px = det
+    return target.corner_points()[ids], px, ids
+
+
+def _read(cap: Capture, rel: str, field: str) -> np.ndarray:
+    try:
+        return read_image(cap.path(rel))
+    except InputError as exc:
+        raise InputError(exc.message, path=cap.root / "capture.json", field=field) from None
+
+
+def calibrate_capture(cap: Capture) -> tuple[StereoCalibration, np.ndarray, dict]:
+    """Stereo calibration and turntable axis from a capture's calibration entries.
+
+    Returns ``(calibration, table_from_left (4, 4), report)``.
+    """
+    jpath = cap.root / "capture.json"
+    entries = {c["kind"]: (i, c) for i, c in enumerate(cap.calibration)}
+    if "stereo" not in entries:
+        raise InputError("no calibration entry of kind 'stereo'", path=jpath, field="calibration")
+    ci, st = entries["stereo"]
+    target = target_from_dict(st["target"])
+    size = None
+    obj1, img1, obj2, img2, common, missed = [], [], [], [], [], []
+    for j, pair in enumerate(st["images"]):
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise InputError("expected [left, right] image pairs", path=jpath,
+                             field=f"calibration[{ci}].images[{j}]")
+        L = _read(cap, pair[0], f"calibration[{ci}].images[{j}][0]")
+        R = _read(cap, pair[1], f"calibration[{ci}].images[{j}][1]")
+        if L.shape[:2] != R.shape[:2]:
+            raise InputError(f"left and right images differ in size ({L.shape[1]}x{L.shape[0]} "
+                             f"vs {R.shape[1]}x{R.shape[0]})", path=cap.path(pair[1]))
+        size = (L.shape[1], L.shape[0])
+        dl, dr = detect_board(target, L), detect_board(target, R)
+        if dl is None:
+            missed.append(pair[0])
+        else:
+            obj1.append(dl[0])
+            img1.append(dl[1])
+        if dr is None:
+            missed.append(pair[1])
+        else:
+            obj2.append(dr[0])
+            img2.append(dr[1])
+        if dl is not None and dr is not None:
+            ids = np.intersect1d(dl[2], dr[2])
+            if len(ids) >= 6:
+                il = np.searchsorted(dl[2], ids)
+                ir = np.searchsorted(dr[2], ids)
+                common.append((dl[0][il], dl[1][il], dr[1][ir]))
+    if missed:
+        _log.warning("board not detected in %d calibration images: %s", len(missed),
+                     ", ".join(missed[:5]))
+    if len(common) < 3:
+        raise InputError(f"board detected in both images of only {len(common)} views (need 3); "
+                         f"not detected in: {', '.join(missed) or 'none'}", path=jpath,
+                         field=f"calibration[{ci}].images")
+    calib, rep = calibrate_pair(obj1, img1, obj2, img2, common, size)
+    report = {"stereo": rep, "undetected": missed}
+    if "axis" not in entries:
+        raise InputError("no calibration entry of kind 'axis' (board on the turntable)",
+                         path=jpath, field="calibration")
+    ai, ax = entries["axis"]
+    angles = ax.get("stage_angles_deg")
+    if not isinstance(angles, list) or len(angles) != len(ax["images"]):
+        raise InputError("expected one stage angle per image", path=jpath,
+                         field=f"calibration[{ai}].stage_angles_deg")
+    target_a = target_from_dict(ax["target"])
+    ao, ap, aa = [], [], []
+    for j, rel in enumerate(ax["images"]):
+        d = detect_board(target_a, _read(cap, rel, f"calibration[{ai}].images[{j}]"))
+        if d is None:
+            _log.warning("board not detected in axis image %s", rel)
+            continue
+        ao.append(d[0])
+        ap.append(d[1])
+        aa.append(angles[j])
+    if len(ao) < 3:
+        raise InputError(f"board detected in only {len(ao)} axis views (need 3)", path=jpath,
+                         field=f"calibration[{ai}].images")
+    table_from_left, arep = calibrate_turntable_axis(ao, ap, aa, calib.K1, calib.D1)
+    report["axis"] = arep
+    return calib, table_from_left, report
+
+
+def _remap_gt_depth(depth: np.ndarray, mapx, mapy, R: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """GT z-depth of a raw view resampled into its rectified view (z in the rectified frame).
+
+    Inverse depth is interpolated bilinearly (exact on planes); pixels whose four
+    neighbours straddle a depth edge take no value.
+    """
+    import cv2
+
+    H, W = depth.shape
+    inv = np.where(depth > 0, 1.0 / np.maximum(depth, 1e-9), 0).astype(np.float32)
+    lin = cv2.remap(inv, mapx, mapy, cv2.INTER_LINEAR, borderValue=0)
+    kmin = cv2.erode(inv, np.ones((3, 3), np.uint8))
+    kmax = cv2.dilate(inv, np.ones((3, 3), np.uint8))
+    mn = cv2.remap(kmin, mapx, mapy, cv2.INTER_NEAREST, borderValue=0)
+    mx = cv2.remap(kmax, mapx, mapy, cv2.INTER_NEAREST, borderValue=0)
+    ok = (mn > 0) & (mx - mn <= 0.02 * mx)
+    z_raw = np.where(ok, 1.0 / np.maximum(lin, 1e-12), 0.0)
+    v, u = np.mgrid[0:H, 0:W].astype(np.float64)
+    ray = np.stack([(u - P[0, 2]) / P[0, 0], (v - P[1, 2]) / P[1, 1], np.ones_like(u)], -1)
+    scale = (ray @ R)[..., 2]  # z of the rectified ray in the raw frame: (R^T ray)_z
+    return np.where(ok & (scale > 0), z_raw / np.maximum(scale, 1e-12), 0.0).astype(np.float32)
+
+
+def gt_disparity(depth_left: np.ndarray, depth_right: np.ndarray, rect: Rectification
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Ground-truth disparity in the (estimated) rectified left frame and its
+    non-occluded mask, from the renderer's raw z-depth of both views.
+    """
+    m = rect.maps
+    zl = _remap_gt_depth(depth_left, m[0], m[1], rect.R1, rect.P1)
+    zr = _remap_gt_depth(depth_right, m[2], m[3], rect.R2, rect.P2)
+    fb = rect.focal * rect.baseline
+    with np.errstate(divide="ignore"):
+        dl = np.where(zl > 0, fb / zl, np.nan)
+        dr = np.where(zr > 0, fb / zr, np.nan)
+    return dl, nonoccluded_mask(dl, dr)
+
+
+def _frame_depth(L, R, rect, mopts):
+    lr, rr = rectify_pair(to_gray(L), to_gray(R), rect)
+    disp = match(lr, rr, mopts)
+    return disp, disparity_to_depth(disp, rect)
+
+
+def _reference_in_table(cap: Capture, table_from_left: np.ndarray):
+    """GT mesh in the reconstruction's frame and a visibility mask function (scoring only)."""
+    from procgen.mesh_io import read_mesh
+    from procgen.meshes import transform_mesh
+
+    gt = cap.ground_truth
+    mesh_rel = gt.get("mesh")
+    if not mesh_rel:
+        return None, None, None
+    mesh = read_mesh(cap.path(mesh_rel))
+    left = Camera.from_dict(gt["cameras"]["left"])
+    right = Camera.from_dict(gt["cameras"]["right"])
+    world_from_table = left.world_from_cam @ np.linalg.inv(table_from_left)
+    ref = transform_mesh(mesh, np.linalg.inv(world_from_table))
+    depths = [[np.load(cap.path(p)) for p in f["depth"]] for f in gt["frames"]]
+    angles = [f["stage_angle_deg"] for f in cap.frames]
+
+    def visible(points_table):
+        pw = points_table @ world_from_table[:3, :3].T + world_from_table[:3, 3]
+        vis = np.zeros(len(pw), bool)
+        for a, (dl, dr) in zip(angles, depths, strict=True):
+            c, s = np.cos(np.radians(a)), np.sin(np.radians(a))
+            p = pw @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+            both = np.ones(len(p), bool)
+            for cam, d in ((left, dl), (right, dr)):
+                px, z = cam.project(p)
+                u, v = np.round(px[:, 0]).astype(int), np.round(px[:, 1]).astype(int)
+                ok = (z > 0) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)
+                zz = np.zeros(len(p))
+                zz[ok] = d[v[ok], u[ok]]
+                both &= ok & (np.abs(zz - z) < 0.003 + 0.01 * z)
+            vis |= both
+        return vis
+
+    v = np.asarray(mesh.vertices)
+    size = float(np.linalg.norm(v.max(0) - v.min(0)))
+    obj_rel = gt.get("object_mesh")
+    if obj_rel:
+        vo = np.asarray(read_mesh(cap.path(obj_rel)).vertices)
+        size = float(np.linalg.norm(vo.max(0) - vo.min(0)))
+    return ref, visible, size
+
+
+def _reconstruct_mode(cap, calib, rect, table_from_left, key, opts, lo, num, gt_ok):
+    mopts = opts.match_options(lo, num)
+    depths, cams, metrics, pts_all = [], [], [], []
+    t_match = 0.0
+    for i, fr in enumerate(track(cap.frames, f"stereo ({key})", total=len(cap.frames))):
+        imgs = fr.get(key)
+        if not isinstance(imgs, list) or len(imgs) != 2:
+            raise InputError("expected [left, right] images", path=cap.root / "capture.json",
+                             field=f"frames[{i}].{key}")
+        L = _read(cap, imgs[0], f"frames[{i}].{key}[0]")
+        R = _read(cap, imgs[1], f"frames[{i}].{key}[1]")
+        if L.shape[:2] != R.shape[:2] or (L.shape[1], L.shape[0]) != calib.image_size:
+            raise InputError(f"image size {R.shape[1]}x{R.shape[0]} / {L.shape[1]}x{L.shape[0]} "
+                             f"differs from the calibration's {calib.image_size[0]}x"
+                             f"{calib.image_size[1]}", path=cap.path(imgs[1]))
+        t0 = time.perf_counter()
+        disp, depth = _frame_depth(L, R, rect, mopts)
+        t_match += time.perf_counter() - t0
+        if not np.isfinite(disp).any():
+            raise RuntimeError(f"frame {i} ({imgs[0]}): empty disparity (no match at all)")
+        Wl = world_from_cam_at(table_from_left, fr.get("stage_angle_deg", 0.0))
+        cam = rect.left_camera(Wl)
+        depths.append(depth)
+        cams.append(cam)
+        pts_all.append(depth_to_points(depth, cam)[0])
+        if gt_ok:
+            g = cap.ground_truth["frames"][i]["depth"]
+            gdl, mask = gt_disparity(np.load(cap.path(g[0])), np.load(cap.path(g[1])), rect)
+            try:
+                m = disparity_metrics(disp, gdl, mask=mask)
+            except ValueError as exc:
+                m = {"error": str(exc)}
+            metrics.append(m)
+    return depths, cams, pts_all, metrics, t_match
+
+
+def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> Path:
+    """Reconstruct a stereo capture folder into ``out_dir`` (points.ply, mesh.ply,
+    report.json, disparity/ maps)."""
+    opts = options or StereoOptions()
+    check_choice(opts.mode, "mode", {"auto", "passive", "active"})
+    cap = load_capture(capture_path)
+    if cap.kind != "stereo":
+        raise InputError(f"expected a stereo capture, got kind {cap.kind!r}",
+                         path=cap.root / "capture.json", field="kind")
+    if not cap.frames:
+        raise InputError("no frames", path=cap.root / "capture.json", field="frames")
+    t_start = time.perf_counter()
+    calib, table_from_left, cal_report = calibrate_capture(cap)
+    rect = rectify(calib)
+    has_active = all("active_images" in f for f in cap.frames)
+    mode = ("active" if has_active else "passive") if opts.mode == "auto" else opts.mode
+    if mode == "active" and not has_active:
+        raise InputError("mode 'active' needs frames[].active_images (a dot projector)",
+                         path=cap.root / "capture.json", field="frames")
+    near, far = cap.rig.get("working_range", [0.2, 2.0])
+    lo, num = disparity_range(rect, near, far)
+    lo = opts.min_disparity if opts.min_disparity is not None else lo
+    num = opts.num_disparities if opts.num_disparities is not None else num
+    voxel = opts.voxel_size or far / 500.0
+    gt = cap.ground_truth
+    gt_ok = bool(gt) and "frames" in gt
+    ref = visible = size = None
+    if gt_ok:
+        ref, visible, size = _reference_in_table(cap, table_from_left)
+    modes = [mode] + ([m for m in ("passive", "active") if m != mode]
+                      if opts.compare and has_active else [])
+    results = {}
+    mesh_main = pts_main = None
+    for md in modes:
+        key = "active_images" if md == "active" else "images"
+        depths, cams, pts, metrics, t_match = _reconstruct_mode(cap, calib, rect, table_from_left,
+                                                                key, opts, lo, num, gt_ok)
+        t0 = time.perf_counter()
+        mesh = fuse_depth_maps(depths, cams, voxel_size=voxel, sdf_trunc=4 * voxel,
+                               depth_max=far)
+        t_fuse = time.perf_counter() - t0
+        res = {"frames": len(depths), "timings_s": {"match": t_match, "fuse": t_fuse},
+               "points": int(sum(len(p) for p in pts)), "mesh_vertices": len(mesh.vertices),
+               "mesh_triangles": len(mesh.triangles)}
+        if metrics:
+            res["disparity_metrics"] = metrics
+            ok = [m for m in metrics if "error" not in m]
+            if ok:
+                res["disparity_mean"] = {k: float(np.mean([m[k] for m in ok]))
+                                         for k in ("bad1.0", "bad2.0", "avgerr", "invalid")}
+        if ref is not None:
+            res["evaluation"] = _score(mesh, ref, visible, size)
+        results[md] = res
+        if md == mode:
+            mesh_main, pts_main, depth_main = mesh, pts, depths
+    out = Path(out_dir)
+    with atomic_dir(out) as tmp:
+        P = np.concatenate(pts_main) if pts_main else np.zeros((0, 3))
+        if len(P):
+            write_points(tmp / "points.ply", P)
+        if len(mesh_main.vertices):
+            write_mesh(tmp / "mesh.ply", mesh_main)
+        (tmp / "depth").mkdir()
+        for i, d in enumerate(depth_main):
+            np.save(tmp / "depth" / f"{i:03d}.npy", d)
+        report = {"kind": "stereo", "capture": str(cap.root), "mode": mode,
+                  "options": asdict(opts), "calibration": {
+                      **cal_report, "K1": calib.K1, "D1": calib.D1, "K2": calib.K2,
+                      "D2": calib.D2, "R": calib.R, "T": calib.T,
+                      "table_from_left": table_from_left},
+                  "disparity_search": {"min": lo, "num": num}, "voxel_size": voxel,
+                  "frame": "turntable (object at stage angle 0)",
+                  "results": results, "points": int(len(P)),
+                  "mesh_vertices": len(mesh_main.vertices),
+                  "timings_s": {"total": time.perf_counter() - t_start}}
+        if mode in results and "evaluation" in results[mode]:
+            report["evaluation"] = results[mode]["evaluation"]
+        if gt_ok:
+            report["calibration"]["truth_errors"] = _calib_errors(calib, gt)
+        write_json(tmp / "report.json", report)
+    return out
+
+
+def _calib_errors(calib: StereoCalibration, gt: dict) -> dict:
+    left = Camera.from_dict(gt["cameras"]["left"])
+    right = Camera.from_dict(gt["cameras"]["right"])
+    true = StereoCalibration.from_cameras(left, right)
+    return {"baseline_rel_err": float(abs(calib.baseline - true.baseline) / true.baseline),
+            "fx1_rel_err": float(abs(calib.K1[0, 0] - true.K1[0, 0]) / true.K1[0, 0]),
+            "fx2_rel_err": float(abs(calib.K2[0, 0] - true.K2[0, 0]) / true.K2[0, 0])}
+
+
+def _coarse_align(mesh, ref, size):
+    """Coarse-to-fine point-to-plane ICP (10 %, 3 %, 1 % of the object size) of the
+    reconstruction onto the reference, so the final fine ICP starts in its basin."""
+    import copy
+
+    import open3d as o3d
+
+    from reconstruct.evaluate import sample_surface
+
+    rng = np.random.default_rng(0)
+    pts = [sample_surface(np.asarray(m.vertices), np.asarray(m.triangles), 30000, rng=rng)
+           for m in (mesh, ref)]
+    src, dst = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
+        np.asarray(p[0] if isinstance(p, tuple) else p, np.float64))) for p in pts)
+    dst.estimate_normals()
+    T = np.eye(4)
+    reg = o3d.pipelines.registration
+    for frac in (0.1, 0.03, 0.01):
+        r = reg.registration_icp(src, dst, frac * size, T,
+                                 reg.TransformationEstimationPointToPlane(),
+                                 reg.ICPConvergenceCriteria(max_iteration=50))
+        T = r.transformation
+    out = copy.deepcopy(mesh)
+    out.transform(T)
+    return out, np.asarray(T)
+
+
+def _score(mesh, ref, visible, size):
+    from reconstruct.evaluate import evaluate
+
+    if len(mesh.vertices) == 0:
+        return {"fscore": 0.0, "note": "empty mesh"}
+    tau = 0.01 * size
+    # The reconstruction lives in the calibrated left camera's frame; that frame differs
+    # from the true one by the calibration's datum (a fraction of a degree, mm), so the
+    # shape is scored after a rigid ICP alignment; the unaligned score is kept too.
+    raw = evaluate(mesh, ref, tau=tau, reference_mask=visible)
+    aligned, T = _coarse_align(mesh, ref, size)
+    d = evaluate(aligned, ref, tau=tau, reference_mask=visible, icp=True).to_dict()
+    d["coarse_alignment"] = T
+    d["fscore_without_icp"] = raw.fscore
+    d["tau_fraction_of_object_size"] = 0.01
+    d["object_size"] = size
+    return d
+
+
+def run_pair(left_path, right_path, calibration_path, out_dir, *, options: StereoOptions | None
+             = None, disparity_gt=None) -> Path:
+    """Disparity, depth and points of a user's own pair (see :mod:`reconstruct.stereo_io`).
+
+    Writes ``disparity.npy`` (rectified left, NaN = none), ``depth.npy`` (z in the
+    rectified left camera), ``points.ply`` (rectified left camera frame),
+    ``left_rect.png``/``right_rect.png`` and ``report.json`` (with Middlebury metrics
+    when ``disparity_gt`` — a ``.npy`` or ``.pfm`` in the rectified left frame — is given).
+    """
+    import cv2
+
+    from reconstruct.stereo_io import read_stereo_yaml
+
+    opts = options or StereoOptions()
+    calib = read_stereo_yaml(calibration_path)
+    L = read_image(left_path)
+    R = read_image(right_path)
+    if L.shape[:2] != R.shape[:2]:
+        raise InputError(f"expected the left image's size {L.shape[1]}x{L.shape[0]}, got "
+                         f"{R.shape[1]}x{R.shape[0]}", path=right_path)
+    if (L.shape[1], L.shape[0]) != calib.image_size:
+        raise InputError(f"expected the calibration's image_size {calib.image_size[0]}x"
+                         f"{calib.image_size[1]}, got {L.shape[1]}x{L.shape[0]}", path=left_path)
+    rect = rectify(calib)
+    lo = opts.min_disparity if opts.min_disparity is not None else 0
+    num = opts.num_disparities if opts.num_disparities is not None else 128
+    t0 = time.perf_counter()
+    lr, rr = rectify_pair(to_gray(L), to_gray(R), rect)
+    disp = match(lr, rr, opts.match_options(lo, num))
+    t = time.perf_counter() - t0
+    if not np.isfinite(disp).any():
+        raise RuntimeError(f"{left_path}: empty disparity (no match at all)")
+    depth = disparity_to_depth(disp, rect)
+    cam = rect.left_camera()
+    pts, px = depth_to_points(depth, cam)
+    report = {"kind": "stereo-pair", "left": str(left_path), "right": str(right_path),
+              "calibration": str(calibration_path), "options": asdict(opts),
+              "valid_fraction": float(np.isfinite(disp).mean()), "points": len(pts),
+              "timings_s": {"rectify_match": t}}
+    if disparity_gt is not None:
+        gtp = Path(disparity_gt)
+        if not gtp.is_file():
+            raise InputError("file not found", path=gtp)
+        if gtp.suffix.lower() == ".npy":
+            g = np.load(gtp, allow_pickle=False)
+        else:
+            g = cv2.imread(str(gtp), cv2.IMREAD_UNCHANGED)
+            if g is None:
+                raise InputError("unreadable disparity (expected .npy or .pfm)", path=gtp)
+        if g.shape != disp.shape:
+            raise InputError(f"expected shape {disp.shape}, got {g.shape}", path=gtp)
+        g = np.where(np.isfinite(g) & (g > 0), g, np.nan).astype(np.float64)
+        try:
+            report["disparity_metrics"] = disparity_metrics(disp, g)
+        except ValueError as exc:
+            raise InputError(str(exc), path=gtp) from None
+    out = Path(out_dir)
+    with atomic_dir(out) as tmp:
+        np.save(tmp / "disparity.npy", disp)
+        np.save(tmp / "depth.npy", depth)
+        if len(pts):
+            write_points(tmp / "points.ply", pts)
+        from procgen.mesh_io import write_image
+
+        write_image(tmp / "left_rect.png", lr)
+        write_image(tmp / "right_rect.png", rr)
+        write_json(tmp / "report.json", report)
+    return out

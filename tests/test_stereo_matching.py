@@ -1,0 +1,157 @@
+"""Stereo matching, disparity metrics and the calibration YAML on synthetic data."""
+
+import numpy as np
+import pytest
+
+from procgen.validate import InputError
+from reconstruct.disparity_metrics import disparity_metrics, nonoccluded_mask
+from reconstruct.stereo import (
+    MatchOptions,
+    StereoCalibration,
+    depth_to_points,
+    disparity_range,
+    disparity_to_depth,
+    lr_consistency,
+    match,
+    rectify,
+    rectify_pair,
+)
+from reconstruct.stereo_io import read_stereo_yaml, write_stereo_yaml
+
+
+def _texture(h, w, seed=0):
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    img = cv2.GaussianBlur(rng.random((h, w)).astype(np.float32), (0, 0), 1.0)
+    img = (img - img.min()) / (img.max() - img.min())
+    return img
+
+
+def _shifted_pair(d, h=120, w=200):
+    """Left/right images of a fronto-parallel plane at disparity ``d`` (closed form)."""
+    import cv2
+
+    tex = _texture(h, w + 64)
+    mx, my = np.meshgrid(np.arange(w, dtype=np.float32) + 40, np.arange(h, dtype=np.float32))
+    left = cv2.remap(tex, mx, my, cv2.INTER_CUBIC)
+    right = cv2.remap(tex, mx + np.float32(d), my, cv2.INTER_CUBIC)  # x_r = x_l - d
+    return (np.clip(left, 0, 1) * 255).astype(np.uint8), (np.clip(right, 0, 1) * 255).astype(
+        np.uint8)
+
+
+@pytest.mark.parametrize("d", [12.0, 17.5])
+@pytest.mark.parametrize("wls,lr", [(False, False), (True, False), (False, True)])
+def test_sgbm_plane_gives_closed_form_disparity(d, wls, lr):
+    left, right = _shifted_pair(d)
+    disp = match(left, right, MatchOptions(num_disparities=32, block_size=5, wls=wls,
+                                           lr_check=lr))
+    core = disp[10:-10, 50:-40]  # the right matcher (LR check) loses the right border
+    assert np.isfinite(core).mean() > 0.95
+    # SGBM's sub-pixel fit (parabola on 1/16 px) is biased by < 0.25 px on smooth textures
+    assert abs(np.nanmedian(core) - d) < 0.25
+    m = disparity_metrics(core, np.full(core.shape, d))
+    assert m["bad1.0"] < 3.0
+
+
+def test_metrics_hand_computed():
+    gt = np.array([[10.0, 10.0, 10.0, 10.0, np.nan],
+                   [5.0, 5.0, 5.0, 5.0, 5.0]])
+    est = np.array([[10.9, 12.5, np.nan, 10.0, 3.0],
+                    [5.0, 7.1, 5.2, np.nan, np.nan]])
+    mask = np.ones_like(gt, bool)
+    mask[1, 0] = False
+    m = disparity_metrics(est, gt, mask=mask)
+    # evaluated: row0 x0..3 (gt NaN at x4), row1 x1..4 -> 8 pixels
+    # errors: .9, 2.5, nan(->nearest on row: x1=12.5 or x3=10.0: |x-2| tie -> left 12.5 -> 2.5), 0
+    #         2.1, .2, nan(-> nearest x2 = 5.2 -> .2), nan(-> nearest x2 -> .2)
+    assert m["n_pixels"] == 8
+    assert m["invalid"] == pytest.approx(100 * 3 / 8)
+    assert m["bad1.0"] == pytest.approx(100 * 5 / 8)  # 2.5, nan, 2.1, nan, nan
+    assert m["bad2.0"] == pytest.approx(100 * 5 / 8)
+    assert m["avgerr"] == pytest.approx((0.9 + 2.5 + 2.5 + 0 + 2.1 + 0.2 + 0.2 + 0.2) / 8)
+
+
+def test_metrics_reject_empty_disparity():
+    with pytest.raises(ValueError, match="disparity: empty"):
+        disparity_metrics(np.full((3, 3), np.nan), np.ones((3, 3)))
+
+
+def test_nonoccluded_mask_and_lr_consistency():
+    # a foreground strip (d = 8) in front of a background (d = 2): background pixels just
+    # left of the strip in the left view are hidden in the right view.
+    W = 40
+    gl = np.full((1, W), 2.0)
+    gl[0, 20:30] = 8.0
+    gr = np.full((1, W), 2.0)
+    gr[0, 12:22] = 8.0  # strip moves left by 8 in the right view
+    m = nonoccluded_mask(gl, gr)
+    assert m[0, 20:30].all()  # the strip is seen by both
+    assert not m[0, 14:20].any()  # background there maps into the strip in the right view
+    assert m[0, 2:14].all() and m[0, 30:].all()
+    np.testing.assert_array_equal(lr_consistency(gl, gr), m)
+
+
+def _calib():
+    K = np.array([[300.0, 0, 159.5], [0, 300.0, 119.5], [0, 0, 1]])
+    a = np.radians(3.0)
+    R = np.array([[np.cos(a), 0, -np.sin(a)], [0, 1, 0], [np.sin(a), 0, np.cos(a)]])
+    return StereoCalibration(K, [0.05, -0.01, 0, 0, 0], K * [[1.01], [1.01], [1]],
+                             [-0.02, 0, 0.001, 0, 0], R, [-0.08, 0.001, 0.002], (320, 240),
+                             rms=0.2)
+
+
+def test_yaml_round_trip(tmp_path):
+    c = _calib()
+    p = write_stereo_yaml(tmp_path / "stereo.yaml", c)
+    c2 = read_stereo_yaml(p)
+    for k in ("K1", "D1", "K2", "D2", "R", "T"):
+        np.testing.assert_allclose(getattr(c2, k), getattr(c, k), rtol=0, atol=1e-12)
+    assert c2.image_size == (320, 240) and c2.rms == pytest.approx(0.2)
+
+
+def test_yaml_missing_matrix_names_file_and_key(tmp_path):
+    c = _calib()
+    p = write_stereo_yaml(tmp_path / "stereo.yaml", c)
+    text = p.read_text()
+    start = text.index("K2:")
+    end = text.index("D2:")
+    p.write_text(text[:start] + text[end:])
+    with pytest.raises(InputError, match=r"stereo.yaml: K2: missing"):
+        read_stereo_yaml(p)
+
+
+def test_rectified_geometry_triangulates_true_points():
+    """Project points with the raw cameras, rectify the pixels, triangulate: exact."""
+    import cv2
+
+    c = _calib()
+    left, right = c.cameras()
+    rect = rectify(c)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-0.1, -0.08, 0.6], [0.1, 0.08, 0.9], (100, 3))
+    pl, _ = left.project(pts)
+    pr, _ = right.project(pts)
+    ul = cv2.undistortPoints(pl[:, None], c.K1, c.D1, R=rect.R1, P=rect.P1)[:, 0]
+    ur = cv2.undistortPoints(pr[:, None], c.K2, c.D2, R=rect.R2, P=rect.P2)[:, 0]
+    assert np.abs(ul[:, 1] - ur[:, 1]).max() < 1e-3  # rows aligned
+    disp = ul[:, 0] - ur[:, 0]
+    z = rect.focal * rect.baseline / disp
+    cam = rect.left_camera()
+    rec = cam.unproject(ul, z)
+    np.testing.assert_allclose(rec, pts, atol=1e-5)
+    # the dense path: a depth map on the rectified grid gives the same points
+    depth = np.zeros((240, 320), np.float32)
+    iu = np.round(ul).astype(int)
+    depth[iu[:, 1], iu[:, 0]] = z
+    P, px = depth_to_points(depth, cam)
+    assert len(P) == len(np.unique(iu, axis=0))
+    assert disparity_to_depth(np.array([[np.nan, 0.0]]), rect).tolist() == [[0.0, 0.0]]
+    lo, num = disparity_range(rect, 0.6, 0.9)
+    assert lo <= disp.min() and lo + num >= disp.max() and num % 16 == 0
+
+
+def test_rectify_pair_rejects_other_size():
+    rect = rectify(_calib())
+    with pytest.raises(ValueError, match="right: expected an image of 320x240"):
+        rectify_pair(np.zeros((240, 320), np.uint8), np.zeros((200, 320), np.uint8), rect)
