@@ -145,7 +145,9 @@ def _refine_analytic(ana, T, o, d, t_mesh):
         sq = np.sqrt(disc)
         t1 = (-B - sq) / (2 * A)
         t2 = (-B + sq) / (2 * A)
-        tt = np.where(np.abs(t1 - t_mesh) <= np.abs(t2 - t_mesh), t1, t2)
+        # From outside the sphere the first hit is the entry point (the faceted mesh
+        # lies inside the sphere, so the mesh hit never precedes it); from inside, the exit.
+        tt = np.where(C > 0, t1, t2)
         n = o + tt[:, None] * d - c
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         return tt, n, n.copy()

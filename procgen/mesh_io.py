@@ -6,7 +6,9 @@ Images: PNG/JPEG via OpenCV (8- or 16-bit). Every writer is atomic.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +17,10 @@ from procgen.files import atomic_file
 from procgen.validate import InputError
 
 __all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image", "write_image",
-           "MESH_SUFFIXES"]
+           "read_geometry", "MESH_SUFFIXES", "POINT_SUFFIXES"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
+POINT_SUFFIXES = (".ply", ".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts")
 
 
 def read_mesh(path: str | os.PathLike):
@@ -108,3 +111,67 @@ def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
         if not cv2.imwrite(str(tmp), img):
             raise RuntimeError(f"OpenCV failed to write {path}")
     return Path(path)
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """Silence file descriptor 2 (C libraries such as RPly print there directly)."""
+    sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # pragma: no cover - no fd 2 at all
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def read_geometry(path: str | os.PathLike):
+    """Read a mesh or a point cloud, decided by whether the file has faces.
+
+    Mesh suffixes (:data:`MESH_SUFFIXES`) are read as a triangle mesh; one with
+    no triangles (a PLY of vertices only) is returned as a point cloud instead,
+    with its normals and colours. Point suffixes (:data:`POINT_SUFFIXES`: PCD,
+    XYZ, ...) are read as a point cloud.
+
+    Returns
+    -------
+    open3d.geometry.TriangleMesh or open3d.geometry.PointCloud
+
+    Raises
+    ------
+    InputError
+        Naming the file: missing, unsupported suffix, corrupt, or empty.
+    """
+    import open3d as o3d
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES + POINT_SUFFIXES:
+        allowed = ", ".join(sorted(set(MESH_SUFFIXES + POINT_SUFFIXES)))
+        raise InputError(f"expected a mesh or point file ({allowed}), got {suffix!r}", path=path)
+    quiet = o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error)
+    with quiet, _quiet_native_stderr():
+        if suffix in MESH_SUFFIXES:
+            mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False,
+                                             print_progress=False)
+            if len(mesh.triangles) > 0:
+                return mesh
+            if suffix != ".ply":
+                if len(mesh.vertices) == 0:
+                    raise InputError("no vertices read (empty or corrupt mesh file)", path=path)
+                pcd = o3d.geometry.PointCloud(mesh.vertices)
+                if mesh.has_vertex_normals():
+                    pcd.normals = mesh.vertex_normals
+                return pcd
+        pcd = o3d.io.read_point_cloud(str(path))
+    if len(pcd.points) == 0:
+        raise InputError("no points read (empty or corrupt file)", path=path)
+    return pcd
