@@ -20,7 +20,7 @@ import numpy as np
 
 from procgen.validate import check_array, check_positive, check_range
 
-__all__ = ["LaserSheet", "LaserFrame", "LaserRenderer", "plane_of"]
+__all__ = ["LaserSheet", "LaserFrame", "LaserRenderer", "camera_directions", "plane_of"]
 
 _CUTOFF = 4.0  # sheet half-thickness rendered, in sigmas (exp(-8) = 3e-4 of the peak)
 
@@ -205,6 +205,8 @@ class LaserRenderer:
         :mod:`acquire.capture_laser` for why that is equivalent).
     camera : acquire.camera.Camera
         Intrinsics and distortion (the pose is given per frame).
+    dirs_cam : (H*W, 3) float64, optional
+        The camera's :func:`camera_directions`, when already computed for another scene.
     exact_ambient : bool
         Evaluate the albedo exactly at every hit pixel for the ambient term. The default
         interpolates per-vertex albedo for the ambient term only (far cheaper for
@@ -212,12 +214,13 @@ class LaserRenderer:
         image-textured objects (calibration boards) always take the exact path.
     """
 
-    def __init__(self, scene, camera, *, exact_ambient: bool = False):
+    def __init__(self, scene, camera, *, exact_ambient: bool = False,
+                 dirs_cam: np.ndarray | None = None):
         self.scene = scene
         self.camera = camera
-        xy = camera.normalized(camera.pixel_grid(supersample=1))
-        self.dirs_cam = np.ascontiguousarray(
-            np.concatenate([xy, np.ones((len(xy), 1))], axis=1))
+        if dirs_cam is None:
+            dirs_cam = camera_directions(camera)
+        self.dirs_cam = dirs_cam
         self.exact = exact_ambient or any(o.material.kind == "image" for o in scene.objects)
         self._vertex_albedo = None
 
@@ -341,3 +344,9 @@ def _true_stripe(s, depth, lit_idx, H, W):
     r, c = np.nonzero(zc)
     u = c + a[r, c] / (a[r, c] - b[r, c])
     return np.stack([r.astype(np.float64), u], axis=1)
+
+
+def camera_directions(camera) -> np.ndarray:
+    """Camera-frame directions ``(H*W, 3)`` (z = 1) through the pixel centres, row-major."""
+    xy = camera.normalized(camera.pixel_grid(supersample=1))
+    return np.ascontiguousarray(np.concatenate([xy, np.ones((len(xy), 1))], axis=1))
