@@ -26,6 +26,7 @@ __all__ = [
     "to_pyvista",
     "from_pyvista",
     "surface_area",
+    "is_closed",
 ]
 
 
@@ -153,3 +154,24 @@ def from_pyvista(polydata) -> "o3d.geometry.TriangleMesh":
     pd = polydata.triangulate()
     faces = np.asarray(pd.faces).reshape(-1, 4)[:, 1:]
     return make_mesh(np.asarray(pd.points, dtype=np.float64), faces)
+
+
+def is_closed(mesh_or_triangles) -> bool:
+    """True if every edge is shared by exactly two triangles with opposite orientation.
+
+    That is a closed, consistently oriented 2-manifold surface (edge-wise), which is what
+    inside/outside tests need. Unlike Open3D's ``is_watertight`` it does not test for
+    self-intersections, which costs minutes on large meshes.
+    """
+    f = (np.asarray(mesh_or_triangles.triangles, dtype=np.int64)
+         if hasattr(mesh_or_triangles, "triangles") else np.asarray(mesh_or_triangles, np.int64))
+    if len(f) == 0:
+        return False
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    n = int(directed.max()) + 1
+    key = directed[:, 0] * n + directed[:, 1]
+    rev = directed[:, 1] * n + directed[:, 0]
+    uniq, counts = np.unique(key, return_counts=True)
+    if np.any(counts != 1):  # a directed edge used twice: inconsistent or non-manifold
+        return False
+    return bool(np.all(np.isin(rev, uniq, assume_unique=False)))

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.meshes import mesh_arrays
+from procgen.meshes import is_closed, mesh_arrays
 from procgen.validate import check_array
 
 log = logging.getLogger(__name__)
@@ -64,7 +64,7 @@ class MeshCollider:
         n = np.cross(e1, e2)
         length = np.linalg.norm(n, axis=1, keepdims=True)
         self.face_normals = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-        self.closed = bool(mesh.is_watertight())
+        self.closed = is_closed(f)
         if not self.closed:
             log.warning("collider mesh is not closed: inside/outside tests are unreliable")
         tm = o3d.t.geometry.TriangleMesh()

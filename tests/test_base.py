@@ -57,3 +57,17 @@ def test_mesh_conversions_round_trip():
         np.testing.assert_array_equal(f2, f)
     with pytest.raises(ValueError, match="triangles"):
         make_mesh(v, f + 100)
+
+
+def test_is_closed():
+    import open3d as o3d
+
+    from procgen.meshes import is_closed
+
+    box = o3d.geometry.TriangleMesh.create_box()
+    assert is_closed(box)
+    f = np.asarray(box.triangles)
+    assert not is_closed(f[1:])  # a hole
+    flipped = f.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert not is_closed(flipped)  # inconsistent orientation

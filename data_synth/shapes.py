@@ -1,0 +1,128 @@
+"""Meshes of the scene spec's shapes, in their object frames (metres, Z up).
+
+Each builder returns ``(mesh, analytic)`` where ``analytic`` is the exact shape the
+mesh approximates (for the renderer's exact depth) or None.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from procgen.meshes import make_mesh, mesh_arrays
+from procgen.noise import perlin
+from procgen.validate import check_positive, check_range
+
+__all__ = ["sphere", "box", "cylinder", "torus", "plane", "blob", "icosphere"]
+
+
+def icosphere(subdivisions: int):
+    """Unit icosphere: near-uniform triangles, ``20 * 4**subdivisions`` of them."""
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_icosahedron(1.0)
+    if subdivisions:
+        m = m.subdivide_midpoint(int(subdivisions))
+    v, f = mesh_arrays(m)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return v, f
+
+
+def sphere(radius: float, *, subdivisions: int = 5):
+    r = check_positive(radius, "radius")
+    v, f = icosphere(subdivisions)
+    return make_mesh(v * r, f, vertex_normals=v), {"type": "sphere", "center": [0, 0, 0],
+                                                    "radius": r}
+
+
+def box(size):
+    import open3d as o3d
+
+    sx, sy, sz = (check_positive(s, "size") for s in size)
+    m = o3d.geometry.TriangleMesh.create_box(sx, sy, sz)
+    m.translate([-sx / 2, -sy / 2, -sz / 2])
+    # flat shading: split vertices per face
+    v, f = mesh_arrays(m)
+    vv = v[f.reshape(-1)]
+    ff = np.arange(len(vv)).reshape(-1, 3)
+    return _flat(vv, ff), None
+
+
+def _flat(v, f):
+    e1 = v[f[:, 1]] - v[f[:, 0]]
+    e2 = v[f[:, 2]] - v[f[:, 0]]
+    n = np.cross(e1, e2)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return make_mesh(v, f, vertex_normals=np.repeat(n, 3, axis=0))
+
+
+def cylinder(radius: float, height: float, *, segments: int = 96):
+    """Closed cylinder along Z centred at the origin, flat caps, smooth side."""
+    r = check_positive(radius, "radius")
+    h = check_positive(height, "height")
+    a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+    side_n = np.concatenate([ring / r, np.zeros((segments, 1))], axis=1)
+    bot = np.concatenate([ring, np.full((segments, 1), -h / 2)], axis=1)
+    top = np.concatenate([ring, np.full((segments, 1), h / 2)], axis=1)
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    side_v = np.vstack([bot, top])
+    side_f = np.vstack([np.stack([i, j, segments + j], 1), np.stack([i, segments + j, segments + i], 1)])
+    side = make_mesh(side_v, side_f, vertex_normals=np.vstack([side_n, side_n]))
+    caps_v, caps_f, caps_n = [], [], []
+    for z, sgn in ((-h / 2, -1.0), (h / 2, 1.0)):
+        base = len(np.vstack(caps_v)) if caps_v else 0
+        cv = np.vstack([[0, 0, z], np.concatenate([ring, np.full((segments, 1), z)], 1)])
+        tri = np.stack([np.zeros(segments, int), 1 + i, 1 + j], 1)
+        if sgn < 0:
+            tri = tri[:, [0, 2, 1]]
+        caps_v.append(cv)
+        caps_f.append(tri + base)
+        caps_n.append(np.tile([0, 0, sgn], (len(cv), 1)))
+    v = np.vstack([side_v, *caps_v])
+    f = np.vstack([side_f, *[c + len(side_v) for c in caps_f]])
+    n = np.vstack([np.asarray(side.vertex_normals), *caps_n])
+    return make_mesh(v, f, vertex_normals=n), None
+
+
+def torus(radius: float, tube: float, *, segments: int = 96, tube_segments: int = 48):
+    import open3d as o3d
+
+    R = check_positive(radius, "radius")
+    r = check_positive(tube, "tube")
+    if r >= R:
+        raise ValueError(f"tube: expected less than radius ({R}), got {r}")
+    m = o3d.geometry.TriangleMesh.create_torus(R, r, segments, tube_segments)
+    m.compute_vertex_normals()
+    return m, None
+
+
+def plane(size):
+    sx, sy = (check_positive(s, "size") for s in size)
+    v = np.array([[-sx / 2, -sy / 2, 0], [sx / 2, -sy / 2, 0], [sx / 2, sy / 2, 0],
+                  [-sx / 2, sy / 2, 0]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    return (make_mesh(v, f, vertex_normals=np.tile([0, 0, 1.0], (4, 1))),
+            {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]})
+
+
+def blob(radius: float, *, amplitude: float = 0.18, frequency: float = 1.4,
+         subdivisions: int = 6, seed: int | None = 0):
+    """A closed organic shape: an icosphere displaced radially by Perlin fBm.
+
+    ``r(u) = radius * (1 + amplitude * fbm(frequency * u))`` for unit directions u,
+    star-shaped (so closed and free of self-intersections while amplitude < 1).
+    """
+    R = check_positive(radius, "radius")
+    A = check_range(amplitude, "amplitude", 0, 0.9)
+    F = check_positive(frequency, "frequency")
+    u, f = icosphere(int(subdivisions))
+    disp = np.zeros(len(u))
+    amp, fr = 1.0, F
+    for _ in range(3):
+        disp += amp * perlin(u[:, 0] * fr + 11.3, u[:, 1] * fr + 5.7, u[:, 2] * fr + 2.1,
+                             seed=seed)
+        amp *= 0.35
+        fr *= 2.0
+    v = u * (R * (1.0 + A * disp / 0.7))[:, None]
+    return make_mesh(v, f), None
