@@ -105,7 +105,7 @@ def board_poses_laser(rig: LaserRig, target, camera: Camera, n: int,
 
 def board_pose_axis(rig: LaserRig, target, camera: Camera) -> np.ndarray:
     """``object_from_target``: the board standing on the platter, facing the camera at 0."""
-    c = rig.aim + np.array([0.02, 0.0, 0.0])
+    c = rig.aim + np.array([0.05, 0.0, 0.0])
     eye = np.array([camera.center[0], camera.center[1], c[2]])  # upright board
     return _facing(c, eye, target, 0.0, 0.0, 0.0)
 

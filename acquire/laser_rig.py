@@ -85,7 +85,7 @@ class LaserRig:
     camera_views: int = 12
     laser_views: int = 4
     axis_views: int = 9
-    axis_span_deg: float = 80.0
+    axis_span_deg: float = 90.0
     stage_views: int = 5
     calib_supersample: int = 3
     sensor: dict = field(default_factory=lambda: Sensor().to_dict())

@@ -29,21 +29,31 @@ from reconstruct.laser_calib import intersect_rays_plane, pixel_rays
 __all__ = ["estimate_peak_sigma", "depth_sigma", "closed_form_sigma_z"]
 
 
-def estimate_peak_sigma(cols: np.ndarray) -> float:
+def estimate_peak_sigma(cols: np.ndarray, *, half: int = 3) -> float:
     """Peak-localization noise (px) from stripe columns ``(f, h)`` (NaN = no peak).
 
-    Along a smooth surface the stripe column is a smooth function of the row; the
-    second difference ``u[r-1] - 2 u[r] + u[r+1]`` of independent errors of standard
-    deviation sigma has variance ``6 sigma^2``. A robust (MAD) scale of the second
-    differences over all frames, divided by sqrt(6), estimates sigma.
+    Along a smooth surface the stripe column is a smooth function of the row. The
+    residual of each column from a quadratic fitted over its ``2 * half + 1`` rows has
+    variance ``(1 - leverage) sigma^2`` for independent errors of standard deviation
+    sigma; a robust (MAD) scale of the residuals over all frames estimates sigma. Errors
+    correlated over more rows than the window (albedo texture, calibration) are not
+    counted: they are systematic, not noise.
     """
     c = np.atleast_2d(np.asarray(cols, float))
-    d2 = c[:, :-2] - 2 * c[:, 1:-1] + c[:, 2:]
-    d2 = d2[np.isfinite(d2)]
-    if d2.size < 10:
+    m = 2 * half + 1
+    x = np.arange(-half, half + 1, dtype=float)
+    X = np.stack([np.ones(m), x, x * x], axis=1)
+    Hc = X @ np.linalg.pinv(X)  # hat matrix; row `half` predicts the centre
+    w = np.eye(m)[half] - Hc[half]
+    if c.shape[1] < m:
         return float("nan")
-    mad = np.median(np.abs(d2 - np.median(d2)))
-    return float(1.4826 * mad / np.sqrt(6.0))
+    win = np.lib.stride_tricks.sliding_window_view(c, m, axis=1)
+    r = win @ w
+    r = r[np.isfinite(r)]
+    if r.size < 10:
+        return float("nan")
+    mad = np.median(np.abs(r - np.median(r)))
+    return float(1.4826 * mad / np.sqrt(w @ w))
 
 
 def depth_sigma(camera, plane: np.ndarray, pixels: np.ndarray, sigma_peak: float, *,

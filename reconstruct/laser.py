@@ -66,7 +66,7 @@ class LaserReconConfig:
     threshold: float = 20.0
     min_contrast: float = 12.0
     max_width: float = 12.0
-    dist_model: str = "k1k2p1p2"
+    dist_model: str = "k1k2"
     meshing: MeshingOptions = field(default_factory=lambda: MeshingOptions(
         depth=9, density_quantile=0.03, trim_distance=0.002))
     max_range: float = 0.0
