@@ -20,9 +20,9 @@ classic ones compared by Fisher & Naidu (1996):
     zero crossing, linearly interpolated, of the fourth-order derivative filter
     ``g(i) = f(i-2) + f(i-1) - f(i+1) - f(i+2)`` (Blais & Rioux 1986).
 
-Saturation: a peak whose maximum reaches ``saturation`` is located by the
-midpoint of its two half-contrast crossings (interpolated), which stays unbiased
-for a clipped, symmetric profile where every three-point fit breaks down.
+Saturation: a peak whose maximum reaches ``saturation`` is located by a
+least-squares Gaussian through its unclipped flank samples (the half-contrast
+midpoint as a fallback), where every three-point fit breaks down.
 
 Rejection of spurious peaks: a row gives no peak when the maximum is below
 ``threshold``, when its contrast above the local baseline is below
@@ -73,9 +73,9 @@ class StripeOptions:
     method: str = "gaussian"
     threshold: float = 20.0
     min_contrast: float = 12.0
-    min_width: float = 1.0
+    min_width: float = 1.5
     max_width: float = 12.0
-    window: int = 6
+    window: int = 8
     saturation: float = 255.0
     ambiguity: float = 0.0
 
@@ -103,7 +103,7 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
             imax = j
     if vmax < threshold:
         return math.nan, 0.0
-    # 2. local baseline: the smaller of the minima of the two flanks of the window
+    # 2. local baseline: the lower of the minima of the window's two flanks
     a = max(imax - w, 0)
     b = min(imax + w, n - 1)
     left = vmax
@@ -112,7 +112,7 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
     right = vmax
     for j in range(imax, b + 1):
         right = min(right, f[j])
-    base = max(left, right)  # the higher flank: robust when one side runs into another ridge
+    base = min(left, right)
     contrast = vmax - base
     if contrast < min_contrast:
         return math.nan, 0.0
@@ -121,6 +121,8 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
     jl = imax
     while jl > a and f[jl - 1] >= half:
         jl -= 1
+    if jl == a and f[jl] >= half and a > 0:
+        return math.nan, 0.0  # still above half contrast at the window's edge: too wide
     if jl == a and f[jl] >= half:
         xl = float(a) - 0.5
     else:
@@ -129,6 +131,8 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
     jr = imax
     while jr < b and f[jr + 1] >= half:
         jr += 1
+    if jr == b and f[jr] >= half and b < n - 1:
+        return math.nan, 0.0
     if jr == b and f[jr] >= half:
         xr = float(b) + 0.5
     else:
@@ -148,6 +152,38 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
     if method == 0 or imax < 2 or imax > n - 3:
         return float(imax), contrast
     if vmax >= sat:
+        # clipped plateau: least-squares Gaussian (parabola in log) through the unclipped
+        # flank samples; fall back to the half-level midpoint
+        s0 = s1 = s2 = s3 = s4 = t0 = t1 = t2 = 0.0
+        cnt = 0
+        for j in range(a, b + 1):
+            v = f[j] - base
+            if f[j] < sat and v > 0.1 * contrast:
+                x = float(j - imax)
+                lv = math.log(v)
+                wt = v * v  # log-domain weights: noise of log(v) ~ 1/v
+                s0 += wt
+                s1 += wt * x
+                s2 += wt * x * x
+                s3 += wt * x * x * x
+                s4 += wt * x * x * x * x
+                t0 += wt * lv
+                t1 += wt * x * lv
+                t2 += wt * x * x * lv
+                cnt += 1
+        if cnt >= 4:
+            # solve the 3x3 normal equations [s0 s1 s2; s1 s2 s3; s2 s3 s4] [c0 c1 c2] = t
+            det = (s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2)
+                   + s2 * (s1 * s3 - s2 * s2))
+            if abs(det) > 1e-12:
+                c1 = (s0 * (t1 * s4 - s3 * t2) - t0 * (s1 * s4 - s3 * s2)
+                      + s2 * (s1 * t2 - t1 * s2)) / det
+                c2 = (s0 * (s2 * t2 - t1 * s3) - s1 * (s1 * t2 - t1 * s2)
+                      + t0 * (s1 * s3 - s2 * s2)) / det
+                if c2 < 0.0:
+                    d = -c1 / (2.0 * c2)
+                    if abs(d) <= 0.5 * (xr - xl) + 1.0:
+                        return imax + d, contrast
         return 0.5 * (xl + xr), contrast
     fm = f[imax - 1] - base
     f0 = vmax - base
