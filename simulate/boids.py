@@ -47,7 +47,7 @@ import numpy as np
 
 from procgen.files import read_toml, require
 from procgen.validate import InputError, check_array, check_choice, check_range
-from simulate.neighbours import build_grid
+from simulate.neighbours import build_grid, threads_for
 
 log = logging.getLogger(__name__)
 
@@ -777,6 +777,11 @@ def step(state: FlockState, params: BoidParams, *, rng: np.random.Generator,
         Neighbour search: the cell-sorted grid, or all n^2 pairs (numpy).
     """
     check_choice(method, "method", METHODS)
+    with threads_for(len(state.positions)):
+        return _step(state, params, rng, collider, method)
+
+
+def _step(state, params, rng, collider, method):
     x = state.positions
     v = state.velocities
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
@@ -910,8 +915,8 @@ def load_recipe(name_or_path: str | os.PathLike) -> Recipe:
             kwargs[key] = _int(boids, key, path, "boids", None, lo=0)
         elif key == "model":
             kwargs[key] = require(boids, key, str, path=path, prefix="boids")
-        elif key in ("goal", "bounds"):
-            kwargs[key] = require(boids, key, list, path=path, prefix="boids")
+        elif key in ("goal", "bounds"):  # an empty list: none (open world, no goal)
+            kwargs[key] = require(boids, key, list, path=path, prefix="boids") or None
         else:
             kwargs[key] = require(boids, key, float, path=path, prefix="boids")
     try:

@@ -20,6 +20,7 @@ Distances are compared as ``dx*dx + dy*dy + dz*dz < radius**2`` (strict) in both
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numba as nb
@@ -27,7 +28,26 @@ import numpy as np
 
 from procgen.validate import check_array, check_positive
 
-__all__ = ["CellGrid", "build_grid", "neighbour_lists", "neighbour_lists_reference"]
+__all__ = ["CellGrid", "build_grid", "neighbour_lists", "neighbour_lists_reference",
+           "threads_for", "PARALLEL_MIN"]
+
+PARALLEL_MIN = 4096  # fewer points than this: compiled kernels run on one thread
+
+
+@contextlib.contextmanager
+def threads_for(n: int):
+    """Run numba parallel kernels on one thread while working on fewer than
+    :data:`PARALLEL_MIN` items: waking worker threads costs more than such work (far
+    more on a busy machine), and the results are the same bytes either way."""
+    if n >= PARALLEL_MIN:
+        yield
+        return
+    threads = nb.get_num_threads()
+    nb.set_num_threads(1)
+    try:
+        yield
+    finally:
+        nb.set_num_threads(threads)
 
 # A grid never holds more cells than this many per point (plus a floor): a few
 # far-away points must not allocate a huge empty grid. Cells grow instead, which
@@ -216,11 +236,12 @@ def neighbour_lists(points: np.ndarray, radius: float, *,
                          f"got {len(grid.cell)} points and cells of {grid.cell_size}")
     counts = np.empty(len(pts), np.int64)
     args = (pts, r * r, grid.dims, grid.cell, grid.order, grid.start)
-    _count(*args, counts)
-    offsets = np.zeros(len(pts) + 1, np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    indices = np.empty(int(offsets[-1]), np.int64)
-    _fill(*args, offsets, indices)
+    with threads_for(len(pts)):
+        _count(*args, counts)
+        offsets = np.zeros(len(pts) + 1, np.int64)
+        np.cumsum(counts, out=offsets[1:])
+        indices = np.empty(int(offsets[-1]), np.int64)
+        _fill(*args, offsets, indices)
     return offsets, indices
 
 
