@@ -163,7 +163,8 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
     if mesh is not None:
         v, _ = mesh_arrays(mesh)
         box += [v.min(0), v.max(0)]
-    cam = frame_camera(np.array(box), width=width, height=height, elevation_deg=25)
+    cam = frame_camera(np.array(box), width=width, height=height, elevation_deg=35,
+                       azimuth_deg=-70, margin=1.0)
     if mesh is not None:
         bg, depth = mesh_background(mesh, cam)
     else:

@@ -41,10 +41,10 @@ def stand_in_mesh(kind: str, size: float = 5.0, *, centre=(0.0, 0.0, 0.0)):
         v, f = mesh_arrays(mesh)
         u = v / np.linalg.norm(v, axis=1, keepdims=True)
         bump = np.zeros(len(u))
-        for octave in range(4):
-            freq = 1.5 * 2 ** octave
+        for octave in range(3):
+            freq = 1.2 * 2 ** octave
             bump += 0.5 ** octave * perlin(*(freq * u + 10.0).T, seed=3)
-        v = u * (r * (1.0 + 0.45 * bump))[:, None]
+        v = u * (r * (1.0 + 0.3 * bump))[:, None]
         mesh = make_mesh(v, f)
         return _moved(mesh, centre)
     mesh.compute_vertex_normals()

@@ -93,3 +93,22 @@ def test_bad_recipe_and_mesh_exit_2(tmp_path, capsys):
     code, err = _run(["simulate", "boids", "swarm", "--steps", "0", "--out",
                       str(tmp_path / "o")], capsys)
     assert code == 2 and "--steps" in err
+
+
+def test_glyphs_point_along_heading_and_hide_behind_the_scan():
+    from acquire.camera import Camera
+    from acquire.glyphs import render_glyphs
+
+    cam = Camera.look_at([0, -10, 0], [0, 0, 0], width=120, height=80, fov_deg=30)
+    cols = []
+    for hx in (1.0, -1.0):
+        img = render_glyphs(np.zeros((1, 3)), np.array([[hx, 0, 0]]), cam, size=2.0)
+        lit = np.nonzero(img.sum(axis=2) > 0)
+        cols.append((lit[1].min(), lit[1].max()))
+    # image x grows with world x here: the tip (0.6 size ahead) reaches further than the
+    # base (0.4 size behind)
+    assert cols[0][1] - 59.5 > 59.5 - cols[0][0]
+    assert 59.5 - cols[1][0] > cols[1][1] - 59.5
+    hidden = render_glyphs(np.zeros((1, 3)), np.array([[1.0, 0, 0]]), cam, size=2.0,
+                           background_depth=np.full((80, 120), 5.0))
+    assert hidden.sum() == 0
