@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.noise import perlin
+from procgen.noise import SOLID_TEXTURES, fbm
 from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = ["Material", "MATERIAL_KINDS"]
@@ -22,21 +22,12 @@ def _fbm_texture(points: np.ndarray, *, scale: float, seed: int | None,
                  octaves: int = 5) -> np.ndarray:
     """Multi-octave Perlin value in about [-1, 1], rich in features for matching."""
     p = points * scale
-    total = np.zeros(len(p))
-    amp, freq, norm = 1.0, 1.0, 0.0
-    for _ in range(octaves):
-        total += amp * perlin(p[:, 0] * freq, p[:, 1] * freq, p[:, 2] * freq, seed=seed)
-        norm += amp
-        amp *= 0.5
-        freq *= 2.0
-    return total / norm * 1.8
+    norm = 2.0 - 0.5 ** (octaves - 1)  # sum of the octave amplitudes (gain 0.5)
+    return fbm(p[:, 0], p[:, 1], p[:, 2], octaves=octaves, seed=seed) / norm * 1.8
 
 
 def solid_texture_names() -> tuple[str, ...]:
-    try:
-        from procgen.noise import SOLID_TEXTURES  # the noise family's palette
-    except ImportError:  # pragma: no cover
-        SOLID_TEXTURES = {}
+    """'fbm' (albedo modulated by fBm) and the noise family's solid textures."""
     return tuple(sorted({"fbm", *SOLID_TEXTURES}))
 
 
@@ -95,8 +86,6 @@ class Material:
                 t = _fbm_texture(points_object, scale=self.scale, seed=self.seed)
                 f = np.clip(0.5 + 0.5 * self.contrast * t, 0.02, 1.0)
                 return f[:, None] * self.albedo
-            from procgen.noise import SOLID_TEXTURES
-
             return np.clip(SOLID_TEXTURES[self.texture](points_object, scale=self.scale,
                                                         seed=self.seed), 0.0, 1.0)
         if uvs is None:

@@ -187,7 +187,8 @@ def build_scene(spec_or_name, *, seed: int | None = None) -> SceneBundle:
             if path.is_dir():
                 path = path / "scene.toml"
             if path.suffix != ".toml":
-                raise InputError(f"unknown scene; expected a built-in name ({', '.join(scene_names())}) "
+                names = ", ".join(scene_names())
+                raise InputError(f"unknown scene; expected a built-in name ({names}) "
                                  "or a .toml spec or scene folder", path=s)
         spec = read_toml(path)
         base_dir = path.parent

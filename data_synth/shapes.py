@@ -67,7 +67,8 @@ def cylinder(radius: float, height: float, *, segments: int = 96):
     i = np.arange(segments)
     j = (i + 1) % segments
     side_v = np.vstack([bot, top])
-    side_f = np.vstack([np.stack([i, j, segments + j], 1), np.stack([i, segments + j, segments + i], 1)])
+    side_f = np.vstack([np.stack([i, j, segments + j], 1),
+                        np.stack([i, segments + j, segments + i], 1)])
     side = make_mesh(side_v, side_f, vertex_normals=np.vstack([side_n, side_n]))
     caps_v, caps_f, caps_n = [], [], []
     for z, sgn in ((-h / 2, -1.0), (h / 2, 1.0)):

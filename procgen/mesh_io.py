@@ -20,6 +20,8 @@ __all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image
            "read_geometry", "MESH_SUFFIXES", "POINT_SUFFIXES"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
+# open3d 0.20 writes .glb without its binary chunk (unreadable by open3d and VTK).
+WRITE_SUFFIXES = (".ply", ".obj", ".gltf", ".stl", ".off")
 POINT_SUFFIXES = (".ply", ".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts")
 
 
@@ -44,12 +46,29 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
     import open3d as o3d
 
     path = Path(path)
-    if path.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"path: expected a suffix in {MESH_SUFFIXES}, got {path.suffix!r}")
-    with atomic_file(path) as tmp:
-        ok = o3d.io.write_triangle_mesh(str(tmp), mesh, write_ascii=ascii, print_progress=False)
+    if path.suffix.lower() not in WRITE_SUFFIXES:
+        raise ValueError(f"path: expected a suffix in {WRITE_SUFFIXES}, got {path.suffix!r}"
+                         + (" (open3d 0.20 writes broken .glb files; use .gltf)"
+                            if path.suffix.lower() == ".glb" else ""))
+    # Write into a temporary folder under the final name (OBJ names its .mtl and
+    # textures after the file), then move every file into place.
+    import shutil
+    import tempfile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.tmp-", dir=path.parent))
+    try:
+        target = tmpdir / path.name
+        ok = o3d.io.write_triangle_mesh(str(target), mesh, write_ascii=ascii,
+                                        print_progress=False)
         if not ok:
             raise RuntimeError(f"open3d failed to write {path}")
+        for f in sorted(tmpdir.iterdir()):
+            if f.name != path.name:
+                os.replace(f, path.parent / f.name)
+        os.replace(target, path)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
     return path
 
 

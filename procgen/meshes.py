@@ -60,7 +60,8 @@ def make_mesh(
     v = check_array(vertices, "vertices", shape=(None, 3))
     f = check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
     if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise ValueError(f"triangles: expected indices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
+        raise ValueError(
+            f"triangles: expected indices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
     mesh = o3d.geometry.TriangleMesh(
         o3d.utility.Vector3dVector(np.ascontiguousarray(v)),
         o3d.utility.Vector3iVector(np.ascontiguousarray(f.astype(np.int32))),

@@ -85,7 +85,7 @@ def check_array(
         raise ValueError(f"{name}: expected a numeric array, got {type(value).__name__}") from exc
     if shape is not None:
         ok = arr.ndim == len(shape) and all(
-            s is None or s == a for s, a in zip(shape, arr.shape)
+            s is None or s == a for s, a in zip(shape, arr.shape, strict=True)
         )
         if not ok:
             raise ValueError(f"{name}: expected shape {_shape_str(shape)}, got {arr.shape}")

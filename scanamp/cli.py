@@ -84,7 +84,8 @@ def main(argv: list[str] | None = None) -> int:
         progress.enable(sys.stderr.isatty())
     try:
         return int(args._run(args) or 0)
-    except (InputError, ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError) as exc:
+    except (InputError, ValueError, FileNotFoundError, IsADirectoryError,
+            NotADirectoryError) as exc:
         if args.debug:
             traceback.print_exc()
         msg = str(exc)

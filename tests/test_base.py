@@ -2,8 +2,14 @@ import numpy as np
 import pytest
 
 from procgen.files import atomic_dir, read_toml, require
-from procgen.meshes import from_pymeshlab, from_pyvista, make_mesh, mesh_arrays, to_pymeshlab, \
-    to_pyvista
+from procgen.meshes import (
+    from_pymeshlab,
+    from_pyvista,
+    make_mesh,
+    mesh_arrays,
+    to_pymeshlab,
+    to_pyvista,
+)
 from procgen.validate import InputError, check_array, check_choice, check_range
 
 

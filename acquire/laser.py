@@ -1,0 +1,352 @@
+"""The laser line projector (a sheet of light) and its fast frame renderer.
+
+A line laser spreads a beam into a planar fan: the sheet. Across the sheet the
+intensity is Gaussian (standard deviation ``thickness``, metres); along it the fan
+covers ``fan_angle`` radians around the central direction and spreads as ``1/r``.
+:class:`LaserSheet` implements the light protocol of :mod:`acquire.lights`, so it
+renders with :func:`acquire.render.render` like any lamp.
+
+:class:`LaserRenderer` renders a scan's frames, the hot path: one camera ray per pixel, the
+ambient term from the albedo alone, and a shadow ray toward the laser only for the
+pixels within a few ``thickness`` of the sheet (the others receive no laser light).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from procgen.validate import check_array, check_positive, check_range
+
+__all__ = ["LaserSheet", "LaserFrame", "LaserRenderer", "camera_directions", "plane_of"]
+
+_CUTOFF = 4.0  # sheet half-thickness rendered, in sigmas (exp(-8) = 3e-4 of the peak)
+
+
+def _unit(v, name):
+    v = check_array(v, name, shape=(3,))
+    n = np.linalg.norm(v)
+    if n == 0:
+        raise ValueError(f"{name}: expected a non-zero vector, got (0, 0, 0)")
+    return v / n
+
+
+@dataclass
+class LaserSheet:
+    """A line laser.
+
+    Parameters
+    ----------
+    origin : (3,) float64
+        The emitter (apex of the fan), world metres.
+    normal : (3,) float64
+        Normal of the sheet's plane.
+    direction : (3,) float64
+        Central direction of the fan; projected into the sheet's plane.
+    fan_angle : float
+        Full opening of the fan in radians.
+    thickness : float
+        Gaussian standard deviation of the sheet across its plane, metres.
+    power : float
+        Peak irradiance on a surface facing the laser 1 m away (radiance units of
+        :mod:`acquire.lights`); falls off as ``1/r`` along the fan.
+    color : (3,) float64
+        Spectral colour (red for the usual 635-660 nm diode).
+    speckle : float
+        Speckle contrast (std/mean of the multiplicative, unit-mean gamma noise per
+        pixel; 0 = off, 1 = fully developed speckle). Applied by the frame renderer.
+    """
+
+    origin: np.ndarray
+    normal: np.ndarray
+    direction: np.ndarray
+    fan_angle: float = np.radians(40.0)
+    thickness: float = 0.4e-3
+    power: float = 0.35
+    color: np.ndarray = None
+    speckle: float = 0.0
+
+    def __post_init__(self):
+        self.origin = check_array(self.origin, "origin", shape=(3,))
+        self.normal = _unit(self.normal, "normal")
+        d = _unit(self.direction, "direction")
+        d = d - (d @ self.normal) * self.normal
+        if np.linalg.norm(d) < 1e-9:
+            raise ValueError("direction: expected a direction inside the sheet, got its normal")
+        self.direction = d / np.linalg.norm(d)
+        self.fan_angle = check_range(self.fan_angle, "fan_angle", 0, np.pi, lo_open=True,
+                                     hi_open=True)
+        self.thickness = check_positive(self.thickness, "thickness")
+        self.power = check_positive(self.power, "power", allow_zero=True)
+        self.color = (np.array([1.0, 0.0, 0.0]) if self.color is None
+                      else check_array(self.color, "color", shape=(3,)))
+        self.speckle = check_range(self.speckle, "speckle", 0.0, 2.0)
+
+    # -- geometry ---------------------------------------------------------------------
+    @property
+    def plane(self) -> tuple[np.ndarray, float]:
+        """``(n (3,), d)`` with ``n . x = d`` on the sheet's central plane (world)."""
+        return self.normal.copy(), float(self.normal @ self.origin)
+
+    def transformed(self, new_from_old: np.ndarray) -> LaserSheet:
+        """The same laser moved by the rigid transform ``new_from_old`` (4, 4)."""
+        R, t = new_from_old[:3, :3], new_from_old[:3, 3]
+        return LaserSheet(R @ self.origin + t, R @ self.normal, R @ self.direction,
+                          self.fan_angle, self.thickness, self.power, self.color, self.speckle)
+
+    def profile(self, points: np.ndarray) -> np.ndarray:
+        """Unshadowed, cosine-free irradiance factor ``(n,)`` at ``points (n, 3)``."""
+        d = points - self.origin
+        s = d @ self.normal
+        along = d @ self.direction
+        side = np.cross(self.normal, self.direction)
+        lateral = d @ side
+        r = np.sqrt(along * along + lateral * lateral)
+        in_fan = (along > 0) & (np.abs(np.arctan2(lateral, along)) <= 0.5 * self.fan_angle)
+        g = np.exp(-0.5 * (s / self.thickness) ** 2)
+        g[np.abs(s) > _CUTOFF * self.thickness] = 0.0
+        return np.where(in_fan, self.power * g / np.maximum(r, 1e-9), 0.0)
+
+    # -- light protocol ---------------------------------------------------------------
+    def irradiance(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        to = self.origin - points
+        cos = np.einsum("ij,ij->i", to, normals) / np.maximum(np.linalg.norm(to, axis=1), 1e-12)
+        e = self.profile(points) * np.clip(cos, 0.0, None)
+        return e[:, None] * self.color
+
+    def shadow_rays(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.origin - points, np.ones(len(points))
+
+    # -- serialization ----------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {"origin": self.origin.tolist(), "normal": self.normal.tolist(),
+                "direction": self.direction.tolist(),
+                "fan_angle_deg": float(np.degrees(self.fan_angle)),
+                "thickness": self.thickness, "power": self.power, "color": self.color.tolist(),
+                "speckle": self.speckle}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> LaserSheet:
+        return cls(d["origin"], d["normal"], d["direction"], np.radians(d["fan_angle_deg"]),
+                   d["thickness"], d["power"], d.get("color"), d.get("speckle", 0.0))
+
+
+def plane_of(laser: LaserSheet) -> np.ndarray:
+    """The sheet's plane as ``(4,)``: ``(nx, ny, nz, d)`` with ``n . x = d``."""
+    n, d = laser.plane
+    return np.append(n, d)
+
+
+@dataclass
+class LaserFrame:
+    """One rendered laser frame.
+
+    Attributes
+    ----------
+    radiance : (H, W) float32
+        Radiance in the laser's colour channel (ambient included).
+    stripe : (k, 2) float64
+        Ground truth: ``(row, col)`` where the sheet's central plane crosses the visible,
+        lit surface along each image row (sub-pixel, linear between pixel centres).
+    depth : (H, W) float32
+        Ground-truth z-depth (0 = no hit).
+    lit : int
+        Number of pixels that receive laser light.
+    """
+
+    radiance: np.ndarray
+    stripe: np.ndarray
+    depth: np.ndarray
+    lit: int
+
+
+@numba.njit(cache=True, nogil=True)
+def _make_rays(dirs_cam, R, origin):
+    n = dirs_cam.shape[0]
+    rays = np.empty((n, 6), np.float32)
+    for i in range(n):
+        for a in range(3):
+            rays[i, a] = origin[a]
+            rays[i, 3 + a] = (R[a, 0] * dirs_cam[i, 0] + R[a, 1] * dirs_cam[i, 1]
+                              + R[a, 2] * dirs_cam[i, 2])
+    return rays
+
+
+@numba.njit(cache=True, nogil=True)
+def _near_sheet(t, rays, normal, d, cutoff):
+    """Signed distance to the plane at the hit pixels, and the pixels near the sheet."""
+    n = t.shape[0]
+    s = np.zeros(n)
+    near = np.empty(n, np.int64)
+    k = 0
+    for i in range(n):
+        ti = t[i]
+        if np.isfinite(ti):
+            acc = -d
+            for a in range(3):
+                acc += normal[a] * (rays[i, a] + ti * rays[i, 3 + a])
+            s[i] = acc
+            if abs(acc) < cutoff:
+                near[k] = i
+                k += 1
+    return s, near[:k]
+
+
+class LaserRenderer:
+    """Renders the frames of a scan, caching what does not change between frames.
+
+    Parameters
+    ----------
+    scene : acquire.scene.RenderScene
+        Geometry, materials and ambient term (its lights are not used). The scene stays
+        fixed; a turntable scan moves the camera and laser around it instead (see
+        :mod:`acquire.capture_laser` for why that is equivalent).
+    camera : acquire.camera.Camera
+        Intrinsics and distortion (the pose is given per frame).
+    dirs_cam : (H*W, 3) float64, optional
+        The camera's :func:`camera_directions`, when already computed for another scene.
+    exact_ambient : bool
+        Evaluate the albedo exactly at every hit pixel for the ambient term. The default
+        interpolates per-vertex albedo for the ambient term only (far cheaper for
+        procedural solid textures); laser-lit pixels always get the exact albedo, and
+        image-textured objects (calibration boards) always take the exact path.
+    """
+
+    def __init__(self, scene, camera, *, exact_ambient: bool = False,
+                 dirs_cam: np.ndarray | None = None):
+        self.scene = scene
+        self.camera = camera
+        if dirs_cam is None:
+            dirs_cam = camera_directions(camera)
+        self.dirs_cam = dirs_cam
+        self.exact = exact_ambient or any(o.material.kind == "image" for o in scene.objects)
+        self._vertex_albedo = None
+
+    def _ambient_albedo(self, hit_idx, points, ans, ch):
+        from acquire.render import Hits, albedo
+
+        _, parts, lut = self.scene.raycasting()
+        obj = lut[ans["geometry_ids"].numpy()[hit_idx].astype(np.int64)]
+        tri = ans["primitive_ids"].numpy()[hit_idx].astype(np.int64)
+        bary = ans["primitive_uvs"].numpy()[hit_idx].astype(np.float64)
+        if self.exact:
+            hits = Hits(np.ones(hit_idx.size, bool), None, points, None, None, obj, tri, bary)
+            return albedo(self.scene, hits)[:, ch]
+        if self._vertex_albedo is None:
+            self._vertex_albedo = [
+                o.material.albedo_at(np.asarray(o.mesh.vertices, dtype=np.float64),
+                                     o.vertex_uvs)[:, ch] for o in self.scene.objects]
+        out = np.empty(hit_idx.size)
+        for i, (_, f, _) in enumerate(parts):
+            sel = np.flatnonzero(obj == i)
+            if sel.size == 0:
+                continue
+            va = self._vertex_albedo[i]
+            tr = f[tri[sel]]
+            u, v = bary[sel, 0], bary[sel, 1]
+            out[sel] = (1 - u - v) * va[tr[:, 0]] + u * va[tr[:, 1]] + v * va[tr[:, 2]]
+        return out
+
+    def frame(self, cam_from_world: np.ndarray, laser: LaserSheet | None, *,
+              ambient: float | None = None, rng: np.random.Generator | None = None,
+              channel: int = 0) -> LaserFrame:
+        """Render one frame from the camera at ``cam_from_world`` lit by ``laser``.
+
+        Parameters
+        ----------
+        cam_from_world : (4, 4) float64
+        laser : LaserSheet or None
+            None renders the laser-off (ambient only) frame.
+        ambient : float, optional
+            Ambient irradiance (default: the scene's).
+        rng : numpy.random.Generator, optional
+            Needed when the laser has speckle.
+        channel : int
+            Colour channel rendered when ``laser`` is None (else the laser's own).
+
+        Notes
+        -----
+        Shading is ``albedo * (ambient + laser irradiance * visibility)`` in the laser's
+        colour channel; vertex normals interpolated at the exact (float64) hit give the
+        incidence cosine. Ground truth (the stripe's true crossing per row) is where the
+        signed distance to the sheet's plane changes sign between two neighbouring pixels
+        of a row that both see a continuous, lit surface.
+        """
+        import open3d as o3d
+
+        from acquire.render import albedo, cast, visibility
+
+        scene, cam = self.scene, self.camera
+        H, W = cam.height, cam.width
+        amb = scene.ambient if ambient is None else float(ambient)
+        Tw = np.linalg.inv(np.asarray(cam_from_world, float))
+        origin = np.ascontiguousarray(Tw[:3, 3])
+        rays = _make_rays(self.dirs_cam, np.ascontiguousarray(Tw[:3, :3]), origin)
+        rs, _, _ = scene.raycasting()
+        ans = rs.cast_rays(o3d.core.Tensor(rays))
+        t = ans["t_hit"].numpy()
+        hit_idx = np.flatnonzero(np.isfinite(t))
+        rad = np.zeros(H * W)
+        depth = np.zeros(H * W, np.float32)
+        depth[hit_idx] = t[hit_idx]  # directions have z = 1: t is the z-depth
+        lit = 0
+        stripe = np.zeros((0, 2))
+        ch = channel if laser is None else int(np.argmax(laser.color))
+        if laser is not None:
+            n_pl, d_pl = laser.plane
+            s, near = _near_sheet(t, rays, n_pl, d_pl, _CUTOFF * laser.thickness)
+        else:
+            near = np.zeros(0, np.int64)
+        if near.size:
+            dn = rays[near, 3:].astype(np.float64)
+            hits = cast(scene, np.broadcast_to(origin, dn.shape), dn)
+            ok = np.flatnonzero(hits.hit)
+            e = np.zeros(near.size)
+            P, N, G = hits.points[ok], hits.normals[ok], hits.geo_normals[ok]
+            e_ok = laser.irradiance(P, N)[:, ch]
+            has = np.flatnonzero(e_ok > 0)
+            keep = np.zeros(len(P), bool)
+            if has.size:
+                keep[has[visibility(scene, laser, P[has], G[has])]] = True
+            e[ok] = np.where(keep, e_ok, 0.0)
+            s[near[ok]] = P @ n_pl - d_pl
+            if laser.speckle > 0:
+                if rng is None:
+                    raise ValueError("rng: a laser with speckle needs a random generator")
+                k = 1.0 / laser.speckle ** 2
+                e = e * rng.gamma(k, 1.0 / k, size=e.shape)
+            sel = np.flatnonzero(e > 0)
+            if sel.size:
+                hl = type(hits)(*(getattr(hits, f)[sel] for f in
+                                  ("hit", "t", "points", "normals", "geo_normals", "obj", "tri",
+                                   "bary")))
+                rad[near[sel]] = e[sel] * albedo(scene, hl)[:, ch]
+            lit = int(sel.size)
+            stripe = _true_stripe(s, depth, near[sel], H, W)
+        if amb > 0 and hit_idx.size:
+            pts = None
+            if self.exact:
+                pts = origin + t[hit_idx, None].astype(np.float64) * rays[hit_idx, 3:]
+            rad[hit_idx] += amb * self._ambient_albedo(hit_idx, pts, ans, ch)
+        return LaserFrame(rad.reshape(H, W).astype(np.float32), stripe, depth.reshape(H, W), lit)
+
+
+def _true_stripe(s, depth, lit_idx, H, W):
+    """Sub-pixel ``(row, col)`` crossings of the sheet's plane along rows (ground truth)."""
+    lit = np.zeros(H * W, bool)
+    lit[lit_idx] = True
+    s2, l2, z2 = s.reshape(H, W), lit.reshape(H, W), depth.reshape(H, W)
+    a, b = s2[:, :-1], s2[:, 1:]
+    zc = (l2[:, :-1] & l2[:, 1:] & (np.sign(a) != np.sign(b))
+          & (np.abs(z2[:, :-1] - z2[:, 1:]) < 0.01 * np.maximum(z2[:, :-1], 1e-9)))
+    r, c = np.nonzero(zc)
+    u = c + a[r, c] / (a[r, c] - b[r, c])
+    return np.stack([r.astype(np.float64), u], axis=1)
+
+
+def camera_directions(camera) -> np.ndarray:
+    """Camera-frame directions ``(H*W, 3)`` (z = 1) through the pixel centres, row-major."""
+    xy = camera.normalized(camera.pixel_grid(supersample=1))
+    return np.ascontiguousarray(np.concatenate([xy, np.ones((len(xy), 1))], axis=1))

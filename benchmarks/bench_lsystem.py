@@ -1,0 +1,65 @@
+"""L-system throughput: D0L derivation against a plain per-symbol Python loop (same run),
+parametric derivation against the per-module reference engine, turtle + tube meshing; each
+also against its absolute target (20 M symbols/s, 1 M modules/s, 1 M segments/s)."""
+
+import numpy as np
+from _timing import best_of, report
+
+from procgen.lsystem import derive, derive_reference, interpret, load_grammar, tube_arrays
+
+
+def _python_d0l(axiom, rules, n):
+    s = axiom
+    for _ in range(n):
+        out = []
+        for c in s:  # the plain per-symbol loop
+            out.append(rules.get(c, c))
+        s = "".join(out)
+    return s
+
+
+def main():
+    cases = [("abop_1_24a", 9, "F", {"F": "F[+F]F[-F]F"}),
+             ("abop_1_24d", 12, "X", {"X": "F[+X]F[-X]+X", "F": "FF"})]
+    for name, n, axiom, rules in cases:
+        g = load_grammar(name)
+        assert derive(g, 4).symbols == _python_d0l(axiom, rules, 4)
+        ours = best_of(lambda g=g, n=n: derive(g, n), repeat=3)
+        length = len(derive(g, n))
+        peer = best_of(lambda a=axiom, r=rules, n=n: _python_d0l(a, r, n), repeat=1)
+        print(f"   D0L ({name}, n={n}, {length / 1e6:.1f} M symbols): "
+              f"{length / ours / 1e6:.0f} M symbols/s; Python loop {length / peer / 1e6:.1f} M/s")
+        report(f"D0L {name} vs per-symbol Python loop", 1 / ours, 1 / peer, 20.0)
+        report(f"D0L {name} vs 20 M symbols/s", length / ours, 20e6, 1.0)
+    g = load_grammar("abop_1_24a")
+
+    gb = load_grammar("stochastic_bush")
+    t = best_of(lambda: derive(gb, 9, rng=np.random.default_rng(0)), repeat=3)
+    ls = len(derive(gb, 9, rng=np.random.default_rng(0)))
+    print(f"   stochastic 0L (bush, n=9): {ls / t / 1e6:.0f} M symbols/s")
+
+    gp = load_grammar("parametric_tree")
+    n_p = 17
+    tp = best_of(lambda: derive(gp, n_p), repeat=2)
+    lp = len(derive(gp, n_p))
+    n_ref = 10
+    tr = best_of(lambda: derive_reference(gp, n_ref), repeat=1, warmup=0)
+    lr = len(derive_reference(gp, n_ref))
+    print(f"   parametric (ABOP 2.6 tree, n={n_p}, {lp / 1e6:.2f} M modules): "
+          f"{lp / tp / 1e6:.2f} M modules/s; reference engine {lr / tr / 1e6:.3f} M/s")
+    report("parametric derivation vs 1 M modules/s", lp / tp, 1e6, 1.0)
+    report("parametric derivation vs per-module reference", lp / tp, lr / tr, 1.0)
+
+    s = derive(g, 8)
+
+    def turtle_tubes():
+        return tube_arrays(interpret(s, g), sides=8)
+
+    tt = best_of(turtle_tubes, repeat=3)
+    m = len(interpret(s, g))
+    print(f"   turtle + tubes (8 sides, {m / 1e6:.2f} M segments): {m / tt / 1e6:.2f} M segments/s")
+    report("turtle + tube meshing vs 1 M segments/s", m / tt, 1e6, 1.0)
+
+
+if __name__ == "__main__":
+    main()

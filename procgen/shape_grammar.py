@@ -1,0 +1,176 @@
+"""A small context-free shape grammar with geometry.
+
+Rules rewrite a nonterminal into one of several weighted alternatives; a sentence is
+interpreted left to right by a frame cursor (a 4x4 ``world_from_local`` transform):
+terminal shapes emit geometry in the current frame and may move it; ``[`` and ``]`` push
+and pop the frame (a push also tilts the branch). Text form, one rule per line::
+
+    Start  -> Tree
+    Tree   -> Branch Tree {0.65} | leaf {0.35}
+    Branch -> cylinder {0.6} | [ Tree ] {0.4}
+
+(the seeds' plant grammar, :data:`PLANT`). Weights default to 1. Recursion deeper than
+``max_depth`` takes the alternative with the fewest nonterminals, so derivation ends.
+
+>>> import numpy as np
+>>> g = parse_shape_grammar(PLANT)
+>>> sentence = derive_sentence(g, np.random.default_rng(0))
+>>> sentence[-1]
+'leaf'
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from procgen.sweeps import revolve, sweep
+from procgen.validate import InputError
+
+__all__ = ["ShapeGrammar", "parse_shape_grammar", "derive_sentence", "interpret_sentence",
+           "plant_mesh", "PLANT", "TERMINALS"]
+
+PLANT = """
+Start  -> Tree
+Tree   -> Branch Tree {0.65} | leaf {0.35}
+Branch -> cylinder {0.6} | [ Tree ] {0.4}
+"""
+
+TERMINALS = ("cylinder", "leaf", "[", "]")
+
+
+@dataclass
+class ShapeGrammar:
+    """Rules ``name -> [(weight, (token, ...)), ...]`` and the start symbol."""
+
+    rules: dict[str, list[tuple[float, tuple[str, ...]]]] = field(default_factory=dict)
+    start: str = "Start"
+
+
+def parse_shape_grammar(text: str, *, source: str | None = None) -> ShapeGrammar:
+    """Parse the rule text; InputError naming the line for unknown tokens or bad weights."""
+    g = ShapeGrammar()
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        where = f"line {lineno}"
+        if "->" not in line:
+            raise InputError("expected 'Name -> alternative | alternative'", path=source,
+                             field=where)
+        lhs, rhs = (s.strip() for s in line.split("->", 1))
+        if not re.fullmatch(r"[A-Za-z_]\w*", lhs) or lhs in TERMINALS:
+            raise InputError(f"bad rule name {lhs!r}", path=source, field=where)
+        if not g.rules:
+            g.start = lhs
+        alts = []
+        for alt in rhs.split("|"):
+            m = re.search(r"\{([^}]*)\}\s*$", alt)
+            weight = 1.0
+            if m:
+                try:
+                    weight = float(m.group(1))
+                except ValueError:
+                    raise InputError(f"bad weight {m.group(1)!r}", path=source,
+                                     field=where) from None
+                alt = alt[:m.start()]
+            if weight <= 0:
+                raise InputError(f"weights must be > 0, got {weight:g}", path=source, field=where)
+            alts.append((weight, tuple(alt.split())))
+        g.rules.setdefault(lhs, []).extend(alts)
+    for name, alts in g.rules.items():
+        for _, toks in alts:
+            for t in toks:
+                if t not in TERMINALS and t not in g.rules:
+                    raise InputError(f"rule {name!r} uses unknown symbol {t!r} (terminals: "
+                                     f"{', '.join(TERMINALS)})", path=source)
+    if not g.rules:
+        raise InputError("no rules", path=source)
+    return g
+
+
+def derive_sentence(grammar: ShapeGrammar, rng: np.random.Generator, *,
+                    max_depth: int = 8, max_terminals: int = 100_000) -> list[str]:
+    """Expand the start symbol depth-first into a list of terminals."""
+    out: list[str] = []
+    stack: list[tuple[str, int]] = [(grammar.start, 0)]
+    while stack:
+        tok, depth = stack.pop()
+        if tok not in grammar.rules:
+            out.append(tok)
+            if len(out) > max_terminals:
+                raise ValueError(f"max_terminals: the sentence exceeds {max_terminals}")
+            continue
+        alts = grammar.rules[tok]
+        if depth >= max_depth:
+            toks = min(alts, key=lambda a: sum(t in grammar.rules for t in a[1]))[1]
+        else:
+            w = np.array([a[0] for a in alts])
+            toks = alts[int(rng.choice(len(alts), p=w / w.sum()))][1]
+        for t in reversed(toks):
+            stack.append((t, depth + 1))
+    return out
+
+
+def _rot(axis, ang):
+    axis = axis / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(ang) * K + (1 - np.cos(ang)) * K @ K
+
+
+def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length: float = 1.0,
+                       radius: float = 0.08, shrink: float = 0.9, branch_shrink: float = 0.75,
+                       tilt: tuple[float, float] = (25.0, 50.0), sides: int = 10
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Geometry of a sentence: cylinders (swept circles) and leaves (revolved lenses).
+
+    ``cylinder`` draws along the local +Z and moves the frame to its top, scaling by
+    ``shrink``; ``[`` pushes the frame, tilts it by a random angle in ``tilt`` (degrees)
+    about a random horizontal axis and scales by ``branch_shrink``; ``]`` pops.
+    """
+    R = np.eye(3)
+    p = np.zeros(3)
+    s = 1.0
+    stack = []
+    vs, fs = [], []
+    count = 0
+    t = np.linspace(0, 2 * np.pi, sides, endpoint=False)
+    circle = np.c_[np.cos(t), np.sin(t)]
+    a = np.linspace(0, np.pi, 8)
+    lens = np.c_[np.sin(a) * 0.5, (1 - np.cos(a)) * 0.5]  # (r, z) from axis to axis
+    lv, lf = revolve(lens, segments=sides)
+    lv = lv * [0.25, 0.12, 0.5]
+    for tok in sentence:
+        if tok == "cylinder":
+            top = p + R[:, 2] * length * s
+            v, f = sweep(circle * radius * s, np.stack([p, top]), normal=R[:, 0])
+            vs.append(v)
+            fs.append(f + count)
+            count += len(v)
+            p = top
+            s *= shrink
+        elif tok == "leaf":
+            v = (lv * s) @ R.T + p
+            vs.append(v)
+            fs.append(lf + count)
+            count += len(v)
+        elif tok == "[":
+            stack.append((R.copy(), p.copy(), s))
+            az = rng.uniform(0, 2 * np.pi)
+            axis = R @ np.array([np.cos(az), np.sin(az), 0.0])
+            R = _rot(axis, np.radians(rng.uniform(*tilt))) @ R
+            s *= branch_shrink
+        elif tok == "]":
+            R, p, s = stack.pop()
+    if not vs:
+        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+    return np.vstack(vs), np.vstack(fs).astype(np.int64)
+
+
+def plant_mesh(rng: np.random.Generator, *, max_depth: int = 9,
+               grammar: str = PLANT) -> tuple[np.ndarray, np.ndarray]:
+    """Derive and build the plant grammar: ``(vertices, triangles)``."""
+    g = parse_shape_grammar(grammar)
+    return interpret_sentence(derive_sentence(g, rng, max_depth=max_depth), rng)

@@ -1,0 +1,206 @@
+"""Terrain: heightfields to meshes, water by an elevation threshold, fractal-noise and
+tileable terrains.
+
+Heightfields are ``(rows, cols)`` arrays; sample ``[i, j]`` sits at
+``origin + (j * dx, i * dy, heights[i, j])`` (rows along +y, columns along +x, Z up).
+
+>>> import numpy as np
+>>> mesh = heightfield_to_mesh(np.zeros((3, 4)), spacing=0.5)
+>>> len(mesh.vertices), len(mesh.triangles)
+(12, 12)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from procgen.fractals.displacement import _check_hurst, diamond_square
+from procgen.meshes import make_mesh
+from procgen.noise.fractal import fbm, ridged, tileable
+from procgen.validate import check_array, check_choice, check_finite, check_positive
+
+__all__ = ["heightfield_to_mesh", "water_mesh", "fractal_terrain", "tileable_terrain",
+           "check_grid_size"]
+
+
+def check_grid_size(size, name: str = "size") -> int:
+    """Return ``n`` for a grid size ``2**n + 1`` (n >= 1); a ValueError naming ``name`` else."""
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)):
+        raise ValueError(f"{name}: expected an integer 2**n + 1, got {size!r}")
+    m = int(size) - 1
+    if m < 2 or m & (m - 1):
+        raise ValueError(f"{name}: expected a grid size 2**n + 1 (3, 5, 9, 17, ...), got {size}")
+    return m.bit_length() - 1
+
+
+def _spacing(spacing):
+    s = np.broadcast_to(np.asarray(spacing, dtype=np.float64), (2,)).copy()
+    for v in s:
+        check_positive(v, "spacing")
+    return s
+
+
+def _grid_triangles(rows: int, cols: int) -> np.ndarray:
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    a = idx[:-1, :-1].ravel()
+    b = idx[:-1, 1:].ravel()
+    c = idx[1:, :-1].ravel()
+    d = idx[1:, 1:].ravel()
+    # counter-clockwise seen from +z: (a, b, d) and (a, d, c)
+    return np.stack([np.stack([a, b, d], 1), np.stack([a, d, c], 1)], 1).reshape(-1, 3)
+
+
+def heightfield_to_mesh(heights, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
+    """Triangulate a heightfield: an open3d mesh with vertex normals and UVs.
+
+    Parameters
+    ----------
+    heights : (r, c) float64
+        Finite heights, r, c >= 2.
+    spacing : float or (2,) float
+        Grid step ``(dx, dy)`` in metres.
+    origin : (3,) float
+        Position of sample ``[0, 0]`` at height 0.
+
+    Returns
+    -------
+    open3d.geometry.TriangleMesh
+        ``r * c`` vertices, ``2 (r - 1)(c - 1)`` triangles facing +z, vertex normals and
+        ``triangle_uvs`` (u along columns, v along rows, both in [0, 1]).
+    """
+    import open3d as o3d
+
+    z = check_array(heights, "heights", shape=(None, None))
+    if z.shape[0] < 2 or z.shape[1] < 2:
+        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
+    d = _spacing(spacing)
+    o = check_array(origin, "origin", shape=(3,))
+    rows, cols = z.shape
+    jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
+    verts = np.stack([o[0] + jj.ravel() * d[0], o[1] + ii.ravel() * d[1], o[2] + z.ravel()], 1)
+    tris = _grid_triangles(rows, cols)
+    mesh = make_mesh(verts, tris)
+    uv = np.stack([jj.ravel() / (cols - 1), ii.ravel() / (rows - 1)], 1)
+    mesh.triangle_uvs = o3d.utility.Vector2dVector(uv[tris.ravel()])
+    return mesh
+
+
+def water_mesh(heights, level: float, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
+    """A flat water surface at ``level`` over every cell whose lowest corner is below it.
+
+    Returns an open3d mesh (facing +z, with UVs like :func:`heightfield_to_mesh`); it has
+    no triangles when the terrain is nowhere under water.
+    """
+    import open3d as o3d
+
+    z = check_array(heights, "heights", shape=(None, None))
+    if z.shape[0] < 2 or z.shape[1] < 2:
+        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
+    lv = check_finite(level, "level")
+    d = _spacing(spacing)
+    o = check_array(origin, "origin", shape=(3,))
+    rows, cols = z.shape
+    cmin = np.minimum(np.minimum(z[:-1, :-1], z[:-1, 1:]), np.minimum(z[1:, :-1], z[1:, 1:]))
+    wet = np.repeat((cmin < lv).ravel(), 2)
+    tris = _grid_triangles(rows, cols)[wet]
+    used = np.unique(tris)
+    remap = np.full(rows * cols, -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    ii, jj = np.divmod(used, cols)
+    verts = np.stack([o[0] + jj * d[0], o[1] + ii * d[1], np.full(len(used), o[2] + lv)], 1)
+    new_tris = remap[tris].reshape(-1, 3)
+    mesh = make_mesh(verts.reshape(-1, 3), new_tris, compute_normals=False)
+    if len(new_tris):
+        mesh.vertex_normals = o3d.utility.Vector3dVector(np.tile([0.0, 0.0, 1.0], (len(used), 1)))
+        uv = np.stack([jj / (cols - 1), ii / (rows - 1)], 1)
+        mesh.triangle_uvs = o3d.utility.Vector2dVector(uv[new_tris.ravel()])
+    return mesh
+
+
+def _seed_from(rng) -> int:
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    return int(rng.integers(0, 2 ** 31 - 1))
+
+
+def fractal_terrain(size: int, *, rng: np.random.Generator, method: str = "diamond_square",
+                    hurst: float = 0.8, height: float = 1.0, frequency: float = 4.0,
+                    octaves: int = 8) -> np.ndarray:
+    """A fractal heightfield of ``size x size`` samples over the unit square.
+
+    Parameters
+    ----------
+    size : int
+        Samples a side, ``2**n + 1``.
+    rng : numpy.random.Generator
+    method : {'diamond_square', 'fbm', 'ridged'}
+        Saupe's midpoint displacement (with the addition step), fBm of Perlin noise, or
+        Musgrave's ridged multifractal (mountain ridges).
+    hurst : float
+        Hurst exponent in (0, 1): roughness of diamond-square; for the noise methods the
+        octave gain is ``2**-hurst``.
+    height : float
+        Vertical scale: the result has standard deviation ``height`` (peak-to-peak
+        about 6 times that).
+    frequency : float
+        Noise methods: lattice cells across the square in the first octave.
+    octaves : int
+        Noise methods: number of octaves.
+
+    Returns
+    -------
+    (size, size) float64, zero mean
+
+    Examples
+    --------
+    >>> z = fractal_terrain(33, rng=np.random.default_rng(0), method="fbm")
+    >>> z.shape
+    (33, 33)
+    """
+    n = check_grid_size(size)
+    method = check_choice(method, "method", {"diamond_square", "fbm", "ridged"})
+    h = _check_hurst(hurst)
+    amp = check_positive(height, "height", allow_zero=True)
+    f = check_positive(frequency, "frequency")
+    if method == "diamond_square":
+        z = diamond_square(n, hurst=h, rng=rng, addition=True)
+    else:
+        seed = _seed_from(rng)
+        shift = rng.uniform(0, 256, size=2)
+        u = np.linspace(0.0, 1.0, size)
+        x = f * u[None, :] + shift[0]
+        y = f * u[:, None] + shift[1]
+        if method == "fbm":
+            z = fbm(x, y, 0.5, octaves=octaves, gain=2.0 ** -h, seed=seed)
+        else:
+            z = ridged(x, y, 0.5, octaves=octaves, h=h, seed=seed)
+    z = z - z.mean()
+    sd = z.std()
+    return z * (amp / sd) if sd > 0 else z
+
+
+def tileable_terrain(size: int, *, rng: np.random.Generator, frequency: int = 4,
+                     octaves: int = 6, hurst: float = 0.8, height: float = 1.0) -> np.ndarray:
+    """A heightfield that tiles: its last row and column equal its first.
+
+    Samples ``u = j / (size - 1)`` of :func:`procgen.noise.tileable` (period 1), so copies
+    placed edge to edge share their border samples exactly and the seam is invisible.
+
+    Returns
+    -------
+    (size, size) float64, zero mean, standard deviation ``height``
+    """
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 3:
+        raise ValueError(f"size: expected an integer >= 3, got {size!r}")
+    h = _check_hurst(hurst)
+    amp = check_positive(height, "height", allow_zero=True)
+    seed = _seed_from(rng)
+    u = np.arange(size) / (size - 1)
+    z = tileable(u[None, :], u[:, None], frequency=frequency, octaves=octaves, gain=2.0 ** -h,
+                 seed=seed)
+    # u = 1 is u = 0 up to rounding of u * period: make the seam exact
+    z[:, -1] = z[:, 0]
+    z[-1, :] = z[0, :]
+    z = z - z.mean()
+    sd = z.std()
+    return z * (amp / sd) if sd > 0 else z

@@ -1,0 +1,175 @@
+"""Camera calibration from images of a planar target (ChArUco or chessboard).
+
+Zhang's method as OpenCV implements it (``cv2.calibrateCamera``): detect the
+target's corners in each image, match them to the corners' known positions on the
+board, estimate intrinsics, distortion and one board pose per view by minimizing
+the reprojection error. Used by every acquisition kind that has a camera (laser,
+stereo, structured light); the target is any object of :mod:`acquire.targets`
+(anything with ``detect(image) -> (ids, corners) | None`` and ``corner_points()``).
+
+References
+----------
+Z. Zhang, "A flexible new technique for camera calibration", IEEE TPAMI 22(11),
+2000, doi:10.1109/34.888718.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acquire.camera import Camera
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CameraCalibration", "calibrate_camera", "detect_target", "board_pose"]
+
+_DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
+
+
+@dataclass
+class CameraCalibration:
+    """Result of :func:`calibrate_camera`.
+
+    Attributes
+    ----------
+    camera : acquire.camera.Camera
+        Intrinsics and distortion; ``cam_from_world`` is the identity (the camera frame).
+    rms : float
+        RMS reprojection error over all used corners, pixels.
+    per_view_errors : (m,) float64
+        RMS reprojection error of each used view.
+    used_views : list of int
+        Indices (into the input images) of the views where the target was detected.
+    cam_from_target : list of (4, 4) float64
+        The board's pose in each used view.
+    rejected_views : list of int
+        Views where the target was not detected (too few corners).
+    """
+
+    camera: Camera
+    rms: float
+    per_view_errors: np.ndarray
+    used_views: list
+    cam_from_target: list
+    rejected_views: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {"camera": self.camera.to_dict(), "rms_px": float(self.rms),
+                "per_view_rms_px": [float(e) for e in self.per_view_errors],
+                "used_views": list(self.used_views),
+                "rejected_views": list(self.rejected_views)}
+
+
+def detect_target(image: np.ndarray, target) -> tuple[np.ndarray, np.ndarray] | None:
+    """Corners of ``target`` in ``image``: ``(object_points (k, 3), pixels (k, 2))`` or None."""
+    det = target.detect(image)
+    if det is None:
+        return None
+    ids, px = det
+    return target.corner_points()[ids], px
+
+
+def _rt_to_T(rvec, tvec):
+    import cv2
+
+    T = np.eye(4)
+    T[:3, :3] = cv2.Rodrigues(np.asarray(rvec, float).reshape(3))[0]
+    T[:3, 3] = np.asarray(tvec, float).reshape(3)
+    return T
+
+
+def board_pose(object_points: np.ndarray, pixels: np.ndarray, camera: Camera) -> np.ndarray:
+    """``cam_from_target (4, 4)`` of a detected board, by PnP with the calibrated camera."""
+    import cv2
+
+    if len(object_points) < 4:
+        raise ValueError(f"object_points: expected at least 4 corners, got {len(object_points)}")
+    ok, rvec, tvec = cv2.solvePnP(object_points.astype(np.float64), pixels.astype(np.float64),
+                                  camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        raise RuntimeError("board pose: solvePnP failed")
+    rvec, tvec = cv2.solvePnPRefineLM(object_points.astype(np.float64),
+                                      pixels.astype(np.float64), camera.K, camera.dist,
+                                      rvec, tvec)
+    return _rt_to_T(rvec, tvec)
+
+
+def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
+                     min_views: int = 3, min_corners: int = 8,
+                     names: list[str] | None = None) -> CameraCalibration:
+    """Calibrate a camera from images of a planar target.
+
+    Parameters
+    ----------
+    images : sequence of (h, w) or (h, w, 3) uint8
+        Views of the target (all the same size).
+    target : ChArUcoTarget or ChessboardTarget
+    dist_model : {'k1k2', 'k1k2p1p2', 'full'}
+        Distortion parameters estimated (the others fixed at 0): radial only, radial
+        plus tangential, or all five (k3 too; needs many well-spread views).
+    min_views : int
+        Views with a detected target needed, else RuntimeError.
+    min_corners : int
+        Corners a view needs to be used.
+    names : list of str, optional
+        Names of the images, for error messages.
+
+    Returns
+    -------
+    CameraCalibration
+
+    Raises
+    ------
+    ValueError
+        Images of different sizes or dist_model unknown.
+    RuntimeError
+        Too few views with a detected target.
+    """
+    import cv2
+
+    from procgen.validate import check_choice
+
+    check_choice(dist_model, "dist_model", _DIST_MODELS)
+    images = list(images)
+    if not images:
+        raise ValueError("images: expected at least one image, got none")
+    names = names or [f"image {i}" for i in range(len(images))]
+    h, w = images[0].shape[:2]
+    obj, img, used, rejected = [], [], [], []
+    for i, im in enumerate(images):
+        if im.shape[:2] != (h, w):
+            raise ValueError(f"images: {names[i]} is {im.shape[1]}x{im.shape[0]}, "
+                             f"expected {w}x{h} like the first")
+        det = detect_target(im, target)
+        if det is None or len(det[0]) < min_corners:
+            rejected.append(i)
+            continue
+        obj.append(det[0].astype(np.float32))
+        img.append(det[1].astype(np.float32).reshape(-1, 1, 2))
+        used.append(i)
+    if len(used) < min_views:
+        bad = ", ".join(names[i] for i in rejected[:6]) + (" ..." if len(rejected) > 6 else "")
+        raise RuntimeError(f"camera calibration: the target was detected in {len(used)} of "
+                           f"{len(images)} views, need {min_views} (not detected: {bad})")
+    flags = cv2.CALIB_FIX_K3
+    if dist_model == "k1k2":
+        flags |= cv2.CALIB_ZERO_TANGENT_DIST
+    elif dist_model == "full":
+        flags = 0
+    # initial guess from a pinhole with a 50-degree field of view helps with few views
+    f0 = 0.5 * w / np.tan(np.radians(25))
+    K0 = np.array([[f0, 0, (w - 1) / 2], [0, f0, (h - 1) / 2], [0, 0, 1]])
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    rms, K, dist, rvecs, tvecs, _, _, per_view = cv2.calibrateCameraExtended(
+        obj, img, (w, h), K0, np.zeros(5), flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS,
+        criteria=crit)
+    cam = Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist.ravel()[:5])
+    poses = [_rt_to_T(r, t) for r, t in zip(rvecs, tvecs, strict=True)]
+    if rejected:
+        log.warning("camera calibration: target not detected in %s",
+                    ", ".join(names[i] for i in rejected))
+    return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(), used, poses,
+                             rejected)

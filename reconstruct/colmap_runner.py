@@ -1,0 +1,314 @@
+"""The bare pycolmap calls of sparse structure from motion, on the CPU.
+
+This module is deliberately thin: feature extraction, matching and mapping exactly
+as pycolmap exposes them, plus the option plumbing. The SfM pipeline
+(:mod:`reconstruct.sfm`) wraps it with input checks, evaluation and the dense
+stage, and the benchmark times our pipeline against :func:`run_colmap` alone.
+
+Conventions: COLMAP puts the centre of the top-left pixel at (0.5, 0.5); OpenCV
+(and scanamp) at (0, 0). :func:`colmap_params_from_camera` and
+:func:`camera_from_colmap` convert between the two.
+
+Determinism: with ``num_threads=1`` and a fixed ``seed`` the whole sparse stage is
+deterministic. With more threads, SIFT extraction and matching stay deterministic
+but RANSAC and bundle adjustment run in parallel and the poses can differ in the last
+digits between runs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2  # noqa: F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imwrite)
+import numpy as np
+
+from acquire.camera import Camera
+from procgen.validate import check_choice
+
+__all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "colmap_params_from_camera",
+           "camera_from_colmap", "MATCHERS", "MAPPERS", "CAMERA_MODELS"]
+
+log = logging.getLogger(__name__)
+
+MATCHERS = ("exhaustive", "sequential", "spatial")
+MAPPERS = ("incremental", "global")
+# models we can convert to an OpenCV camera for the dense stage; parameter names in order
+CAMERA_MODELS = {
+    "SIMPLE_PINHOLE": ("f", "cx", "cy"),
+    "PINHOLE": ("fx", "fy", "cx", "cy"),
+    "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
+    "RADIAL": ("f", "cx", "cy", "k1", "k2"),
+    "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
+}
+
+
+@dataclass
+class ColmapOptions:
+    """Options of the sparse stage.
+
+    Attributes
+    ----------
+    camera_model : str
+        COLMAP camera model, one of :data:`CAMERA_MODELS`.
+    camera_params : str or None
+        Initial intrinsics in COLMAP's order and pixel convention (``"f, cx, cy, k"``);
+        None lets COLMAP take the focal length from EXIF, or 1.2 x the larger image
+        side without EXIF.
+    matcher : str
+        ``"exhaustive"``, ``"sequential"`` or ``"spatial"`` (needs ``position_priors``).
+    mapper : str
+        ``"incremental"`` or ``"global"`` (GLOMAP).
+    num_threads : int
+        Threads for every stage (-1 = all cores).
+    seed : int
+        Seeds COLMAP's PRNG and the mappers' RANSAC.
+    max_features : int
+        SIFT features per image.
+    sequential_overlap : int
+        Neighbours matched by the sequential matcher (plus loop closure on a ring).
+    spatial_neighbors : int
+        Neighbours matched by the spatial matcher.
+    """
+
+    camera_model: str = "SIMPLE_RADIAL"
+    camera_params: str | None = None
+    matcher: str = "exhaustive"
+    mapper: str = "incremental"
+    num_threads: int = -1
+    seed: int = 0
+    max_features: int = 8192
+    sequential_overlap: int = 10
+    spatial_neighbors: int = 12
+
+    def __post_init__(self):
+        check_choice(self.camera_model, "camera_model", CAMERA_MODELS)
+        check_choice(self.matcher, "matcher", MATCHERS)
+        check_choice(self.mapper, "mapper", MAPPERS)
+        if self.camera_params is not None:
+            n = len([p for p in self.camera_params.split(",") if p.strip()])
+            want = CAMERA_MODELS[self.camera_model]
+            if n != len(want):
+                raise ValueError(
+                    f"camera_params: model {self.camera_model} expects {len(want)} values "
+                    f"({', '.join(want)}), got {n} ({self.camera_params!r})")
+            try:
+                [float(p) for p in self.camera_params.split(",")]
+            except ValueError:
+                raise ValueError(f"camera_params: expected numbers separated by commas, got "
+                                 f"{self.camera_params!r}") from None
+
+
+@dataclass
+class ColmapResult:
+    """What the sparse stage produced.
+
+    Attributes
+    ----------
+    reconstruction : pycolmap.Reconstruction or None
+        The largest model (None when nothing registered).
+    num_models : int
+        How many separate models the mapper produced.
+    timings : dict
+        Wall seconds of ``extract``, ``match`` and ``map``.
+    database : Path
+    """
+
+    reconstruction: object
+    num_models: int
+    timings: dict
+    database: Path
+
+
+@contextlib.contextmanager
+def _quiet_colmap(level: int) -> Iterator[None]:
+    import pycolmap
+
+    old = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = level
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = old
+
+
+def _write_position_priors(database: Path, priors: Mapping[str, Sequence[float]],
+                           sigma: float) -> None:
+    import pycolmap
+
+    db = pycolmap.Database.open(str(database))
+    try:
+        for image in db.read_all_images():
+            if image.name not in priors:
+                continue
+            prior = pycolmap.PosePrior(
+                corr_data_id=image.data_id,
+                position=np.asarray(priors[image.name], float),
+                position_covariance=np.eye(3) * sigma ** 2,
+                coordinate_system=pycolmap.PosePriorCoordinateSystem.CARTESIAN)
+            db.write_pose_prior(prior)
+    finally:
+        db.close()
+
+
+def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str | Path, *,
+               options: ColmapOptions | None = None,
+               position_priors: Mapping[str, Sequence[float]] | None = None,
+               prior_sigma: float = 1.0, verbose: bool = False) -> ColmapResult:
+    """Extract SIFT, match and map with pycolmap on the CPU.
+
+    Parameters
+    ----------
+    image_dir : path
+        Folder of the images.
+    image_names : sequence of str
+        Image file names relative to ``image_dir`` (all one camera).
+    work_dir : path
+        Existing folder; receives ``database.db`` and the mapper's ``sparse/`` models.
+    options : ColmapOptions
+    position_priors : mapping name -> (3,) float, optional
+        Camera-centre priors (GPS-like) used by the spatial matcher.
+    prior_sigma : float
+        Standard deviation of the priors, in their units.
+    verbose : bool
+        Let COLMAP log at INFO level (default: warnings only).
+
+    Returns
+    -------
+    ColmapResult
+    """
+    import pycolmap
+
+    opt = options or ColmapOptions()
+    if opt.matcher == "spatial" and not position_priors:
+        raise ValueError("matcher: 'spatial' needs camera position priors (GPS or rig); "
+                         "use 'exhaustive' or 'sequential'")
+    work_dir = Path(work_dir)
+    database = work_dir / "database.db"
+    database.unlink(missing_ok=True)
+    sparse = work_dir / "sparse"
+    sparse.mkdir(parents=True, exist_ok=True)
+    pycolmap.set_random_seed(int(opt.seed))
+    timings = {}
+    with _quiet_colmap(0 if verbose else 1):
+        t = time.perf_counter()
+        reader = pycolmap.ImageReaderOptions()
+        reader.camera_model = opt.camera_model
+        if opt.camera_params is not None:
+            reader.camera_params = opt.camera_params
+        extraction = pycolmap.FeatureExtractionOptions()
+        extraction.num_threads = opt.num_threads
+        extraction.sift.max_num_features = opt.max_features
+        pycolmap.extract_features(str(database), str(image_dir), image_names=list(image_names),
+                                  camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+        if position_priors:
+            _write_position_priors(database, position_priors, prior_sigma)
+        timings["extract"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        matching = pycolmap.FeatureMatchingOptions()
+        matching.num_threads = opt.num_threads
+        verification = pycolmap.TwoViewGeometryOptions()
+        verification.ransac.random_seed = int(opt.seed)
+        if opt.matcher == "exhaustive":
+            pycolmap.match_exhaustive(str(database), matching_options=matching,
+                                      verification_options=verification,
+                                      device=pycolmap.Device.cpu)
+        elif opt.matcher == "sequential":
+            pairing = pycolmap.SequentialPairingOptions()
+            pairing.overlap = opt.sequential_overlap
+            pairing.quadratic_overlap = True
+            pairing.num_threads = opt.num_threads
+            pycolmap.match_sequential(str(database), matching_options=matching,
+                                      pairing_options=pairing, verification_options=verification,
+                                      device=pycolmap.Device.cpu)
+        else:
+            pairing = pycolmap.SpatialPairingOptions()
+            pairing.ignore_z = False
+            pairing.max_num_neighbors = opt.spatial_neighbors
+            pairing.max_distance = 1e30
+            pairing.num_threads = opt.num_threads
+            pycolmap.match_spatial(str(database), matching_options=matching,
+                                   pairing_options=pairing, verification_options=verification,
+                                   device=pycolmap.Device.cpu)
+        timings["match"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        if opt.mapper == "incremental":
+            mopt = pycolmap.IncrementalPipelineOptions()
+            mopt.num_threads = opt.num_threads
+            mopt.random_seed = int(opt.seed)
+            mopt.mapper.random_seed = int(opt.seed)
+            mopt.mapper.num_threads = opt.num_threads
+            models = pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
+                                                  options=mopt)
+        else:
+            mopt = pycolmap.GlobalPipelineOptions()
+            mopt.num_threads = opt.num_threads
+            mopt.random_seed = int(opt.seed)
+            mopt.mapper.num_threads = opt.num_threads
+            mopt.mapper.random_seed = int(opt.seed)
+            mopt.mapper.rotation_averaging.random_seed = int(opt.seed)
+            mopt.mapper.global_positioning.random_seed = int(opt.seed)
+            mopt.mapper.global_positioning.use_gpu = False
+            mopt.mapper.bundle_adjustment.ceres.use_gpu = False
+            models = pycolmap.global_mapping(str(database), str(image_dir), str(sparse),
+                                             options=mopt)
+        timings["map"] = time.perf_counter() - t
+    best = None
+    if models:
+        best = max(models.values(), key=lambda r: (r.num_reg_images(), r.num_points3D()))
+    return ColmapResult(best, len(models), timings, database)
+
+
+# -- camera conversions ---------------------------------------------------------------
+
+def colmap_params_from_camera(camera: Camera, model: str | None = None) -> tuple[str, str]:
+    """COLMAP ``(model, params string)`` for an OpenCV-convention camera.
+
+    The principal point moves by +0.5 px (COLMAP puts pixel centres at half integers).
+    Without ``model``: ``SIMPLE_RADIAL`` when fx = fy and the distortion is at most a
+    k1, ``PINHOLE`` for fx != fy without distortion, else ``OPENCV``.
+    """
+    k1, k2, p1, p2, k3 = camera.dist
+    cx, cy = camera.cx + 0.5, camera.cy + 0.5
+    if model is None:
+        if camera.fx == camera.fy and k2 == p1 == p2 == k3 == 0:
+            model = "SIMPLE_RADIAL"
+        elif not np.any(camera.dist):
+            model = "PINHOLE"
+        else:
+            model = "OPENCV"
+    check_choice(model, "model", CAMERA_MODELS)
+    f = 0.5 * (camera.fx + camera.fy)
+    values = {"SIMPLE_PINHOLE": (f, cx, cy), "PINHOLE": (camera.fx, camera.fy, cx, cy),
+              "SIMPLE_RADIAL": (f, cx, cy, k1), "RADIAL": (f, cx, cy, k1, k2),
+              "OPENCV": (camera.fx, camera.fy, cx, cy, k1, k2, p1, p2)}[model]
+    return model, ", ".join(repr(float(v)) for v in values)
+
+
+def camera_from_colmap(cam, cam_from_world: np.ndarray | None = None) -> Camera:
+    """An OpenCV-convention :class:`~acquire.camera.Camera` from a ``pycolmap.Camera``."""
+    name = cam.model_name if hasattr(cam, "model_name") else cam.model.name
+    if name not in CAMERA_MODELS:
+        raise ValueError(f"camera model: expected one of {', '.join(CAMERA_MODELS)}, "
+                         f"got {name}")
+    p = dict(zip(CAMERA_MODELS[name], np.asarray(cam.params, float), strict=False))
+    fx = p.get("fx", p.get("f"))
+    fy = p.get("fy", p.get("f"))
+    dist = np.array([p.get("k1", p.get("k", 0.0)), p.get("k2", 0.0), p.get("p1", 0.0),
+                     p.get("p2", 0.0), 0.0])
+    return Camera(int(cam.width), int(cam.height), fx, fy, p["cx"] - 0.5, p["cy"] - 0.5, dist,
+                  np.eye(4) if cam_from_world is None else cam_from_world)
+
+
+def image_cam_from_world(image) -> np.ndarray:
+    """``cam_from_world`` (4, 4) of a registered ``pycolmap.Image``."""
+    T = np.eye(4)
+    T[:3, :4] = image.cam_from_world().matrix()
+    return T

@@ -1,0 +1,337 @@
+"""Laser-triangulation reconstruction: calibrations, stripes, points, mesh, report.
+
+``run(config, capture_dir, out_dir) -> Path`` reads a laser capture folder (virtual or
+real), calibrates the camera, the laser plane and the turntable axis (or stage
+direction) from the calibration captures, extracts the stripe of every frame with a
+sub-pixel detector, triangulates (undistorted pixel ray meets the laser plane), moves
+every frame's points into the object frame, removes outliers, orients normals toward
+the sensor, meshes (screened Poisson with density trimming), and writes
+``points.ply``, ``mesh.ply`` and ``report.json``. Ground truth, when the capture has
+it, is read only afterwards to score the result (:mod:`reconstruct.laser_eval`).
+
+Output frame: the turntable frame (origin on the axis level with the camera's optical
+axis, z along the axis, x toward the camera); for a stage, the camera frame at reading 0.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from acquire.capture_io import load_capture
+from acquire.targets import target_from_dict
+from procgen.files import atomic_dir, write_json
+from procgen.progress import track
+from procgen.validate import InputError, check_choice
+from reconstruct.calibrate_camera import calibrate_camera
+from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
+from reconstruct.laser_calib import (
+    calibrate_laser_plane,
+    calibrate_stage,
+    calibrate_turntable_axis,
+    intersect_rays_plane,
+    pixel_rays,
+    rotation_about_axis,
+)
+from reconstruct.meshing import MeshingOptions, points_to_mesh
+from reconstruct.stripe import DETECTORS, StripeOptions, detect_peaks
+
+log = logging.getLogger(__name__)
+
+__all__ = ["LaserReconConfig", "run", "extract_frames", "DEFAULT_DETECTOR"]
+
+#: the most accurate detector measured on rendered scans (benchmarks/bench_laser.py)
+DEFAULT_DETECTOR = "gaussian"
+
+
+@dataclass
+class LaserReconConfig:
+    """Options of the laser reconstruction.
+
+    detector : str            sub-pixel peak detector, one of ``reconstruct.stripe.DETECTORS``
+    threshold, min_contrast, max_width : float
+                              stripe acceptance (8-bit units; see StripeOptions)
+    dist_model : str          distortion estimated by the camera calibration
+    meshing : MeshingOptions  Poisson depth, density trimming, outliers
+    max_range : float         drop points farther than this from the axis (m; 0 = off)
+    evaluate : bool           score against the capture's ground truth when present
+    tau : float               F-score threshold in metres
+    """
+
+    detector: str = DEFAULT_DETECTOR
+    threshold: float = 20.0
+    min_contrast: float = 12.0
+    max_width: float = 12.0
+    dist_model: str = "k1k2"
+    meshing: MeshingOptions = field(default_factory=lambda: MeshingOptions(
+        depth=9, density_quantile=0.03, trim_distance=0.002))
+    max_range: float = 0.0
+    evaluate: bool = True
+    tau: float = 0.0005
+
+    def __post_init__(self):
+        check_choice(self.detector, "detector", DETECTORS)
+
+    def stripe_options(self, bit_depth: int = 8) -> StripeOptions:
+        k = 1.0 if bit_depth == 8 else 257.0
+        return StripeOptions(method=self.detector, threshold=self.threshold * k,
+                             min_contrast=self.min_contrast * k, max_width=self.max_width,
+                             saturation=255.0 * k)
+
+
+def _read(path: Path, channel: int | None = None) -> np.ndarray:
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise InputError("could not read the image", path=path)
+    if img.ndim == 3:
+        img = img[:, :, 2 - (channel or 0)] if channel is not None else cv2.cvtColor(
+            img, cv2.COLOR_BGR2GRAY)
+    return img
+
+
+def extract_frames(images, options: StripeOptions):
+    """Stripe columns ``(f, h)`` (NaN = none) and saturated-peak counts ``(f,)``."""
+    cols, sat = [], []
+    for img in images:
+        c, _ = detect_peaks(img, options=options)
+        r = np.flatnonzero(np.isfinite(c))
+        ci = np.clip(np.round(c[r]).astype(int), 0, img.shape[1] - 1)
+        sat.append(int(np.count_nonzero(img[r, ci] >= options.saturation)))
+        cols.append(c)
+    return np.stack(cols), np.asarray(sat)
+
+
+def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
+    """Reconstruct a laser capture into ``out_dir`` (see the module docstring)."""
+    from procgen.mesh_io import write_mesh, write_points
+
+    cfg = config
+    timings: dict[str, float] = {}
+    warnings: list[str] = []
+    t_all = time.perf_counter()
+    cap = load_capture(capture_dir)
+    jpath = cap.root / "capture.json"
+    if cap.kind != "laser":
+        raise InputError(f"expected a laser capture, got kind {cap.kind!r}", path=jpath,
+                         field="kind")
+    frames = cap.frames
+    if not frames:
+        raise InputError("no frames", path=jpath, field="frames")
+    rig = cap.rig
+    motion = rig.get("motion")
+    if motion not in ("turntable", "stage"):
+        raise InputError(f"expected 'turntable' or 'stage', got {motion!r}", path=jpath,
+                         field="rig.motion")
+    key = "angle_deg" if motion == "turntable" else "position_m"
+    readings = []
+    for i, fr in enumerate(frames):
+        if not isinstance(fr.get(key), (int, float)):
+            raise InputError(f"expected the stage reading {key!r}", path=jpath,
+                             field=f"frames[{i}].{key}")
+        readings.append(float(fr[key]))
+    readings = np.asarray(readings)
+    channel = rig.get("laser_channel", 0)
+    bit_depth = int(rig.get("bit_depth", 8))
+    sopt = cfg.stripe_options(bit_depth)
+    calib = {c["kind"]: (i, c) for i, c in enumerate(cap.calibration)}
+    for need in ("camera", "laser_plane", "axis" if motion == "turntable" else "stage"):
+        if need not in calib:
+            raise InputError(f"missing a {need!r} calibration capture", path=jpath,
+                             field="calibration")
+    # -- camera -----------------------------------------------------------------------------
+    t = time.perf_counter()
+    ci, cc = calib["camera"]
+    target = _target(cc, jpath, ci)
+    cam_cal = calibrate_camera([_read(cap.path(p)) for p in cc["images"]], target,
+                               dist_model=cfg.dist_model, names=cc["images"])
+    cam = cam_cal.camera
+    if cam_cal.rejected_views:
+        warnings.append("camera calibration: target not detected in "
+                        + ", ".join(cc["images"][i] for i in cam_cal.rejected_views))
+    timings["camera_calibration_s"] = time.perf_counter() - t
+    # -- laser plane ------------------------------------------------------------------------
+    t = time.perf_counter()
+    li, lc = calib["laser_plane"]
+    roles = lc.get("image_roles", ["laser_off", "laser_on"])
+    off_i, on_i = roles.index("laser_off"), roles.index("laser_on")
+    pairs, pnames = [], []
+    for j, pair in enumerate(lc["images"]):
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise InputError("expected [laser_off, laser_on] image pairs", path=jpath,
+                             field=f"calibration[{li}].images[{j}]")
+        pairs.append((_read(cap.path(pair[off_i])), _read(cap.path(pair[on_i]), channel)))
+        pnames.append(pair[on_i])
+    plane_cal = calibrate_laser_plane(cam, pairs, _target(lc, jpath, li), stripe=sopt,
+                                      names=pnames)
+    plane = plane_cal.plane
+    timings["laser_calibration_s"] = time.perf_counter() - t
+    # -- axis / stage -----------------------------------------------------------------------
+    t = time.perf_counter()
+    if motion == "turntable":
+        ai, ac = calib["axis"]
+        axis_cal = calibrate_turntable_axis(cam, [_read(cap.path(p)) for p in ac["images"]],
+                                            _readings(ac, "angles_deg", jpath, ai),
+                                            _target(ac, jpath, ai), names=ac["images"])
+    else:
+        ai, ac = calib["stage"]
+        axis_cal = calibrate_stage(cam, [_read(cap.path(p)) for p in ac["images"]],
+                                   _readings(ac, "positions_m", jpath, ai),
+                                   _target(ac, jpath, ai), names=ac["images"])
+    timings["axis_calibration_s"] = time.perf_counter() - t
+    # -- stripes ----------------------------------------------------------------------------
+    t = time.perf_counter()
+    W, H = cam.width, cam.height
+    cols = np.full((len(frames), H), np.nan)
+    n_sat = np.zeros(len(frames), int)
+    for k, fr in enumerate(track(frames, "stripe extraction")):
+        img = _read(cap.path(fr["image"]), channel)
+        if img.shape[:2] != (H, W):
+            raise InputError(f"image is {img.shape[1]}x{img.shape[0]}, the calibration "
+                             f"images are {W}x{H}", path=jpath, field=f"frames[{k}].image")
+        c, s = extract_frames([img], sopt)
+        cols[k], n_sat[k] = c[0], s[0]
+    timings["stripe_extraction_s"] = time.perf_counter() - t
+    per_frame = np.count_nonzero(np.isfinite(cols), axis=1)
+    empty = [frames[k]["image"] for k in np.flatnonzero(per_frame == 0)]
+    if len(empty) == len(frames):
+        raise RuntimeError("no laser stripe found in any frame (laser off, too dark, or "
+                           "thresholds too high)")
+    if empty:
+        warnings.append(f"no stripe in {len(empty)} frames: " + ", ".join(empty[:20])
+                        + (" ..." if len(empty) > 20 else ""))
+    saturated = [frames[k]["image"] for k in np.flatnonzero(n_sat > 0.5 * np.maximum(
+        per_frame, 1)) if per_frame[k] > 0]
+    if saturated:
+        warnings.append(f"stripe saturated in {len(saturated)} frames (peaks located by "
+                        "their half-level midpoint): " + ", ".join(saturated[:20]))
+    # -- triangulation ----------------------------------------------------------------------
+    t = time.perf_counter()
+    kk, rr = np.nonzero(np.isfinite(cols))
+    uu = cols[kk, rr]
+    px = np.stack([uu, rr.astype(float)], axis=1)
+    pc = intersect_rays_plane(pixel_rays(cam, px), plane)
+    good = np.all(np.isfinite(pc), axis=1) & (pc[:, 2] > 0)
+    kk, rr, uu, px, pc = kk[good], rr[good], uu[good], px[good], pc[good]
+    obj_from_cam = _object_frame(axis_cal, motion, cam)
+    P = np.empty_like(pc)
+    V = np.empty_like(pc)
+    for k in np.unique(kk):
+        sel = kk == k
+        if motion == "turntable":
+            M = rotation_about_axis(axis_cal.direction, axis_cal.point,
+                                    -np.radians(readings[k]))
+        else:
+            M = np.eye(4)
+            M[:3, 3] = -readings[k] * axis_cal.scale * axis_cal.direction
+        T = obj_from_cam @ M
+        P[sel] = pc[sel] @ T[:3, :3].T + T[:3, 3]
+        V[sel] = T[:3, 3]  # the camera centre seen from the object at that reading
+    if cfg.max_range > 0 and motion == "turntable":
+        keep = np.linalg.norm(P[:, :2], axis=1) < cfg.max_range
+        P, V, kk, rr, uu, px, pc = (a[keep] for a in (P, V, kk, rr, uu, px, pc))
+    timings["triangulation_s"] = time.perf_counter() - t
+    # -- meshing ----------------------------------------------------------------------------
+    t = time.perf_counter()
+    m = points_to_mesh(P, V, cfg.meshing)
+    mesh = m["mesh"]
+    timings["meshing_s"] = time.perf_counter() - t
+    sigma_peak = estimate_peak_sigma(cols)
+    sz = depth_sigma(cam, plane, px, sigma_peak)
+    tri_angle = _triangulation_angle(plane, pc)
+    report = {
+        "kind": "laser",
+        "capture": str(cap.root),
+        "config": {**asdict(cfg), "meshing": asdict(cfg.meshing)},
+        "counts": {"frames": len(frames), "frames_with_stripe": int(np.count_nonzero(per_frame)),
+                   "stripe_points": int(len(P)), "points_after_outliers": int(len(m["kept"])),
+                   "mesh_vertices": len(mesh.vertices), "mesh_triangles": len(mesh.triangles)},
+        "calibration": {"camera": cam_cal.to_dict(), "laser_plane": plane_cal.to_dict(),
+                        motion if motion == "stage" else "axis": axis_cal.to_dict(),
+                        "object_from_camera": obj_from_cam.tolist()},
+        "error_model": {
+            "sigma_peak_px": sigma_peak,
+            "sigma_z_pred_rms_m": float(np.sqrt(np.mean(sz ** 2))) if len(sz) else None,
+            "sigma_z_closed_form_m": closed_form_sigma_z(
+                sigma_peak, float(np.median(pc[:, 2])), cam.fx, tri_angle)
+            if len(pc) else None,
+            "triangulation_angle_deg": float(np.degrees(tri_angle)),
+            "median_depth_m": float(np.median(pc[:, 2])) if len(pc) else None,
+        },
+        "warnings": warnings,
+    }
+    timings["total_s"] = time.perf_counter() - t_all
+    report["timings"] = timings
+    out_dir = Path(out_dir)
+    with atomic_dir(out_dir) as tmp:
+        write_points(tmp / "points.ply", m["points"], normals=m["normals"])
+        write_mesh(tmp / "mesh.ply", mesh)
+        if cfg.evaluate and cap.ground_truth:
+            from reconstruct.laser_eval import evaluate_laser
+
+            t = time.perf_counter()
+            report["evaluation"] = evaluate_laser(
+                cap, cam_cal, plane, axis_cal, obj_from_cam, mesh,
+                {"frame": kk, "row": rr, "col": uu, "points_cam": pc, "sigma_z": sz},
+                tau=cfg.tau)
+            report["timings"]["evaluation_s"] = time.perf_counter() - t
+        for w in warnings:
+            log.warning("%s", w)
+        write_json(tmp / "report.json", report)
+    return out_dir
+
+
+def _target(entry, jpath, i):
+    try:
+        return target_from_dict(entry["target"])
+    except (KeyError, ValueError, TypeError) as exc:
+        raise InputError(f"bad target: {exc}", path=jpath, field=f"calibration[{i}].target"
+                         ) from None
+
+
+def _readings(entry, key, jpath, i):
+    v = entry.get(key)
+    if not isinstance(v, list) or len(v) != len(entry["images"]):
+        raise InputError(f"expected one reading per image ({len(entry['images'])})",
+                         path=jpath, field=f"calibration[{i}].{key}")
+    return v
+
+
+def _object_frame(axis_cal, motion, cam) -> np.ndarray:
+    """``object_from_cam``: turntable frame (z = axis, origin on it, x toward the camera)."""
+    if motion != "turntable":
+        return np.eye(4)
+    a = axis_cal.direction
+    up = -np.array([0.0, 1.0, 0.0])  # image up
+    if a @ up < 0:
+        a = -a  # keep z up; the rotation sense is handled with the signed direction
+    p = axis_cal.point
+    # origin: the axis point nearest the camera's optical axis
+    w0 = p
+    b = a @ np.array([0, 0, 1.0])
+    d = a @ w0
+    e = np.array([0, 0, 1.0]) @ w0
+    den = 1 - b * b
+    s = (b * e - d) / den if den > 1e-9 else 0.0
+    o = p + s * a
+    x = -o - ((-o) @ a) * a  # toward the camera centre (the origin of the camera frame)
+    x /= np.linalg.norm(x)
+    y = np.cross(a, x)
+    R = np.stack([x, y, a])  # rows: object axes in camera coordinates
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = -R @ o
+    return T
+
+
+def _triangulation_angle(plane, points_cam) -> float:
+    """Median angle between the camera's rays and the laser plane (radians)."""
+    if len(points_cam) == 0:
+        return float("nan")
+    d = points_cam / np.linalg.norm(points_cam, axis=1, keepdims=True)
+    return float(np.median(np.arcsin(np.clip(np.abs(d @ plane[:3]), 0, 1))))

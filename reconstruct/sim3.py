@@ -1,0 +1,195 @@
+"""Similarity alignment of estimated cameras to true ones, and the pose errors.
+
+SfM recovers cameras up to a similarity (scale, rotation, translation). To score
+it, the estimated camera centres are aligned to the true ones with Umeyama's closed
+form (least squares over centres), and then:
+
+- rotation error: the angle of ``R_true @ (R_est @ R_align^T)^T`` per camera,
+- centre error: ``|s R c_est + t - c_true|`` per camera,
+- ATE: the RMS of the centre errors (absolute trajectory error, Sturm et al. 2012).
+
+References
+----------
+S. Umeyama, "Least-squares estimation of transformation parameters between two point
+patterns", IEEE TPAMI 13(4), 1991. doi:10.1109/34.88573
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from procgen.validate import check_array
+
+__all__ = ["umeyama", "Sim3", "PoseErrors", "align_cameras", "rotation_angle_deg"]
+
+
+@dataclass(frozen=True)
+class Sim3:
+    """``x -> scale * R @ x + t``.
+
+    Attributes
+    ----------
+    scale : float
+    R : (3, 3) float64
+    t : (3,) float64
+    """
+
+    scale: float
+    R: np.ndarray
+    t: np.ndarray
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) homogeneous matrix."""
+        T = np.eye(4)
+        T[:3, :3] = self.scale * self.R
+        T[:3, 3] = self.t
+        return T
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        """Transform ``points (n, 3)``."""
+        p = check_array(points, "points", shape=(None, 3))
+        return self.scale * p @ self.R.T + self.t
+
+    def apply_cam_from_world(self, cam_from_world: np.ndarray) -> np.ndarray:
+        """The pose (4, 4) of the same camera in the new world frame (metric translation)."""
+        T = check_array(cam_from_world, "cam_from_world", shape=(4, 4))
+        R = T[:3, :3] @ self.R.T
+        centre = self.apply((-T[:3, :3].T @ T[:3, 3])[None])[0]
+        out = np.eye(4)
+        out[:3, :3] = R
+        out[:3, 3] = -R @ centre
+        return out
+
+
+def umeyama(src: np.ndarray, dst: np.ndarray, *, with_scale: bool = True) -> Sim3:
+    """The similarity that maps ``src`` onto ``dst`` in the least-squares sense.
+
+    Parameters
+    ----------
+    src, dst : (n, 3) float64
+        Corresponding points, n >= 3 and not all collinear.
+    with_scale : bool
+        False fixes the scale at 1 (a rigid transform).
+
+    Returns
+    -------
+    Sim3
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(10, 3))
+    >>> sim = umeyama(p, 2.0 * p + [1.0, 2.0, 3.0])
+    >>> round(sim.scale, 9), np.round(sim.t, 9).tolist()
+    (2.0, [1.0, 2.0, 3.0])
+    """
+    src = check_array(src, "src", shape=(None, 3), min_rows=3)
+    dst = check_array(dst, "dst", shape=(len(src), 3))
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    a, b = src - mu_s, dst - mu_d
+    var_s = (a * a).sum() / len(src)
+    if var_s <= 1e-300:
+        raise ValueError("src: expected points that are not all the same")
+    cov = b.T @ a / len(src)
+    U, D, Vt = np.linalg.svd(cov)
+    S = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        S[2, 2] = -1.0
+    R = U @ S @ Vt
+    scale = float(np.trace(np.diag(D) @ S) / var_s) if with_scale else 1.0
+    t = mu_d - scale * R @ mu_s
+    return Sim3(scale, R, t)
+
+
+def rotation_angle_deg(R: np.ndarray) -> float:
+    """Rotation angle in degrees of a (3, 3) rotation matrix (robust near 0 and 180)."""
+    c = (np.trace(R) - 1.0) / 2.0
+    s = np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    return float(np.degrees(np.arctan2(s, np.clip(c, -1.0, 1.0))))
+
+
+@dataclass
+class PoseErrors:
+    """Errors of estimated cameras after a Sim(3) alignment to the true ones.
+
+    Attributes
+    ----------
+    alignment : Sim3
+        Maps the estimate's world frame into the true world frame.
+    names : list of str
+        Cameras present in both (the registered ones).
+    rotation_deg : (n,) float64
+    centre_error : (n,) float64
+        In the true frame's units (metres).
+    registered_fraction : float
+    """
+
+    alignment: Sim3
+    names: list
+    rotation_deg: np.ndarray
+    centre_error: np.ndarray
+    registered_fraction: float
+
+    @property
+    def ate(self) -> float:
+        """RMS centre error after alignment (absolute trajectory error)."""
+        return float(np.sqrt(np.mean(self.centre_error ** 2)))
+
+    def summary(self, scene_size: float | None = None) -> dict:
+        """JSON-ready figures; with ``scene_size`` also ATE as a fraction of it."""
+        out = {"registered_fraction": self.registered_fraction,
+               "num_compared": len(self.names),
+               "rotation_error_deg": {"mean": float(self.rotation_deg.mean()),
+                                      "median": float(np.median(self.rotation_deg)),
+                                      "max": float(self.rotation_deg.max())},
+               "centre_error": {"mean": float(self.centre_error.mean()),
+                                "median": float(np.median(self.centre_error)),
+                                "max": float(self.centre_error.max())},
+               "ate": self.ate,
+               "alignment_scale": self.alignment.scale}
+        if scene_size:
+            out["scene_size"] = float(scene_size)
+            out["ate_fraction_of_scene"] = self.ate / float(scene_size)
+        return out
+
+
+def align_cameras(est_cam_from_world: Mapping[str, np.ndarray],
+                  true_cam_from_world: Mapping[str, np.ndarray]) -> PoseErrors:
+    """Align estimated cameras to true ones by their centres and measure the errors.
+
+    Parameters
+    ----------
+    est_cam_from_world : mapping name -> (4, 4) float64
+        Registered cameras of the reconstruction.
+    true_cam_from_world : mapping name -> (4, 4) float64
+        Every camera of the capture.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 cameras in common.
+    """
+    names = [n for n in true_cam_from_world if n in est_cam_from_world]
+    if len(names) < 3:
+        raise ValueError(f"est_cam_from_world: expected at least 3 cameras in common with the "
+                         f"true ones, got {len(names)}")
+    est = [check_array(est_cam_from_world[n], f"est_cam_from_world[{n!r}]", shape=(4, 4))
+           for n in names]
+    true = [check_array(true_cam_from_world[n], f"true_cam_from_world[{n!r}]", shape=(4, 4))
+            for n in names]
+
+    def centre(T):
+        return -T[:3, :3].T @ T[:3, 3]
+
+    sim = umeyama(np.array([centre(T) for T in est]), np.array([centre(T) for T in true]))
+    rot, cerr = [], []
+    for Te, Tt in zip(est, true, strict=False):
+        Ta = sim.apply_cam_from_world(Te)
+        rot.append(rotation_angle_deg(Tt[:3, :3] @ Ta[:3, :3].T))
+        cerr.append(np.linalg.norm(centre(Ta) - centre(Tt)))
+    return PoseErrors(sim, names, np.array(rot), np.array(cerr),
+                      len(names) / len(true_cam_from_world))

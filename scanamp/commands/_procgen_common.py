@@ -1,0 +1,91 @@
+"""Shared helpers of the ``scanamp procgen`` commands (not a command: leading underscore)."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from procgen.mesh_io import write_image
+
+log = logging.getLogger(__name__)
+
+MESH_OUT = (".ply", ".obj")
+
+
+def add_output(parser, *, kind: str):
+    parser.add_argument("--out", required=True, type=Path,
+                        help=f"output file ({'PLY or OBJ' if kind == 'mesh' else 'PNG'})")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same bytes)")
+    if kind == "mesh":
+        parser.add_argument("--no-preview", action="store_true",
+                            help="do not write the FILE.preview.png render beside the mesh")
+
+
+def check_out(path: Path, suffixes) -> Path:
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f"--out: expected a file ending in {', '.join(suffixes)}, "
+                         f"got {str(path)!r}")
+    return path
+
+
+def preview_path(out: Path) -> Path:
+    return out.with_name(out.stem + ".preview.png")
+
+
+def render_preview(meshes, path: Path, *, size=(640, 480)) -> Path:
+    """Render meshes off-screen to a PNG (pyvista/EGL; matplotlib when that fails).
+
+    ``meshes`` is a list of ``(open3d mesh, rgb colour)``.
+    """
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    try:
+        import pyvista as pv
+
+        from procgen.meshes import to_pyvista
+
+        pv.OFF_SCREEN = True
+        plotter = pv.Plotter(off_screen=True, window_size=size)
+        for mesh, color in meshes:
+            if len(mesh.triangles):
+                plotter.add_mesh(to_pyvista(mesh), color=color, smooth_shading=True)
+        plotter.set_background("white")
+        plotter.camera_position = "iso"
+        plotter.reset_camera()
+        img = plotter.screenshot(return_img=True)
+        plotter.close()
+    except Exception as exc:  # no OpenGL here: a plain matplotlib render instead
+        log.debug("pyvista preview failed (%s); using matplotlib", exc)
+        img = _matplotlib_preview(meshes, size)
+    write_image(path, np.ascontiguousarray(img[..., :3]).astype(np.uint8))
+    return path
+
+
+def _matplotlib_preview(meshes, size):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    fig = plt.figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
+    ax = fig.add_subplot(projection="3d")
+    allv = []
+    for mesh, color in meshes:
+        v = np.asarray(mesh.vertices)
+        f = np.asarray(mesh.triangles)
+        if len(f):
+            ax.add_collection3d(Poly3DCollection(v[f], facecolor=color, edgecolor="none"))
+            allv.append(v)
+    if allv:
+        v = np.vstack(allv)
+        ax.auto_scale_xyz(v[:, 0], v[:, 1], v[:, 2])
+    ax.set_axis_off()
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return img
+
+

@@ -1,0 +1,136 @@
+"""Laser-plane, axis and stage calibration math, and the error model, on synthetic data."""
+
+import cv2
+import numpy as np
+import pytest
+
+from acquire.camera import Camera
+from acquire.laser_rig import LaserRig, load_rig, rotation_about
+from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
+from reconstruct.laser_calib import (
+    calibrate_stage,
+    calibrate_turntable_axis,
+    fit_plane,
+    intersect_rays_plane,
+    pixel_rays,
+)
+
+CAM = Camera(640, 480, 880.0, 881.0, 321.0, 238.0, np.array([-0.04, 0.02, 0, 0, 0]))
+
+
+class _Synthetic:
+    """A target whose 'detection' in image i is the exact projection of its corners at
+    pose i (oracle detections: the calibration math alone is tested)."""
+
+    def __init__(self, poses, noise=0.0, rng=None):
+        j, i = np.mgrid[1:6, 1:8]
+        self.pts = np.stack([i.ravel() * 0.016, j.ravel() * 0.016, np.zeros(i.size)], 1)
+        self.poses, self.noise, self.rng = poses, noise, rng
+
+    def size_m(self):
+        return 0.128, 0.096
+
+    def corner_points(self):
+        return self.pts
+
+    def detect(self, i):
+        T = self.poses[i]
+        px = CAM.project(self.pts @ T[:3, :3].T + T[:3, 3])[0]
+        if self.noise:
+            px = px + self.rng.normal(0, self.noise, px.shape)
+        return np.arange(len(self.pts)), px
+
+
+def _board_pose():
+    R = cv2.Rodrigues(np.array([0.1, -0.2, 0.05]))[0]
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = [-0.05, -0.04, 0.38]
+    return T
+
+
+def test_fit_plane_and_ray_intersection_round_trip(rng):
+    n = np.array([0.5, -0.2, 0.84])
+    n /= np.linalg.norm(n)
+    plane = np.append(n, 0.3)
+    px = rng.uniform([0, 0], [640, 480], size=(300, 2))
+    P = intersect_rays_plane(pixel_rays(CAM, px), plane)
+    np.testing.assert_allclose(P @ n, 0.3, atol=1e-12)
+    np.testing.assert_allclose(CAM.project(P)[0], px, atol=1e-6)  # back onto the pixels
+    n2, d2 = fit_plane(P + rng.normal(0, 1e-5, P.shape))
+    assert np.degrees(np.arccos(abs(n2 @ n))) < 0.01 and abs(abs(d2) - 0.3) < 1e-5
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_turntable_axis_recovered(noise, rng):
+    axis = np.array([0.02, -0.97, -0.25])
+    axis /= np.linalg.norm(axis)
+    point = np.array([0.0, 0.02, 0.40])
+    T0 = _board_pose()
+    angles = np.linspace(-40, 40, 9)
+    poses = [rotation_about(axis, np.radians(a), point) @ T0 for a in angles]
+    tgt = _Synthetic(poses, noise, rng)
+    cal = calibrate_turntable_axis(CAM, list(range(len(poses))), angles, tgt)
+    err = np.degrees(np.arccos(np.clip(cal.direction @ axis, -1, 1)))
+    v = cal.point - point
+    off = np.linalg.norm(v - (v @ axis) * axis)
+    # sign matters: a positive reading turns right-handed about the fitted direction
+    assert err < (1e-6 if noise == 0 else 0.1)
+    assert off < (1e-8 if noise == 0 else 2e-4)
+    assert cal.rms_px < 1e-6 + 1.5 * noise
+
+
+def test_stage_direction_recovered():
+    d = np.array([0.3, 0.1, -0.95])
+    d /= np.linalg.norm(d)
+    T0 = _board_pose()
+    pos = np.linspace(-0.03, 0.03, 5)
+    poses = []
+    for p in pos:
+        T = T0.copy()
+        T[:3, 3] += p * d
+        poses.append(T)
+    cal = calibrate_stage(CAM, list(range(5)), pos, _Synthetic(poses))
+    assert np.degrees(np.arccos(cal.direction @ d)) < 1e-6 and abs(cal.scale - 1) < 1e-9
+
+
+def test_too_few_views_is_an_error():
+    tgt = _Synthetic([_board_pose()] * 2)
+    with pytest.raises(RuntimeError, match="need 3"):
+        calibrate_turntable_axis(CAM, [0, 1], [0, 10], tgt)
+
+
+def test_error_model_matches_closed_form_at_the_centre():
+    # a plane at 30 degrees to the optical axis through z = 0.4 m on the axis
+    th = np.radians(30)
+    n = np.array([np.cos(th), 0.0, np.sin(th)])
+    plane = np.append(n, n @ [0, 0, 0.4])
+    cam = Camera(640, 480, 880.0, 880.0, 320.0, 240.0)
+    s = depth_sigma(cam, plane, np.array([[320.0, 240.0]]), 0.1)[0]
+    assert s == pytest.approx(closed_form_sigma_z(0.1, 0.4, 880.0, th), rel=1e-3)
+
+
+def test_peak_sigma_estimate(rng):
+    rows = np.arange(480.0)
+    smooth = 300 + 40 * np.sin(rows / 60.0) + 1e-4 * (rows - 240) ** 2
+    cols = np.stack([smooth + rng.normal(0, 0.05, rows.shape) for _ in range(20)])
+    cols[:, 100:130] = np.nan  # a gap (shadow)
+    assert estimate_peak_sigma(cols) == pytest.approx(0.05, rel=0.1)
+
+
+def test_rig_defaults_and_toml_errors(tmp_path):
+    rig = LaserRig()
+    cam, las = rig.camera(), rig.laser()
+    # the sheet contains the turntable axis and is 30 degrees from the camera's view
+    assert abs(las.normal @ [0, 0, 1]) < 1e-12 and abs(las.plane[1]) < 1e-12
+    view = rig.aim - cam.center
+    ang = np.degrees(np.arcsin(abs(view @ las.normal) / np.linalg.norm(view)))
+    assert 25 < ang < 31
+    p = tmp_path / "rig.toml"
+    p.write_text("[rig]\ntriangulation_angle_deg = 95\n")
+    with pytest.raises(ValueError, match="rig.toml: rig.triangulation_angle_deg"):
+        load_rig(p)
+    p.write_text("[rig]\nbogus = 1\n")
+    with pytest.raises(ValueError, match="rig.bogus: unknown field"):
+        load_rig(p)
+    assert load_rig(None, overrides={"steps": 12}).steps == 12

@@ -1,0 +1,98 @@
+"""End to end: a small rendered laser scan, its calibrations, reconstruction, bad input."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from acquire.capture_laser import capture
+from acquire.laser_rig import LaserRig
+from acquire.targets import ChArUcoTarget
+from data_synth.scenes import build_scene
+from reconstruct.laser import LaserReconConfig, run
+from scanamp.cli import main as cli
+
+SMALL = dict(width=320, height=240, steps=24, step_deg=15.0, camera_views=10, laser_views=4,
+             axis_views=7, calib_supersample=3,
+             target=ChArUcoTarget(squares_x=6, squares_y=5, square_length=0.025,
+                                  marker_length=0.018).to_dict())
+
+
+@pytest.fixture(scope="session")
+def laser_scan(tmp_path_factory):
+    root = tmp_path_factory.mktemp("laser")
+    bundle = build_scene("object")
+    cap = capture(bundle.render_scene, LaserRig(**SMALL), root / "cap",
+                  np.random.default_rng(0), gt_mesh=bundle.gt_mesh())
+    out = run(LaserReconConfig(tau=0.002), cap, root / "rec")
+    return cap, out, json.loads((out / "report.json").read_text())
+
+
+def test_capture_is_deterministic_and_complete(laser_scan, tmp_path):
+    cap, _, _ = laser_scan
+    data = json.loads((cap / "capture.json").read_text())
+    assert len(data["frames"]) == 24 and data["frames"][3]["angle_deg"] == 45.0
+    assert {c["kind"] for c in data["calibration"]} == {"camera", "laser_plane", "axis"}
+    st = np.load(cap / "gt" / "stripe.npy")
+    assert len(np.unique(st[:, 0])) >= 20  # the stripe is on the object in most frames
+
+
+def test_calibrations_recover_the_rig(laser_scan):
+    _, _, rep = laser_scan
+    ev = rep["evaluation"]
+    assert rep["calibration"]["camera"]["rms_px"] < 0.3
+    ie = ev["intrinsics_error"]
+    # f ~ 440 px at 320x240 with a noisy sensor and 10 views: ~1 % (measured 0.6 %)
+    assert abs(ie["fx_px"]) < 6.0 and abs(ie["cx_px"]) < 3.0
+    assert ev["laser_plane_error"]["normal_deg"] < 1.0  # measured 0.29 deg at this size
+    assert ev["axis_error"]["direction_deg"] < 1.0
+
+
+def test_reconstruction_is_accurate(laser_scan):
+    _, out, rep = laser_scan
+    ev = rep["evaluation"]
+    assert ev["peak_error"]["rms_px"] < 0.15
+    # a 15-degree step leaves gaps: precision at 2 mm (what was built is where it should
+    # be) is the check; measured 0.87
+    assert ev["surface"]["precision"] > 0.6
+    assert rep["counts"]["stripe_points"] > 1000
+    assert (out / "mesh.ply").is_file() and (out / "points.ply").is_file()
+    de = ev["depth_error"]
+    # error propagation: the depth error of the peak noise alone, against the prediction
+    # from the data's own sigma_peak estimate (measured 4.0x: the estimate misses the
+    # row-to-row correlated part of the peak error; see docs/laser.md)
+    assert 0.5 < de["ratio_to_prediction"] < 8.0
+
+
+def test_bad_inputs_exit_2_with_one_line(laser_scan, tmp_path, capsys):
+    cap, _, _ = laser_scan
+    assert cli(["reconstruct", "laser", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    bad = tmp_path / "bad"
+    shutil.copytree(cap, bad)
+    (bad / "images" / "scan_0003.png").unlink()
+    capsys.readouterr()
+    assert cli(["reconstruct", "laser", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "frames[3].image: file not found" in err[0]
+    data = json.loads((cap / "capture.json").read_text())
+    del data["frames"][2]["angle_deg"]
+    bad2 = tmp_path / "bad2"
+    shutil.copytree(cap, bad2)
+    (bad2 / "capture.json").write_text(json.dumps(data))
+    assert cli(["reconstruct", "laser", str(bad2), "--out", str(tmp_path / "o")]) == 2
+    assert "frames[2].angle_deg" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_no_stripe_is_a_clear_error(laser_scan, tmp_path, capsys):
+    cap, _, _ = laser_scan
+    dark = tmp_path / "dark"
+    shutil.copytree(cap, dark)
+    import cv2
+
+    for p in (dark / "images").glob("scan_*.png"):
+        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(p), (img // 20).astype(img.dtype))  # laser too weak
+    assert cli(["reconstruct", "laser", str(dark), "--out", str(tmp_path / "o")]) == 1
+    assert "no laser stripe found" in capsys.readouterr().err

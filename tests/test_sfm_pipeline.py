@@ -1,0 +1,134 @@
+"""SfM end to end on a small rendered orbit (12 views of 'primitives' at 320x240), plain
+image folders, and bad input. The heaviest tests of the project: one capture and one
+dense reconstruction per session."""
+
+import json
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from scanamp.cli import main
+
+
+@pytest.fixture(scope="session")
+def small_capture(tmp_path_factory):
+    from data_synth.fixtures import sfm_capture
+
+    return sfm_capture(tmp_path_factory.mktemp("sfm_fixture"))
+
+
+@pytest.fixture(scope="session")
+def small_recon(small_capture, tmp_path_factory):
+    from reconstruct.sfm import SfmConfig, run
+
+    out = tmp_path_factory.mktemp("sfm_recon") / "rec"
+    res = run(SfmConfig(seed=0), small_capture, out)
+    return res
+
+
+def test_capture_folder_holds_images_gt_and_transforms(small_capture):
+    data = json.loads((small_capture / "capture.json").read_text())
+    assert data["kind"] == "sfm" and len(data["frames"]) == 12
+    assert data["cameras"]["cam0"]["nominal"] is True
+    assert "depth" not in data["frames"][0]  # ground truth only under ground_truth
+    tf = json.loads((small_capture / "transforms.json").read_text())
+    assert len(tf["frames"]) == 12 and tf["camera_model"] == "OPENCV"
+
+
+def test_small_orbit_registers_every_view_accurately(small_recon):
+    assert small_recon.ok, small_recon.message
+    rep = small_recon.report
+    assert rep["registered_fraction"] == 1.0
+    poses = rep["metrics"]["poses"]
+    # 320x240 and 12 views is harder than the 640x480 benchmark; still well under a degree
+    assert poses["rotation_error_deg"]["max"] < 0.5
+    assert poses["ate_fraction_of_scene"] < 0.01
+    assert rep["sparse"]["mean_reprojection_error_px"] < 0.6
+
+
+def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
+    rep = small_recon.report
+    out = small_recon.out_dir
+    for f in ("mesh.ply", "points.ply", "report.json", "transforms.json",
+              "sparse/0/cameras.bin", "sparse/0/images.bin", "sparse/0/points3D.bin",
+              "sparse/0/text/cameras.txt", "sparse/0/text/images.txt"):
+        assert (out / f).is_file(), f
+    # tau = 1% of the scene size, on the surface the cameras saw
+    assert rep["metrics"]["mesh"]["fscore"] > 0.7
+    assert rep["metrics"]["mesh"]["precision"] > 0.7
+
+
+def _cli(capsys, *argv):
+    code = main(list(map(str, argv)))
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err
+
+
+def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, capsys):
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for p in sorted((small_capture / "images").glob("*.png")):
+        img = cv2.imread(str(p))
+        cv2.imwrite(str(folder / (p.stem + ".jpg")), img, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "rec",
+                     "--no-dense")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "rec" / "report.json").read_text())
+    assert rep["registered"] >= 10
+    assert "metrics" not in rep  # no ground truth for a plain folder
+    assert rep["intrinsics_source"].startswith("COLMAP")
+
+
+def test_too_few_images_is_one_line_exit_2(small_capture, tmp_path, capsys):
+    folder = tmp_path / "two"
+    folder.mkdir()
+    for p in sorted((small_capture / "images").glob("*.png"))[:2]:
+        shutil.copy(p, folder)
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 2 and len(err) == 1 and "at least 3 images" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_unreadable_and_mixed_size_images_are_named(small_capture, tmp_path, capsys):
+    folder = tmp_path / "bad"
+    folder.mkdir()
+    for p in sorted((small_capture / "images").glob("*.png"))[:4]:
+        shutil.copy(p, folder)
+    (folder / "broken.png").write_bytes(b"not a png")
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 2 and len(err) == 1 and "broken.png" in err[0]
+    (folder / "broken.png").unlink()
+    cv2.imwrite(str(folder / "small.png"), np.full((50, 60, 3), 128, np.uint8))
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 2 and len(err) == 1 and "small.png (60x50)" in err[0]
+
+
+def test_textureless_images_are_a_clear_error(tmp_path, capsys):
+    folder = tmp_path / "flat"
+    folder.mkdir()
+    for i in range(4):
+        cv2.imwrite(str(folder / f"{i}.png"), np.full((120, 160, 3), 40 * i + 20, np.uint8))
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 2 and len(err) == 1 and "no texture" in err[0]
+
+
+def test_unrelated_images_do_not_register_and_the_report_says_why(tmp_path, capsys):
+    folder = tmp_path / "noise"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(4):  # textured but unrelated: features, no matches
+        img = cv2.GaussianBlur(rng.integers(0, 255, (240, 320), dtype=np.uint8), (0, 0), 1.5)
+        cv2.imwrite(str(folder / f"{i}.png"), img)
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 1 and len(err) == 1 and "did not register" in err[0]
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert rep["ok"] is False and len(rep["failed_images"]) == 4
+    assert not (tmp_path / "o" / "mesh.ply").exists()
+
+
+def test_bad_camera_option_names_the_model(tmp_path, capsys, small_capture):
+    code, err = _cli(capsys, "reconstruct", "sfm", small_capture, "--out", tmp_path / "o",
+                     "--camera", "PINHOLE:300,160,120")
+    assert code == 2 and len(err) == 1 and "PINHOLE expects 4 values" in err[0]
