@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.noise.perlin import _GX, _GY, _GZ, noise3, perm_table
+from procgen.noise import noise3_grad
+from procgen.noise.perlin import noise3, perm_table
 from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
@@ -195,85 +196,6 @@ class Springs:
 
 
 # -- Perlin gradient -------------------------------------------------------------------
-
-@nb.njit(inline="always", cache=True)
-def noise3_grad(p, x, y, z):
-    """Perlin's improved noise and its analytic gradient: ``(n, dn/dx, dn/dy, dn/dz)``."""
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    X = np.int64(fx) & 255
-    Y = np.int64(fy) & 255
-    Z = np.int64(fz) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    u = x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
-    v = y * y * y * (y * (y * 6.0 - 15.0) + 10.0)
-    w = z * z * z * (z * (z * 6.0 - 15.0) + 10.0)
-    du = 30.0 * x * x * (x * (x - 2.0) + 1.0)
-    dv = 30.0 * y * y * (y * (y - 2.0) + 1.0)
-    dw = 30.0 * z * z * (z * (z - 2.0) + 1.0)
-    A = p[X] + Y
-    AA = p[A] + Z
-    AB = p[A + 1] + Z
-    B = p[X + 1] + Y
-    BA = p[B] + Z
-    BB = p[B + 1] + Z
-    ha = p[AA] & 15
-    hb = p[BA] & 15
-    hc = p[AB] & 15
-    hd = p[BB] & 15
-    he = p[AA + 1] & 15
-    hf = p[BA + 1] & 15
-    hg = p[AB + 1] & 15
-    hh = p[BB + 1] & 15
-    # corner gradients g_a ... g_h (a = 000, b = 100, c = 010, d = 110, e = 001, ...)
-    gax, gay, gaz = _GX[ha], _GY[ha], _GZ[ha]
-    gbx, gby, gbz = _GX[hb], _GY[hb], _GZ[hb]
-    gcx, gcy, gcz = _GX[hc], _GY[hc], _GZ[hc]
-    gdx, gdy, gdz = _GX[hd], _GY[hd], _GZ[hd]
-    gex, gey, gez = _GX[he], _GY[he], _GZ[he]
-    gfx, gfy, gfz = _GX[hf], _GY[hf], _GZ[hf]
-    ggx, ggy, ggz = _GX[hg], _GY[hg], _GZ[hg]
-    ghx, ghy, ghz = _GX[hh], _GY[hh], _GZ[hh]
-    x1 = x - 1.0
-    y1 = y - 1.0
-    z1 = z - 1.0
-    a = gax * x + gay * y + gaz * z
-    b = gbx * x1 + gby * y + gbz * z
-    c = gcx * x + gcy * y1 + gcz * z
-    d = gdx * x1 + gdy * y1 + gdz * z
-    e = gex * x + gey * y + gez * z1
-    f = gfx * x1 + gfy * y + gfz * z1
-    g = ggx * x + ggy * y1 + ggz * z1
-    h = ghx * x1 + ghy * y1 + ghz * z1
-    k1 = b - a
-    k2 = c - a
-    k3 = e - a
-    k4 = a - b - c + d
-    k5 = a - c - e + g
-    k6 = a - b - e + f
-    k7 = -a + b + c - d + e - f - g + h
-    uv = u * v
-    vw = v * w
-    wu = w * u
-    uvw = uv * w
-    n = a + u * k1 + v * k2 + w * k3 + uv * k4 + vw * k5 + wu * k6 + uvw * k7
-    gx = (gax + u * (gbx - gax) + v * (gcx - gax) + w * (gex - gax)
-          + uv * (gax - gbx - gcx + gdx) + vw * (gax - gcx - gex + ggx)
-          + wu * (gax - gbx - gex + gfx) + uvw * (-gax + gbx + gcx - gdx + gex - gfx - ggx + ghx)
-          + du * (k1 + k4 * v + k6 * w + k7 * vw))
-    gy = (gay + u * (gby - gay) + v * (gcy - gay) + w * (gey - gay)
-          + uv * (gay - gby - gcy + gdy) + vw * (gay - gcy - gey + ggy)
-          + wu * (gay - gby - gey + gfy) + uvw * (-gay + gby + gcy - gdy + gey - gfy - ggy + ghy)
-          + dv * (k2 + k5 * w + k4 * u + k7 * wu))
-    gz = (gaz + u * (gbz - gaz) + v * (gcz - gaz) + w * (gez - gaz)
-          + uv * (gaz - gbz - gcz + gdz) + vw * (gaz - gcz - gez + ggz)
-          + wu * (gaz - gbz - gez + gfz) + uvw * (-gaz + gbz + gcz - gdz + gez - gfz - ggz + ghz)
-          + dw * (k3 + k6 * u + k5 * v + k7 * uv))
-    return n, gx, gy, gz
-
 
 # Offsets decorrelating the noise components (irrational, far from lattice points).
 _O1 = (31.416, 47.853, 12.734)
