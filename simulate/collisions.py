@@ -179,7 +179,7 @@ def _prepare(x0, v0, x1, v1, h, cast_skin):
         for k in range(3):
             d = x1[i, k] - x0[i, k]
             rays[i, k] = x0[i, k] - back * d
-            rays[i, 3 + k] = (1.0 + back) * d
+            rays[i, 3 + k] = (1.0 + 2.0 * back) * d  # a few ulps past both ends
     return acc, dv, rays
 
 
@@ -254,11 +254,16 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         dpl = np.zeros(len(idx))
         tri_hit = np.zeros(len(idx), np.int64)
         todo = np.nonzero(np.any(chord != 0, axis=1))[0]
-        for _ in range(4):  # recast past spurious hits (the surface just left)
+        for attempt in range(4):  # recast past spurious hits (the surface just left)
             if not len(todo):
                 break
             oc = o[todo] + offset[todo]
-            hits = collider.cast(oc, end[todo] - oc)
+            ray = end[todo] - oc
+            # ... and a few ulps past the end: a path ending within float32 precision
+            # behind a face is still seen (and judged in float64)
+            rl = np.linalg.norm(ray, axis=1, keepdims=True)
+            ray = ray + cast_skin * np.divide(ray, rl, out=np.zeros_like(ray), where=rl > 0)
+            hits = collider.cast(oc, ray)
             stats.casts += len(todo)
             got = hits.hit & (hits.t <= 1.0)
             todo = todo[got]
@@ -279,11 +284,23 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
             ok |= chord_cross
             k = todo[ok]
             tau[k], sigma[k], nrm[k], dpl[k], tri_hit[k] = tt[ok], sg[ok], nn[ok], d[ok], tri[ok]
-            # spurious: the particle sits on this face (float32) and leaves it; cast
-            # again from a few float32 ulps off the face, on the particle's side
-            sg_bad = np.where(sg[~ok] == 0, 1.0, sg[~ok])
-            todo = todo[~ok]
-            offset[todo] += (sg_bad * cast_skin)[:, None] * nn[~ok]
+            # Spurious: the particle sits on this face (to float32 precision) and leaves
+            # it, or passes near a ridge behind the face's plane. Cast again: clearly
+            # on one side of the plane, from a few float32 ulps off it on that side;
+            # else from just past the hit point along the ray (doubling each attempt).
+            bad = ~ok
+            sg_bad = np.where(sg[bad] == 0, 1.0, sg[bad])
+            far = np.abs(s0[bad]) >= cast_skin
+            t_b = hits.t[got][bad]
+            ray_b = ray[got][bad]
+            rl = np.linalg.norm(ray_b, axis=1)
+            step = np.divide(cast_skin * 2.0 ** attempt, rl, out=np.zeros_like(rl),
+                             where=rl > 0)
+            past = oc[got][bad] + (t_b + step)[:, None] * ray_b
+            todo = todo[bad]
+            offset[todo] = np.where(far[:, None],
+                                    offset[todo] + (sg_bad * cast_skin)[:, None] * nn[bad],
+                                    past - o[todo])
         hit = np.isfinite(tau)
         # particles without a further impact: the path ends where the model puts it
         free = ~hit
@@ -299,7 +316,6 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         xc = o + vel * tau[:, None] + 0.5 * a * (tau * tau)[:, None]
         # on the triangle itself (the path may cross its plane just beyond an edge)
         xc = _clamp_to_triangles(xc, tri_v, tri_f, tri_hit[hit])
-        xc += (dpl - np.einsum("ij,ij->i", nrm, xc) + sigma * skin)[:, None] * nrm
         vc = vel + a * tau[:, None]
         vn_s = np.einsum("ij,ij->i", vc, nrm)
         vt = vc - vn_s[:, None] * nrm
@@ -307,6 +323,11 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         an = np.einsum("ij,ij->i", a, nrm)
         rem = np.maximum(rem - tau, 0.0)
         resting = e * speed_n < params.rest_speed
+        # Bounces sit `skin` off the face (exact ballistics); resting contacts sit a
+        # float32-resolvable distance off it, so that sliding and settling particles
+        # never sink below the face by less than Embree can see.
+        gap = np.where(resting, max(skin, cast_skin), skin)
+        xc += (dpl - np.einsum("ij,ij->i", nrm, xc) + sigma * gap)[:, None] * nrm
         stats.resting += int(resting.sum())
         pressing = resting & (sigma * an < 0)
         a = a - np.where(pressing, an, 0.0)[:, None] * nrm
