@@ -344,7 +344,8 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         if over.any():
             stats.overflow += int(over.sum())
             oi = idx[over]
-            x[oi] = o[over]
+            # out of bounces: stop at the last contact, a resolvable gap off its face
+            x[oi] = o[over] + (max(skin, cast_skin) - skin) * last_n[over]
             vn_over = np.einsum("ij,ij->i", vel[over], nrm[over])
             v[oi] = vel[over] - np.where(sigma[over] * vn_over < 0, vn_over, 0.0)[:, None] * \
                 nrm[over]

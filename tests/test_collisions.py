@@ -64,7 +64,7 @@ def test_resting_contact_and_friction(floor):
     assert np.abs(v).max() < 1e-9
     # stopping distance v^2 / (2 mu g), to within a step's travel
     assert x[0, 0] == pytest.approx(1.0 / (2 * 0.5 * G), abs=0.011)
-    assert 0 <= x[0, 2] < 1e-6
+    assert 0 <= x[0, 2] < 1e-4  # resting contacts keep a float32-resolvable gap
 
 
 @pytest.mark.parametrize("shape", ["sphere", "torus", "box"])
