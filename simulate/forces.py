@@ -280,7 +280,7 @@ _O1 = (31.416, 47.853, 12.734)
 _O2 = (-19.271, 8.917, 53.129)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=True)
 def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
     ax = 0.0
     ay = 0.0

@@ -48,7 +48,7 @@ class NonFiniteStateError(RuntimeError):
                          "forces)")
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _advance(method, codes, params, perms, t, h, nsub, x, v, inv_m, temp):
     for i in nb.prange(x.shape[0]):
         px = x[i, 0]
