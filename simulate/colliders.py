@@ -104,6 +104,22 @@ class MeshCollider:
         hit &= ~still
         return RayHits(t=t, normal=normal, hit=hit, triangle=np.where(hit, tri, -1))
 
+    def cast_rays32(self, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fast path: ``rays (n, 6) float32`` (origin, direction) as Open3D takes them.
+
+        Returns ``t (n,) float32`` (``inf`` where no hit or zero direction) and
+        ``triangle (n,) int64`` (-1 where no hit). No validation.
+        """
+        import open3d as o3d
+
+        ans = self._scene.cast_rays(o3d.core.Tensor(np.ascontiguousarray(rays, np.float32)))
+        t = ans["t_hit"].numpy()
+        still = ~np.any(rays[:, 3:] != 0, axis=1)
+        t[still] = np.inf
+        tri = ans["primitive_ids"].numpy().astype(np.int64)
+        tri[~np.isfinite(t)] = -1
+        return t, tri
+
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance ``(n,) float64``: negative inside a closed mesh."""
         import open3d as o3d

@@ -158,6 +158,31 @@ def _clamp_to_triangles(p, v, f, tri):
     return out
 
 
+@nb.njit(parallel=True, cache=True)
+def _prepare(x0, v0, x1, v1, h, cast_skin):
+    """Path accelerations, velocity corrections and float32 chord rays, in one pass."""
+    n = x0.shape[0]
+    acc = np.empty((n, 3))
+    dv = np.empty((n, 3))
+    rays = np.zeros((n, 6), np.float32)
+    for i in nb.prange(n):
+        cl = 0.0
+        for k in range(3):
+            a = 2.0 * (x1[i, k] - x0[i, k] - v0[i, k] * h) / (h * h)
+            acc[i, k] = a
+            dv[i, k] = v1[i, k] - (v0[i, k] + a * h)
+            cl += (x1[i, k] - x0[i, k]) ** 2
+        cl = np.sqrt(cl)
+        if cl == 0.0:
+            continue  # zero direction: never a hit
+        back = cast_skin / cl
+        for k in range(3):
+            d = x1[i, k] - x0[i, k]
+            rays[i, k] = x0[i, k] - back * d
+            rays[i, 3 + k] = (1.0 + 2.0 * back) * d  # a few ulps past both ends
+    return acc, dv, rays
+
+
 def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.ndarray,
             h: float, params: ContactParams = ContactParams(), *,
             inside: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, CollisionStats]:
@@ -198,9 +223,12 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
     # float32 (Embree) resolution around the particles, times a safety factor
     cast_skin = 16.0 * np.finfo(np.float32).eps * (scale + float(np.abs(x0).max(initial=0.0)))
     e, mu = float(params.restitution), float(params.friction)
-    acc = 2.0 * (x - x0 - v0 * h) / (h * h)
-    dv_fix = v - (v0 + acc * h)  # non-constant forces: keep the integrator's extra velocity
-    idx = np.nonzero(np.any(x != x0, axis=1))[0]
+    acc, dv_fix, rays = _prepare(x0, v0, x, v, float(h), cast_skin)
+    # One cast of every chord; only particles whose chord meets the mesh go on (the
+    # others keep the integrator's state exactly).
+    t_first, _ = collider.cast_rays32(rays)
+    stats.casts += n
+    idx = np.nonzero(t_first <= 1.0)[0]
     side = np.zeros(n) if inside is None else np.where(np.asarray(inside, bool), -1.0, 1.0)
     o = x0[idx].copy()
     vel = v0[idx].copy()
@@ -226,11 +254,16 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         dpl = np.zeros(len(idx))
         tri_hit = np.zeros(len(idx), np.int64)
         todo = np.nonzero(np.any(chord != 0, axis=1))[0]
-        for _ in range(4):  # recast past spurious hits (the surface just left)
+        for attempt in range(4):  # recast past spurious hits (the surface just left)
             if not len(todo):
                 break
             oc = o[todo] + offset[todo]
-            hits = collider.cast(oc, end[todo] - oc)
+            ray = end[todo] - oc
+            # ... and a few ulps past the end: a path ending within float32 precision
+            # behind a face is still seen (and judged in float64)
+            rl = np.linalg.norm(ray, axis=1, keepdims=True)
+            ray = ray + cast_skin * np.divide(ray, rl, out=np.zeros_like(ray), where=rl > 0)
+            hits = collider.cast(oc, ray)
             stats.casts += len(todo)
             got = hits.hit & (hits.t <= 1.0)
             todo = todo[got]
@@ -251,11 +284,23 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
             ok |= chord_cross
             k = todo[ok]
             tau[k], sigma[k], nrm[k], dpl[k], tri_hit[k] = tt[ok], sg[ok], nn[ok], d[ok], tri[ok]
-            # spurious: the particle sits on this face (float32) and leaves it; cast
-            # again from a few float32 ulps off the face, on the particle's side
-            sg_bad = np.where(sg[~ok] == 0, 1.0, sg[~ok])
-            todo = todo[~ok]
-            offset[todo] += (sg_bad * cast_skin)[:, None] * nn[~ok]
+            # Spurious: the particle sits on this face (to float32 precision) and leaves
+            # it, or passes near a ridge behind the face's plane. Cast again: clearly
+            # on one side of the plane, from a few float32 ulps off it on that side;
+            # else from just past the hit point along the ray (doubling each attempt).
+            bad = ~ok
+            sg_bad = np.where(sg[bad] == 0, 1.0, sg[bad])
+            far = np.abs(s0[bad]) >= cast_skin
+            t_b = hits.t[got][bad]
+            ray_b = ray[got][bad]
+            rl = np.linalg.norm(ray_b, axis=1)
+            step = np.divide(cast_skin * 2.0 ** attempt, rl, out=np.zeros_like(rl),
+                             where=rl > 0)
+            past = oc[got][bad] + (t_b + step)[:, None] * ray_b
+            todo = todo[bad]
+            offset[todo] = np.where(far[:, None],
+                                    offset[todo] + (sg_bad * cast_skin)[:, None] * nn[bad],
+                                    past - o[todo])
         hit = np.isfinite(tau)
         # particles without a further impact: the path ends where the model puts it
         free = ~hit
@@ -271,7 +316,6 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         xc = o + vel * tau[:, None] + 0.5 * a * (tau * tau)[:, None]
         # on the triangle itself (the path may cross its plane just beyond an edge)
         xc = _clamp_to_triangles(xc, tri_v, tri_f, tri_hit[hit])
-        xc += (dpl - np.einsum("ij,ij->i", nrm, xc) + sigma * skin)[:, None] * nrm
         vc = vel + a * tau[:, None]
         vn_s = np.einsum("ij,ij->i", vc, nrm)
         vt = vc - vn_s[:, None] * nrm
@@ -279,6 +323,11 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         an = np.einsum("ij,ij->i", a, nrm)
         rem = np.maximum(rem - tau, 0.0)
         resting = e * speed_n < params.rest_speed
+        # Bounces sit `skin` off the face (exact ballistics); resting contacts sit a
+        # float32-resolvable distance off it, so that sliding and settling particles
+        # never sink below the face by less than Embree can see.
+        gap = np.where(resting, max(skin, cast_skin), skin)
+        xc += (dpl - np.einsum("ij,ij->i", nrm, xc) + sigma * gap)[:, None] * nrm
         stats.resting += int(resting.sum())
         pressing = resting & (sigma * an < 0)
         a = a - np.where(pressing, an, 0.0)[:, None] * nrm
@@ -295,7 +344,8 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
         if over.any():
             stats.overflow += int(over.sum())
             oi = idx[over]
-            x[oi] = o[over]
+            # out of bounces: stop at the last contact, a resolvable gap off its face
+            x[oi] = o[over] + (max(skin, cast_skin) - skin) * last_n[over]
             vn_over = np.einsum("ij,ij->i", vel[over], nrm[over])
             v[oi] = vel[over] - np.where(sigma[over] * vn_over < 0, vn_over, 0.0)[:, None] * \
                 nrm[over]

@@ -202,7 +202,7 @@ _O1 = (31.416, 47.853, 12.734)
 _O2 = (-19.271, 8.917, 53.129)
 
 
-@nb.njit(inline="always", cache=True)
+@nb.njit(cache=True, fastmath=True)
 def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
     ax = 0.0
     ay = 0.0
@@ -364,15 +364,20 @@ def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     Cells are ``radius`` wide, so each particle visits the 27 cells around its own;
     cost O(n k) for k neighbours (a sort of the cell keys plus binary searches).
     """
-    x = np.ascontiguousarray(check_array(x, "x", shape=(None, 3)))
+    x = np.ascontiguousarray(check_array(x, "x", shape=(None, 3), finite=False))
     n = len(x)
     inv_m = np.ascontiguousarray(1.0 / np.broadcast_to(np.asarray(mass, np.float64), (n,)))
     out = np.zeros((n, 3))
     if n < 2:
         return out
+    if not np.all(np.isfinite(x)):  # let the caller detect and report the blow-up
+        return np.full((n, 3), np.nan)
     cell = float(force.radius)
     lo = x.min(axis=0)
-    dims = (np.floor((x.max(axis=0) - lo) / cell).astype(np.int64) + 1)
+    span = (x.max(axis=0) - lo) / cell
+    if not np.all(np.isfinite(span)):  # blown-up states overflow: report, do not raise
+        return np.full((n, 3), np.nan)
+    dims = np.floor(span).astype(np.int64) + 1
     if float(np.prod(dims.astype(np.float64))) > 2.0**62:
         raise ValueError(f"radius: {cell} m is too small for a grid over the particles' extent")
     c = np.floor((x - lo) / cell).astype(np.int64)

@@ -46,7 +46,8 @@ def write_vtp(path: str | os.PathLike, points: np.ndarray, *, point_data: dict |
         arr = np.asarray(arr)
         if arr.shape[:1] != (len(pts),):
             raise ValueError(f"point_data[{name!r}]: expected {len(pts)} rows, got {arr.shape}")
-        pd.point_data[name] = arr
+        if len(pts):  # VTK/pyvista reject empty arrays; an empty frame is just no points
+            pd.point_data[name] = arr
     with atomic_file(path) as tmp:
         pd.save(str(tmp), binary=True)
     return Path(path)
