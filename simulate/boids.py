@@ -718,7 +718,8 @@ def _frame(h):
 def _avoidance(collider, x, v, params: BoidParams):
     """Boids whose probe ahead hits the mesh, and the free direction for each.
 
-    Returns ``(idx (m,) int64, direction (m, 3) float64)``.
+    Returns ``(idx (m,) int64, direction (m, 3) float64, urgency (m,) float64)``;
+    urgency grows from 0 (hit at the probe's end) to 1 (hit at the boid).
     """
     sp = np.linalg.norm(v, axis=1)
     h = _unit(v)
@@ -726,7 +727,7 @@ def _avoidance(collider, x, v, params: BoidParams):
     hits = collider.cast(x, h * length[:, None])
     idx = np.nonzero(hits.hit & (hits.t <= 1.0))[0]
     if len(idx) == 0:
-        return idx, np.zeros((0, 3))
+        return idx, np.zeros((0, 3)), np.zeros(0)
     hh = h[idx]
     u, w = _frame(hh)
     cone = _cone(params.probe_rays, math.radians(params.probe_angle_deg))
@@ -741,34 +742,50 @@ def _avoidance(collider, x, v, params: BoidParams):
                           (dirs * L[:, None, None]).reshape(-1, 3))
     blocked = (probe.hit & (probe.t <= 1.0)).reshape(m, k)
     free = ~blocked
-    first = np.argmax(free, axis=1)
-    out = dirs[np.arange(m), first]
+    # Surface normal at the forward hit, facing the boid.
+    nrm = hits.normal[idx]
+    nrm[np.sum(nrm * hh, axis=1) > 0] *= -1
+    # The free direction nearest the heading (innermost ring); within a ring, the one
+    # leading most away from the surface.
+    ring = np.round(cone[:, 0] / cone[:, 0].max() * 1e3)
+    score = ring[None, :] - 0.5 * np.einsum("mkc,mc->mk", dirs, nrm)
+    score[blocked] = np.inf
+    best = np.argmin(score, axis=1)
+    out = dirs[np.arange(m), best]
     # No free direction: head along the surface normal, away from the wall.
     none = ~free.any(axis=1)
-    if np.any(none):
-        nrm = hits.normal[idx[none]]
-        flip = np.sum(nrm * hh[none], axis=1) > 0
-        nrm[flip] *= -1
-        out[none] = nrm
-    return idx, out
+    out[none] = nrm[none]
+    urgency = 1.0 - np.clip(hits.t[idx], 0.0, 1.0)
+    return idx, out, urgency
 
 
 def _sweep(collider, x0, x1, v1, skin):
-    """Stop segments ``x0 -> x1`` that meet the mesh ``skin`` before it; reflect velocity.
+    """Stop segments ``x0 -> x1`` that meet the mesh before it; reflect velocity.
 
+    A stopped boid is put ``skin`` before the hit along its segment and lifted ``skin``
+    off the surface along the normal (so a grazing stop is not left on the surface at
+    float32 precision), unless that lift would itself meet the mesh.
     Returns the number of boids stopped.
     """
     seg = x1 - x0
     hits = collider.cast(x0, seg)
-    idx = np.nonzero(hits.hit & (hits.t <= 1.0))[0]
+    seglen = np.linalg.norm(seg, axis=1)
+    # a hit up to ``skin`` past the segment's end counts: the end must keep off the surface
+    reach = 1.0 + skin / np.maximum(seglen, 1e-300)
+    idx = np.nonzero(hits.hit & (hits.t <= reach))[0]
     if len(idx) == 0:
         return 0
     s = seg[idx]
-    length = np.linalg.norm(s, axis=1)
-    t = np.maximum(hits.t[idx] - skin / length, 0.0)
-    x1[idx] = x0[idx] + t[:, None] * s
+    length = seglen[idx]
+    t = np.minimum(np.maximum(hits.t[idx] - skin / length, 0.0), 1.0)
+    stop = x0[idx] + t[:, None] * s
     n = hits.normal[idx]
     n[np.sum(n * s, axis=1) > 0] *= -1
+    lift = skin * n
+    blocked = collider.cast(stop, lift)
+    ok = ~(blocked.hit & (blocked.t <= 1.0))
+    stop[ok] += lift[ok]
+    x1[idx] = stop
     vv = v1[idx]
     vn = np.sum(vv * n, axis=1)
     v1[idx] = vv - 2 * np.minimum(vn, 0.0)[:, None] * n
@@ -827,7 +844,7 @@ def _step(state, params, rng, collider, method):
         sums, counts = _sums_reference(x, v, P, couzin)
         _finish_all(x, v, state.wander, P, couzin, sums, counts, steer)
     if collider is not None:
-        idx, free = _avoidance(collider, x, v, params)
+        idx, free, urgency = _avoidance(collider, x, v, params)
         if len(idx):
             if couzin:
                 steer[idx] = free
@@ -835,7 +852,9 @@ def _step(state, params, rng, collider, method):
                 desired = free * params.max_speed - v[idx]
                 m = np.linalg.norm(desired, axis=1, keepdims=True)
                 desired *= np.minimum(1.0, params.max_force / np.maximum(m, 1e-300))
-                steer[idx] += params.avoid_weight * desired
+                # prioritized: the nearer the wall, the less the other behaviours count
+                steer[idx] = ((1.0 - urgency)[:, None] * steer[idx]
+                              + params.avoid_weight * desired)
     if couzin and params.noise_deg > 0:
         noise = math.radians(params.noise_deg) * rng.standard_normal((n, 3))
     else:
