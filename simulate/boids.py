@@ -56,7 +56,7 @@ __all__ = ["BoidParams", "FlockState", "init_flock", "step", "perception_radius"
 
 MODELS = ("reynolds", "couzin")
 METHODS = ("grid", "reference")
-_CELLS_PER_RADIUS = 2
+_CELLS_PER_RADIUS = 1
 
 
 @dataclass(frozen=True)
@@ -465,81 +465,83 @@ def _steer_grid(x, v, P, couzin, xs, vs, ws, order, cell, dims, start, reach, ou
         r2max = P[_ZOA2]
     else:
         r2max = max(P[_RS2], max(P[_RA2], P[_RC2]))
-    for k in nb.prange(order.shape[0]):
-        i = order[k]
-        c = cell[i]
+    for c in nb.prange(start.shape[0] - 1):
+        if start[c] == start[c + 1]:
+            continue
         cx0 = c % nx
         cy0 = (c // nx) % ny
         cz0 = c // (nx * ny)
-        px, py, pz = xs[k, 0], xs[k, 1], xs[k, 2]
-        vx, vy, vz = vs[k, 0], vs[k, 1], vs[k, 2]
-        sp = math.sqrt(vx * vx + vy * vy + vz * vz)
-        hx = hy = hz = 0.0
-        if sp > 0:
-            hx, hy, hz = vx / sp, vy / sp, vz / sp
-        look = fovcos > -1.0 and sp > 0
-        a0 = a1 = a2 = b0 = b1 = b2 = c0 = c1 = c2 = 0.0
-        na = nb_ = nc = 0
-        gx0 = max(cx0 - reach, 0)
-        gx1 = min(cx0 + reach, nx - 1)
-        for gz in range(max(cz0 - reach, 0), min(cz0 + reach + 1, nz)):
-            for gy in range(max(cy0 - reach, 0), min(cy0 + reach + 1, ny)):
-                # cells along x are consecutive in the sorted order: one contiguous run
-                g = nx * (gy + ny * gz)
-                for kk in range(start[g + gx0], start[g + gx1 + 1]):
-                    if kk == k:
-                        continue
-                    dx = xs[kk, 0] - px
-                    dy = xs[kk, 1] - py
-                    dz = xs[kk, 2] - pz
-                    r2 = dx * dx + dy * dy + dz * dz
-                    if r2 >= r2max:
-                        continue
-                    r = math.sqrt(r2)
-                    if look and hx * dx + hy * dy + hz * dz < fovcos * r:
-                        continue
-                    if couzin:
-                        if r2 < zor2:
-                            if r > 0:
-                                a0 -= dx / r
-                                a1 -= dy / r
-                                a2 -= dz / r
-                            na += 1
-                        elif r2 < zoo2:
-                            wx, wy, wz = vs[kk, 0], vs[kk, 1], vs[kk, 2]
-                            wn = math.sqrt(wx * wx + wy * wy + wz * wz)
-                            if wn > 0:
-                                b0 += wx / wn
-                                b1 += wy / wn
-                                b2 += wz / wn
-                            nb_ += 1
+        for k in range(start[c], start[c + 1]):
+            i = order[k]
+            px, py, pz = xs[k, 0], xs[k, 1], xs[k, 2]
+            vx, vy, vz = vs[k, 0], vs[k, 1], vs[k, 2]
+            sp = math.sqrt(vx * vx + vy * vy + vz * vz)
+            hx = hy = hz = 0.0
+            if sp > 0:
+                hx, hy, hz = vx / sp, vy / sp, vz / sp
+            look = fovcos > -1.0 and sp > 0
+            a0 = a1 = a2 = b0 = b1 = b2 = c0 = c1 = c2 = 0.0
+            na = nb_ = nc = 0
+            gx0 = max(cx0 - reach, 0)
+            gx1 = min(cx0 + reach, nx - 1)
+            for gz in range(max(cz0 - reach, 0), min(cz0 + reach + 1, nz)):
+                for gy in range(max(cy0 - reach, 0), min(cy0 + reach + 1, ny)):
+                    # cells along x are consecutive in the sorted order: one contiguous run
+                    g = nx * (gy + ny * gz)
+                    for kk in range(start[g + gx0], start[g + gx1 + 1]):
+                        if kk == k:
+                            continue
+                        dx = xs[kk, 0] - px
+                        dy = xs[kk, 1] - py
+                        dz = xs[kk, 2] - pz
+                        r2 = dx * dx + dy * dy + dz * dz
+                        if r2 >= r2max:
+                            continue
+                        r = math.sqrt(r2)
+                        if look and hx * dx + hy * dy + hz * dz < fovcos * r:
+                            continue
+                        if couzin:
+                            if r2 < zor2:
+                                if r > 0:
+                                    a0 -= dx / r
+                                    a1 -= dy / r
+                                    a2 -= dz / r
+                                na += 1
+                            elif r2 < zoo2:
+                                wx, wy, wz = vs[kk, 0], vs[kk, 1], vs[kk, 2]
+                                wn = math.sqrt(wx * wx + wy * wy + wz * wz)
+                                if wn > 0:
+                                    b0 += wx / wn
+                                    b1 += wy / wn
+                                    b2 += wz / wn
+                                nb_ += 1
+                            else:
+                                c0 += dx / r
+                                c1 += dy / r
+                                c2 += dz / r
+                                nc += 1
                         else:
-                            c0 += dx / r
-                            c1 += dy / r
-                            c2 += dz / r
-                            nc += 1
-                    else:
-                        if r2 < rs2 and r2 > 0:
-                            a0 -= dx / r2
-                            a1 -= dy / r2
-                            a2 -= dz / r2
-                            na += 1
-                        if r2 < ra2:
-                            b0 += vs[kk, 0]
-                            b1 += vs[kk, 1]
-                            b2 += vs[kk, 2]
-                            nb_ += 1
-                        if r2 < rc2:
-                            c0 += dx
-                            c1 += dy
-                            c2 += dz
-                            nc += 1
-        if couzin:
-            _couzin_finish(k, xs, vs, P, (a0, a1, a2), (b0, b1, b2), (c0, c1, c2), na, nb_,
-                           nc, out)
-        else:
-            _reynolds_finish(i, k, xs, vs, ws, x, v, P, (a0, a1, a2), (b0, b1, b2),
-                             (c0, c1, c2), na, nb_, nc, out)
+                            if r2 < rs2 and r2 > 0:
+                                a0 -= dx / r2
+                                a1 -= dy / r2
+                                a2 -= dz / r2
+                                na += 1
+                            if r2 < ra2:
+                                b0 += vs[kk, 0]
+                                b1 += vs[kk, 1]
+                                b2 += vs[kk, 2]
+                                nb_ += 1
+                            if r2 < rc2:
+                                c0 += dx
+                                c1 += dy
+                                c2 += dz
+                                nc += 1
+            if couzin:
+                _couzin_finish(k, xs, vs, P, (a0, a1, a2), (b0, b1, b2), (c0, c1, c2), na, nb_,
+                               nc, out)
+            else:
+                _reynolds_finish(i, k, xs, vs, ws, x, v, P, (a0, a1, a2), (b0, b1, b2),
+                                 (c0, c1, c2), na, nb_, nc, out)
 
 
 @nb.njit(parallel=True, cache=True, error_model="numpy")
@@ -829,7 +831,7 @@ def _step(state, params, rng, collider, method):
         if params.bounds is not None:
             lo, hi = np.array(params.bounds[0]), np.array(params.bounds[1])
         radius = perception_radius(params)
-        # cells of half the radius: 5^3 cells hold ~1/3 fewer candidates than 3^3 of a radius
+        # cells one radius wide (3^3 per boid): measured faster than half-radius cells (5^3)
         grid = build_grid(x, radius / _CELLS_PER_RADIUS, lo=lo, hi=hi)
         reach = int(math.ceil(radius / grid.cell_size))
         xs = np.empty_like(x)
