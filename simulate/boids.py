@@ -197,6 +197,8 @@ class FlockState:
         Unit wander directions.
     time : float
     steps : int
+    collisions : int
+        Swept segments stopped at a mesh so far (contacts, not penetrations).
     """
 
     positions: np.ndarray
