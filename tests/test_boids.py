@@ -171,3 +171,19 @@ def test_bad_input():
              rng=np.random.default_rng(0), method="kdtree")
     with pytest.raises(ValueError, match="faces"):
         MeshCollider(o3d.geometry.TriangleMesh())
+
+
+def test_goal_seeking_and_leader_following():
+    # one leader seeks a goal; the others follow a point behind it
+    p = BoidParams(separation_radius=0.3, alignment_weight=0, cohesion_weight=0,
+                   goal=(20.0, 0, 0), goal_weight=1.0, leaders=1, leader_weight=1.0,
+                   leader_distance=1.0, max_speed=3.0, min_speed=0.0, max_force=4.0,
+                   bounds=None)
+    rng = np.random.default_rng(0)
+    s = init_flock(30, p, rng=rng, radius=3.0)
+    for _ in range(300):
+        step(s, p, rng=rng)
+    leader = s.positions[0]
+    assert np.linalg.norm(leader - [20, 0, 0]) < 2.0  # circles the goal within a turn radius
+    d = np.linalg.norm(s.positions[1:] - leader, axis=1)
+    assert np.median(d) < 3.0
