@@ -6,7 +6,7 @@ STAMP    := $(VENV)/.installed
 SYSLIBS  := libusb-1.0-0 libgl1 libegl1 libgomp1
 DEMO_OUT ?= demo-out
 
-.PHONY: setup syslibs demo test bench lint clean
+.PHONY: setup syslibs demo test bench lint notebooks clean
 
 setup: $(STAMP)
 
@@ -38,6 +38,9 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
+
+notebooks: $(STAMP)
+	$(PY) notebooks/execute.py
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

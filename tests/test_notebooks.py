@@ -1,0 +1,22 @@
+"""Every walkthrough notebook runs from top to bottom (``make test`` executes them all)."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+_spec = importlib.util.spec_from_file_location(
+    "notebooks_execute", Path(__file__).resolve().parents[1] / "notebooks" / "execute.py")
+_execute = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_execute)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", _execute.notebooks(), ids=lambda p: p.stem)
+def test_notebook_runs_top_to_bottom(path, tmp_path):
+    nb = _execute.execute(path, workdir=tmp_path)
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    assert code, f"{path.name} has no code cells"
+    errors = [o for c in code for o in c.get("outputs", []) if o.get("output_type") == "error"]
+    assert not errors, f"{path.name}: {errors[0].get('ename')}: {errors[0].get('evalue')}"
+
