@@ -24,7 +24,8 @@ from acquire.camera import Camera
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CameraCalibration", "calibrate_camera", "detect_target", "board_pose"]
+__all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "detect_target",
+           "board_pose"]
 
 _DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
 
@@ -128,7 +129,6 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
     RuntimeError
         Too few views with a detected target.
     """
-    import cv2
 
     from procgen.validate import check_choice
 
@@ -154,6 +154,62 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
         bad = ", ".join(names[i] for i in rejected[:6]) + (" ..." if len(rejected) > 6 else "")
         raise RuntimeError(f"camera calibration: the target was detected in {len(used)} of "
                            f"{len(images)} views, need {min_views} (not detected: {bad})")
+    if rejected:
+        log.warning("camera calibration: target not detected in %s",
+                    ", ".join(names[i] for i in rejected))
+    cal = calibrate_camera_points(obj, img, (w, h), dist_model=dist_model, min_views=1)
+    cal.used_views, cal.rejected_views = used, rejected
+    return cal
+
+
+def calibrate_camera_points(object_points, image_points, image_size, *,
+                            dist_model: str = "k1k2p1p2", min_views: int = 3,
+                            name: str = "camera") -> CameraCalibration:
+    """Calibrate a camera (or a projector, as an inverse camera) from corner correspondences.
+
+    The point-level core of :func:`calibrate_camera`, for callers that found the
+    correspondences themselves (a stereo pair's board detections, a projector's decoded
+    coordinates at the board corners).
+
+    Parameters
+    ----------
+    object_points : list of (k_i, 3) float
+        Target corners in the target frame, per view.
+    image_points : list of (k_i, 2) float
+        Their pixels in this device, per view.
+    image_size : (int, int)
+        ``(width, height)`` of the device's images.
+    dist_model : {'k1k2', 'k1k2p1p2', 'full'}
+        As for :func:`calibrate_camera`.
+    min_views : int
+        Views needed, else ValueError.
+    name : str
+        Names the device in error messages.
+
+    Returns
+    -------
+    CameraCalibration
+        ``used_views`` are all the given views.
+
+    Raises
+    ------
+    ValueError
+        Fewer than ``min_views`` views, or mismatched lists.
+    """
+    import cv2
+
+    from procgen.validate import check_choice
+
+    check_choice(dist_model, "dist_model", _DIST_MODELS)
+    if len(object_points) != len(image_points):
+        raise ValueError(f"{name}: image_points: expected one array per view "
+                         f"({len(object_points)}), got {len(image_points)}")
+    if len(object_points) < max(int(min_views), 1):
+        raise ValueError(f"{name}: expected the target in at least {min_views} views, got "
+                         f"{len(object_points)}")
+    w, h = (int(v) for v in image_size)
+    obj = [np.asarray(o, np.float32).reshape(-1, 3) for o in object_points]
+    img = [np.asarray(p, np.float32).reshape(-1, 1, 2) for p in image_points]
     flags = cv2.CALIB_FIX_K3
     if dist_model == "k1k2":
         flags |= cv2.CALIB_ZERO_TANGENT_DIST
@@ -168,8 +224,5 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
         criteria=crit)
     cam = Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist.ravel()[:5])
     poses = [_rt_to_T(r, t) for r, t in zip(rvecs, tvecs, strict=True)]
-    if rejected:
-        log.warning("camera calibration: target not detected in %s",
-                    ", ".join(names[i] for i in rejected))
-    return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(), used, poses,
-                             rejected)
+    return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(),
+                             list(range(len(obj))), poses)
