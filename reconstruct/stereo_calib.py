@@ -196,8 +196,8 @@ def calibrate_turntable_mount(object_points: list, image_points: list, angles_de
     import cv2
 
     Ttb = check_array(table_from_target, "table_from_target", shape=(4, 4))
-    if len(object_points) < 2:
-        raise ValueError(f"axis views: expected the board in at least 2 views, got "
+    if len(object_points) < 1:
+        raise ValueError(f"axis views: expected the board in at least 1 view, got "
                          f"{len(object_points)}")
     P, px = [], []
     for op, ip, a in zip(object_points, image_points, angles_deg, strict=True):

@@ -204,10 +204,11 @@ def calibrate_axis_entry(cap: Capture, index: int, entry: dict, K: np.ndarray, D
         ao.append(d[0])
         ap.append(d[1])
         aa.append(angles[j])
-    if len(ao) < 3:
-        raise InputError(f"board detected in only {len(ao)} axis views (need 3)", path=jpath,
-                         field=f"calibration[{index}].images")
     mount = entry.get("table_from_target")
+    need = 3 if mount is None else 1  # a known mount: one view already fixes the frame
+    if len(ao) < need:
+        raise InputError(f"board detected in only {len(ao)} axis views (need {need})",
+                         path=jpath, field=f"calibration[{index}].images")
     if mount is None:
         table_from_cam, rep = calibrate_turntable_axis(ao, ap, aa, K, D)
         rep["method"] = "axis only (no mount: origin and heading from the board)"
