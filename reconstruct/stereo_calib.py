@@ -2,9 +2,11 @@
 
 Each device's intrinsics come from the project's camera calibration
 (:func:`reconstruct.calibrate_camera.calibrate_camera_points`, Zhang's method, shared with
-the laser scanner); the pair's relative pose then from ``cv2.stereoCalibrate`` with the
-intrinsics fixed. The turntable axis
-comes from a board fixed on the turntable seen at known stage angles.
+the laser scanner); ``cv2.stereoCalibrate`` then refines both jointly and gives the
+pair's relative pose. The turntable frame comes from a board on the turntable seen at
+known stage angles: completely when the board's mount on the platter is known
+(:func:`calibrate_turntable_mount`), up to its origin height and heading otherwise
+(:func:`calibrate_turntable_axis`).
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Stereo reconstruction pipelines: a turntable capture, or a user's own pair.
 
 Capture pipeline (:func:`run_capture`): stereo calibration from the board views
-(``cv2.stereoCalibrate``), turntable axis from the board on the turntable, then per
-stage angle: rectify, SGBM (+ LR check, + WLS), disparity to depth, and TSDF fusion
-of all depth maps into one mesh in the turntable frame (object at stage angle 0).
-Rig poses come from the calibrated axis and the reported stage angles; ground truth
-is read only to score (disparity metrics, mesh F-score).
+(``cv2.stereoCalibrate``), the turntable frame from the board mounted on the turntable,
+then per stage angle: rectify, SGBM (+ LR check, + WLS), disparity to depth, and TSDF
+fusion of all depth maps into one mesh in the turntable (= world) frame, object at stage
+angle 0. Rig poses come from that calibration and the reported stage angles; ground
+truth is read only to score (disparity metrics, mesh F-score as the mesh lies).
 
 Pair pipeline (:func:`run_pair`): a rectified disparity, depth and points from two
 images and a ``stereo.yaml`` (see :mod:`reconstruct.stereo_io`).
