@@ -221,10 +221,15 @@ class MatchOptions:
         Drop disparities where the left image's local std (DN, block-size window) is
         below this (no signal to match: dark background, textureless surface); 0 = off.
     pad : bool
-        Pad both images on the left by ``num_disparities`` columns so that SGBM also
-        matches the left border it otherwise leaves empty (see :func:`match`).
+        Pad both images on the left (by ``num_disparities - min_disparity`` columns) so
+        that SGBM also matches the left border it otherwise leaves empty (see
+        :func:`match`).
     p1_scale, p2_scale : float
         SGBM smoothness penalties per channel and window pixel.
+    roi_min_intensity : float
+        Match only inside the bounding box (plus a margin) of the pixels whose 5 x 5
+        mean exceeds this (DN): a dark background carries no signal to match, and the
+        box around the lit object is typically half the image. 0 = the whole image.
     """
 
     min_disparity: int = 0
@@ -243,6 +248,7 @@ class MatchOptions:
     min_texture: float = 0.5
     p1_scale: float = 4.0
     p2_scale: float = 64.0
+    roi_min_intensity: float = 8.0
 
 
 def _sgbm(opts: MatchOptions, channels: int):
@@ -290,7 +296,8 @@ def match(left_rect: np.ndarray, right_rect: np.ndarray, options: MatchOptions |
     SGBM leaves the ``min_disparity + num_disparities`` leftmost columns unmatched. The
     right image is shifted right by ``min_disparity`` first (the search then starts at
     0, so only ``num_disparities`` columns are lost) and, with ``pad``, both images are
-    padded on the left by ``num_disparities`` columns so those are matched too. The
+    padded on the left by ``num_disparities - min_disparity`` columns (when positive),
+    so that every pixel with a possible match (``x >= min_disparity``) gets one. The
     right view's disparity (LR check, WLS) is the same matcher on the mirrored pair,
     whose unmatched border is the original right border.
 
@@ -332,18 +339,50 @@ def texture_mask(image: np.ndarray, min_std: float, window: int = 5) -> np.ndarr
     return np.sqrt(np.maximum(v, 0)) >= min_std
 
 
-def _sgbm_raw(matcher, left, right, lo: int, num: int, pad: bool) -> np.ndarray:
+def _roi(image: np.ndarray, min_intensity: float, margin: int):
+    """``(y0, y1, x0, x1)``: bounding box (plus ``margin``) of the pixels whose 5 x 5 mean
+    exceeds ``min_intensity``; None when there is none."""
+    import cv2
+
+    g = image if image.ndim == 2 else image.mean(axis=2)
+    m = cv2.blur(g.astype(np.float32), (5, 5)) > min_intensity
+    rows = np.flatnonzero(m.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(m.any(axis=0))
+    H, W = m.shape
+    return (max(rows[0] - margin, 0), min(rows[-1] + 1 + margin, H),
+            max(cols[0] - margin, 0), min(cols[-1] + 1 + margin, W))
+
+
+def _sgbm_raw(matcher, left, right, lo: int, num: int, pad: bool, roi_min: float = 0.0,
+              margin: int = 8) -> np.ndarray:
     """SGBM's fixed-point disparity (x16, original units) of ``left`` against ``right``;
-    ``(lo - 1) * 16`` where invalid. See :func:`match` for the shift and the padding."""
-    W = left.shape[1]
-    p = num if pad else 0
+    ``(lo - 1) * 16`` where invalid. See :func:`match` for the shift, the padding and
+    the region of interest."""
+    H, W = left.shape[:2]
+    out = np.full((H, W), (lo - 1) * 16, np.int32)
+    y0, y1, x0, x1 = 0, H, 0, W
+    if roi_min > 0:
+        box = _roi(left, roi_min, margin)
+        if box is None:
+            return out
+        y0, y1, x0, x1 = box
+    # after the shift SGBM loses the columns x < num; those with x < lo have no match at
+    # all (x - d < 0), so num - lo columns of padding recover every matchable pixel
+    p = max(num - lo, 0) if pad else 0
     extra = ((0, 0),) if left.ndim == 3 else ()
-    # right'[x] = right[x - lo]: the search starts at 0
-    rs = np.pad(right, ((0, 0), (lo + p, 0)) + extra, mode="edge")[:, :W + p]
-    ls = np.pad(left, ((0, 0), (p, 0)) + extra, mode="edge") if p else left
-    raw = matcher.compute(np.ascontiguousarray(ls), np.ascontiguousarray(rs))[:, p:]
-    out = raw.astype(np.int32) + 16 * lo
-    out[raw < 0] = (lo - 1) * 16
+    # right'[x] = right[x - lo]: the search starts at 0; in padded columns c = x + p
+    rs = np.pad(right[y0:y1], ((0, 0), (lo + p, 0)) + extra, mode="edge")[:, :W + p]
+    ls = np.pad(left[y0:y1], ((0, 0), (p, 0)) + extra, mode="edge") if p else left[y0:y1]
+    ws = max(x0 + p - num, 0)  # SGBM needs num columns of context left of the first output
+    we = x1 + p
+    raw = matcher.compute(np.ascontiguousarray(ls[:, ws:we]), np.ascontiguousarray(rs[:, ws:we]))
+    c0 = max(ws, p)  # first padded column that is an image column
+    raw = raw[:, c0 - ws:]
+    sub = raw.astype(np.int32) + 16 * lo
+    sub[raw < 0] = (lo - 1) * 16
+    out[y0:y1, c0 - p:c0 - p + sub.shape[1]] = sub
     return out
 
 
@@ -352,14 +391,16 @@ def _match(left_rect, right_rect, opts, channels):
     if lo < 0:
         raise ValueError(f"min_disparity: expected >= 0, got {lo}")
     m = _sgbm(dataclasses.replace(opts, min_disparity=0), channels)
-    raw = _sgbm_raw(m, left_rect, right_rect, lo, num, opts.pad)
+    roi = float(opts.roi_min_intensity)
+    raw = _sgbm_raw(m, left_rect, right_rect, lo, num, opts.pad, roi, opts.block_size + 4)
     invalid_raw = (lo - 1) * 16
     if not (opts.wls or opts.lr_check):
         d = raw.astype(np.float32) / 16.0
         d[raw <= invalid_raw] = np.nan
         return d
     # right view: mirror both images; a right pixel's match lies to its right
-    raw_r = _sgbm_raw(m, right_rect[:, ::-1], left_rect[:, ::-1], lo, num, opts.pad)[:, ::-1]
+    raw_r = _sgbm_raw(m, right_rect[:, ::-1], left_rect[:, ::-1], lo, num, opts.pad, roi,
+                      opts.block_size + 4)[:, ::-1]
     dr = raw_r.astype(np.float32) / 16.0
     dr[raw_r <= invalid_raw] = np.nan
     if opts.wls:

@@ -174,3 +174,20 @@ def test_shifted_search_and_padding_match_the_left_border(lr):
     if not lr:  # the padding only adds columns
         ok = np.isfinite(bare[10:-10, 40:-10]) & np.isfinite(disp[10:-10, 40:-10])
         assert np.median(np.abs(bare[10:-10, 40:-10] - disp[10:-10, 40:-10])[ok]) == 0.0
+
+
+def test_region_of_interest_matches_only_the_lit_part_identically():
+    """On a dark background, matching the bounding box of the lit pixels gives the same
+    disparities as matching the whole image."""
+    left, right = _shifted_pair(14.0, h=120, w=260)
+    left, right = left // 2 + 60, right // 2 + 60  # lit texture, 60..187 DN
+    dark = np.zeros((160, 300), np.uint8)
+    L, R = dark.copy(), dark.copy()
+    L[20:140, 20:280] = left
+    R[20:140, 20:280] = right
+    full = match(L, R, MatchOptions(min_disparity=8, num_disparities=16, roi_min_intensity=0))
+    roi = match(L, R, MatchOptions(min_disparity=8, num_disparities=16, roi_min_intensity=8))
+    core = (slice(30, 130), slice(50, 270))
+    assert np.isfinite(roi[core]).mean() > 0.97
+    np.testing.assert_allclose(roi[core], full[core], atol=0.0625, equal_nan=True)
+    assert abs(np.nanmedian(roi[core]) - 14.0) < 0.25
