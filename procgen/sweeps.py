@@ -332,29 +332,12 @@ def _tube_fill(p0, p1, frames, r0, r1, parent, cont, own_start, sides, caps, nri
         bx = dy * az - dz * ay
         by = dz * ax - dx * az
         bz = dx * ay - dy * ax
-        r = r1[i]
         ex, ey, ez = p1[i, 0], p1[i, 1], p1[i, 2]
-        q = 3 * i * sides
-        for j in range(sides):
-            u = r * cs[j]
-            w = r * sn[j]
-            V[q] = ex + u * ax + w * bx
-            V[q + 1] = ey + u * ay + w * by
-            V[q + 2] = ez + u * az + w * bz
-            q += 3
+        _ring(V, 3 * i * sides, ex, ey, ez, r1[i], ax, ay, az, bx, by, bz, cs, sn)
         s_ring = own_start[i]
         if s_ring >= 0:
-            r = r0[i]
-            ux, uy, uz = frames[i, 2, 0], frames[i, 2, 1], frames[i, 2, 2]
-            sx, sy, sz = p0[i, 0], p0[i, 1], p0[i, 2]
-            q = 3 * s_ring * sides
-            for j in range(sides):
-                u = r * cs[j]
-                w = r * sn[j]
-                V[q] = sx + u * lx + w * ux
-                V[q + 1] = sy + u * ly + w * uy
-                V[q + 2] = sz + u * lz + w * uz
-                q += 3
+            _ring(V, 3 * s_ring * sides, p0[i, 0], p0[i, 1], p0[i, 2], r0[i], lx, ly, lz,
+                  frames[i, 2, 0], frames[i, 2, 1], frames[i, 2, 2], cs, sn)
             sa = s_ring * sides
         else:
             sa = parent[i] * sides
@@ -369,25 +352,38 @@ def _tube_fill(p0, p1, frames, r0, r1, parent, cont, own_start, sides, caps, nri
             T[q_t + 5] = eb + j
             q_t += 6
         if caps and s_ring >= 0:
-            V[3 * cv] = p0[i, 0]
-            V[3 * cv + 1] = p0[i, 1]
-            V[3 * cv + 2] = p0[i, 2]
-            for j in range(sides):
-                T[q_t] = cv
-                T[q_t + 1] = sa + (j + 1 if j + 1 < sides else 0)
-                T[q_t + 2] = sa + j
-                q_t += 3
+            q_t = _cap(V, T, q_t, cv, p0[i, 0], p0[i, 1], p0[i, 2], sa, sides, True)
             cv += 1
         if caps and c < 0:
-            V[3 * cv] = ex
-            V[3 * cv + 1] = ey
-            V[3 * cv + 2] = ez
-            for j in range(sides):
-                T[q_t] = cv
-                T[q_t + 1] = eb + j
-                T[q_t + 2] = eb + (j + 1 if j + 1 < sides else 0)
-                q_t += 3
+            q_t = _cap(V, T, q_t, cv, ex, ey, ez, eb, sides, False)
             cv += 1
+
+
+@numba.njit(inline="always", cache=True)
+def _ring(V, q, x, y, z, r, ax, ay, az, bx, by, bz, cs, sn):
+    """Ring of ``len(cs)`` vertices at ``V[q:]``: centre (x, y, z), radius r, axes a and b."""
+    for j in range(len(cs)):
+        u = r * cs[j]
+        w = r * sn[j]
+        V[q] = x + u * ax + w * bx
+        V[q + 1] = y + u * ay + w * by
+        V[q + 2] = z + u * az + w * bz
+        q += 3
+
+
+@numba.njit(inline="always", cache=True)
+def _cap(V, T, q_t, cv, x, y, z, ring, sides, start):
+    """A fan closing ``ring`` around the centre vertex ``cv`` (facing back at a start)."""
+    V[3 * cv] = x
+    V[3 * cv + 1] = y
+    V[3 * cv + 2] = z
+    for j in range(sides):
+        j1 = j + 1 if j + 1 < sides else 0
+        T[q_t] = cv
+        T[q_t + 1] = ring + (j1 if start else j)
+        T[q_t + 2] = ring + (j if start else j1)
+        q_t += 3
+    return q_t
 
 
 def _tubes(p0, p1, frames, r0, r1, parent, sides, caps):
