@@ -21,7 +21,7 @@ from procgen.files import atomic_file
 
 log = logging.getLogger(__name__)
 
-__all__ = ["results_table", "write_results", "plot_name"]
+__all__ = ["results_table", "write_results", "plot_name", "metric_column"]
 
 
 def results_table(study, records: dict):
@@ -42,16 +42,22 @@ def results_table(study, records: dict):
             row[k] = v if not isinstance(v, list) else str(v)
         report = rec.get("report") or {}
         for m in study.metrics:
-            v = get_metric(report, m)
-            row[m] = v if not isinstance(v, str) else v
+            row[metric_column(study, m)] = get_metric(report, m)
         rows.append(row)
-    cols = ["run_id", "status", "error", "seconds", *study.params, *study.metrics]
+    mcols = [metric_column(study, m) for m in study.metrics]
+    cols = ["run_id", "status", "error", "seconds", *study.params, *mcols]
     df = pd.DataFrame(rows, columns=cols)
-    for m in study.metrics:
+    for m in mcols:
         conv = pd.to_numeric(df[m], errors="coerce")
         if conv.notna().sum() == df[m].notna().sum():
             df[m] = conv.astype(float)
     return df
+
+
+def metric_column(study, metric: str) -> str:
+    """The table column of a metric (``metric:KEY`` when a swept parameter has its name)."""
+    return f"metric:{metric}" if metric in study.params or metric in (
+        "run_id", "status", "error", "seconds") else metric
 
 
 def plot_name(metric: str, param: str) -> str:
@@ -131,9 +137,10 @@ def write_results(study, records: dict, out_dir: str | os.PathLike):
         df.to_parquet(tmp, index=False)
     (out / "plots").mkdir(exist_ok=True)
     for metric in study.metrics:
-        if metric not in df or not _numeric(df[metric]) or df[metric].notna().sum() == 0:
+        col = metric_column(study, metric)
+        if not _numeric(df[col]) or df[col].notna().sum() == 0:
             log.info("no numeric values of %s yet: no plot", metric)
             continue
         for param in study.params:
-            _plot(df, study, metric, param, out / "plots" / plot_name(metric, param))
+            _plot(df, study, col, param, out / "plots" / plot_name(metric, param))
     return df

@@ -175,13 +175,14 @@ def _run_dask(tasks: list[dict], client, done_cb) -> None:
     for t in tasks:
         t = {**t, "record_path": None, "keep_dir": None}  # workers may not see this folder
         futs[client.submit(execute_run, t, key=f"scanamp-study-{t['run_id']}", pure=False)] = t
-    for fut in as_completed(list(futs)):
-        t = futs[fut]
-        try:
-            rec = fut.result()
-        except Exception as exc:  # the worker died (KilledWorker) or the task was lost
-            rec = _crash_record(t, f"{type(exc).__name__}: {exc}")
-        done_cb(rec)
+    with client.as_current():
+        for fut in as_completed(list(futs)):
+            t = futs[fut]
+            try:
+                rec = fut.result()
+            except Exception as exc:  # the worker died (KilledWorker) or the task was lost
+                rec = _crash_record(t, f"{type(exc).__name__}: {exc}")
+            done_cb(rec)
 
 
 def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
@@ -212,10 +213,11 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
     dict
         ``{"runs", "done_before", "executed", "failed", "table"}``.
     """
-    from scanamp.study.results import write_results
-
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers: expected a positive integer, got {workers!r}")
+    own_client = None
+    if client is None and scheduler:  # before touching the folder: a bad address leaves none
+        client = own_client = connect(scheduler, timeout=timeout)
     out = Path(out_dir)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     if study.path is not None:
@@ -232,24 +234,19 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
     done_before = len(study.runs) - len(todo)
     log.info("study %r (%s): %d runs, %d already recorded, %d to run", study.name, study.kind,
              len(study.runs), done_before, len(todo))
-    own_client = None
-    if todo and client is None and scheduler:
-        client = own_client = connect(scheduler, timeout=timeout)
-    failed = 0
     executed = 0
     if todo:
         keep_dir = out / "work" if keep and client is None else None
         tasks = [_task(study, r, out / "runs", keep_dir) for r in todo]
-        bar = iter(track(range(len(tasks)), f"study {study.name}", total=len(tasks)))
+        bar = track(range(len(tasks)), f"study {study.name}", total=len(tasks))
 
         def done(rec):
-            nonlocal failed, executed
+            nonlocal executed
             executed += 1
             path = out / "runs" / f"{rec['run_id']}.json"
             if not path.exists():  # dask: the client records
                 write_json(path, rec)
             if rec["status"] != "ok":
-                failed += 1
                 log.warning("run %s failed: %s", rec["run_id"], rec["error"])
             else:
                 log.info("run %s done in %.1f s", rec["run_id"], rec["seconds"] or 0)
@@ -260,13 +257,21 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
                 _run_dask(tasks, client, done)
             else:
                 _run_local(tasks, min(workers, len(tasks)), done)
+        except KeyboardInterrupt:  # interrupted: the results of what is recorded so far
+            _finish(study, out, wanted)
+            raise
         finally:
-            for _ in bar:
-                pass
+            bar.close()
             if own_client is not None:
                 own_client.close()
-    records = load_records(out)
-    table = write_results(study, {k: v for k, v in records.items() if k in wanted}, out)
+    table = _finish(study, out, wanted)
     return {"runs": len(study.runs), "done_before": done_before, "executed": executed,
             "failed": int((table["status"] != "ok").sum()) if len(table) else 0,
             "table": table}
+
+
+def _finish(study, out: Path, wanted: set):
+    from scanamp.study.results import write_results
+
+    records = load_records(out)
+    return write_results(study, {k: v for k, v in records.items() if k in wanted}, out)
