@@ -114,6 +114,15 @@ def test_failing_run_is_recorded_and_the_study_goes_on(tmp_path):
     assert res2["executed"] == 0 and res2["done_before"] == 6
 
 
+def test_a_run_that_kills_its_worker_is_recorded_as_failed(tmp_path):
+    spec = _spec(tmp_path, GRID.replace("sleep = 0.0", "sleep = 0.0\ncrash_at = 2"))
+    df = run_study(load_study(spec), tmp_path / "out", workers=2)["table"]
+    assert len(df) == 6
+    bad = df[df["status"] == "failed"]
+    assert set(bad["x"]) == {2} and bad["error"].str.contains("worker process died").all()
+    assert (df[df["x"] != 2]["status"] == "ok").all()
+
+
 KILL = """
 [study]
 name = "kill"

@@ -380,11 +380,13 @@ def score_peaks(cols: np.ndarray, truth: np.ndarray, *, gate_px: float = 2.0) ->
 @dataclass
 class _TestConfig:
     """Test-only kind: ``y = x**2``; ``sleep`` seconds; ``fail_above``: raise when x >
-    it; ``marker_dir``: one file per completed execution."""
+    it; ``crash_at``: the worker process dies (``os._exit``) when x equals it;
+    ``marker_dir``: one file per completed execution."""
 
     x: float = 0.0
     sleep: float = 0.0
     fail_above: float = float("inf")
+    crash_at: float = float("nan")
     marker_dir: str = ""
 
 
@@ -407,6 +409,8 @@ class _TestRecon:
 
 def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work: Path) -> dict:
     time.sleep(cfg.sleep)
+    if cfg.x == cfg.crash_at:
+        os._exit(9)  # a native crash, as a segfault in a C extension would end the worker
     if cfg.x > cfg.fail_above:
         raise RuntimeError(f"x = {cfg.x:g} is above fail_above = {cfg.fail_above:g}")
     if cfg.marker_dir:
