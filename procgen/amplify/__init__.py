@@ -1,0 +1,18 @@
+"""Mesh amplification operators: procedural detail added to a (reconstructed) mesh.
+
+- :func:`displace` — subdivide to a target edge length, displace along normals by fBm,
+  turbulence or ridged noise relative to the local scale, optionally masked.
+- :func:`refine_terrain` — a mesh resampled to a heightfield as the control surface of
+  constrained diamond-square.
+- :func:`scatter_plants` — stochastic L-system plants from one grammar, planted by
+  density, slope and altitude rules.
+- :func:`grow_vines` — tubes swept along noise-driven walks on the surface.
+- :func:`hypertexture_mesh` — the mesh's signed distance plus noise, re-meshed.
+
+Every operator takes the canonical mesh, keyword-only options and ``rng``, and returns a
+small result object holding the new mesh and what a test needs to check it.
+"""
+
+from procgen.amplify.displacement import DisplaceResult, displace, subdivide_to_edge
+
+__all__ = ["displace", "subdivide_to_edge", "DisplaceResult"]
