@@ -76,14 +76,12 @@ def _numeric(series) -> bool:
 
 
 def _plot(df, study, metric: str, param: str, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: the caller's backend stays untouched
 
     ok = df[df["status"] == "ok"]
     others = [p for p in study.params if p != param]
-    fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=110)
+    fig = Figure(figsize=(6.0, 4.0), dpi=110)
+    ax = fig.subplots()
     xs_num = _numeric(df[param])
     cats = None if xs_num else list(dict.fromkeys(str(v) for v in df[param]))
 
@@ -123,7 +121,6 @@ def _plot(df, study, metric: str, param: str, path: Path) -> None:
     fig.tight_layout()
     with atomic_file(path) as tmp:
         fig.savefig(tmp, format="png")
-    plt.close(fig)
 
 
 def write_results(study, records: dict, out_dir: str | os.PathLike):
