@@ -87,6 +87,9 @@ class LaserPlaneCalibration:
     n_points : int                  inliers used
     used_views : list of int        poses whose board and stripe were both found
     rejected_views : list of int
+    per_view_rms : list of float    RMS distance (m) of each used pose's points to the plane
+    jackknife : (k, 4) float64      the plane refitted leaving out each used pose in turn
+                                    (its spread estimates the plane's uncertainty)
     """
 
     plane: np.ndarray
@@ -94,10 +97,13 @@ class LaserPlaneCalibration:
     n_points: int
     used_views: list
     rejected_views: list
+    per_view_rms: list = None
+    jackknife: np.ndarray = None
 
     def to_dict(self) -> dict:
         return {"plane": self.plane.tolist(), "rms_m": self.rms, "n_points": self.n_points,
-                "used_views": self.used_views, "rejected_views": self.rejected_views}
+                "used_views": self.used_views, "rejected_views": self.rejected_views,
+                "per_view_rms_m": self.per_view_rms}
 
 
 def _bright_around(off: np.ndarray, rows: np.ndarray, cols: np.ndarray, half: int = 3,
@@ -184,7 +190,21 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
         raise RuntimeError(f"laser-plane calibration: the stripe and the target were found in "
                            f"{len(used)} poses, need 2 (failed: "
                            f"{', '.join(names[i] for i in rejected)})")
+    plane, inl = _robust_plane(np.concatenate(pts_all))
     P = np.concatenate(pts_all)
+    rms = float(np.sqrt(np.mean((P[inl] @ plane[:3] - plane[3]) ** 2)))
+    per_view = [float(np.sqrt(np.mean((Q @ plane[:3] - plane[3]) ** 2))) for Q in pts_all]
+    jack = []
+    if len(pts_all) >= 3:
+        for i in range(len(pts_all)):
+            pl, _ = _robust_plane(np.concatenate(pts_all[:i] + pts_all[i + 1:]))
+            jack.append(pl)
+    return LaserPlaneCalibration(plane, rms, int(inl.sum()), used, rejected, per_view,
+                                 np.asarray(jack).reshape(-1, 4))
+
+
+def _robust_plane(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Plane ``(4,)`` (d >= 0) fitted with 3-sigma (MAD) rejection, and the inlier mask."""
     inl = np.ones(len(P), bool)
     for _ in range(3):
         n, d = fit_plane(P[inl])
@@ -194,8 +214,7 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
     n, d = fit_plane(P[inl])
     if d < 0:
         n, d = -n, -d
-    rms = float(np.sqrt(np.mean((P[inl] @ n - d) ** 2)))
-    return LaserPlaneCalibration(np.append(n, d), rms, int(inl.sum()), used, rejected)
+    return np.append(n, d), inl
 
 
 @dataclass
