@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from procgen.lsystem import (
     GrammarError,
@@ -222,3 +224,37 @@ def test_cut_prunes_growth_every_step():
         assert "%" not in s.symbols and "A" not in s.symbols
     assert derive(g, 6).symbols == derive(g, 4).symbols  # nothing grows after the cut
     assert len(interpret(derive(g, 6), g)) == 7  # 1 + 2 + 4 internodes
+
+
+def _bracketed(draw_items):
+    """A balanced bracketed string from a list of (kind, symbol) draws."""
+    out, depth = [], 0
+    for kind, sym in draw_items:
+        if kind == 0:
+            out.append(sym)
+        elif kind == 1:
+            out.append("[")
+            depth += 1
+        elif depth:
+            out.append("]")
+            depth -= 1
+    return "".join(out) + "]" * depth
+
+
+@settings(max_examples=60, deadline=None)
+@given(axiom=st.lists(st.tuples(st.integers(0, 2), st.sampled_from("abc+")), min_size=1,
+                      max_size=30),
+       right=st.lists(st.tuples(st.integers(0, 2), st.sampled_from("abc")), min_size=1,
+                      max_size=5),
+       left=st.text(alphabet="abc", max_size=2),
+       ignore=st.sampled_from(["", "+", "+c"]))
+def test_context_matching_agrees_with_the_reference(axiom, right, left, ignore):
+    # random bracketed strings and random (bracketed) right contexts: the compiled matcher
+    # and the plain Python one rewrite exactly the same modules
+    ax = "a" + _bracketed(axiom)
+    rc = _bracketed(right).strip("]") or "a"
+    lhs = (f"{left} < " if left else "") + f"a > {rc}"
+    text = f"axiom: {ax}\nsymbols: abcX\n" + (f"ignore: {ignore}\n" if ignore else "") + \
+        f"{lhs} -> X\n"
+    g = parse_grammar(text)
+    assert derive(g, 1).symbols == derive_reference(g, 1).symbols
