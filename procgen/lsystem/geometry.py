@@ -72,15 +72,17 @@ def to_mesh(result: TurtleResult, *, sides: int = 8, caps: bool = True, leaves: 
     """
     from procgen.meshes import make_mesh
 
-    vt, ft = tube_arrays(result, sides=sides, caps=caps, min_radius=min_radius)
-    parts_v, parts_f, parts_c = [vt], [ft], [np.tile([0.45, 0.3, 0.15], (len(vt), 1))]
-    if leaves:
+    v, f = tube_arrays(result, sides=sides, caps=caps, min_radius=min_radius)
+    n_tube = len(v)
+    if leaves and len(result.polygon_vertices):
         vp, fp = polygon_arrays(result)
-        parts_v.append(vp)
-        parts_f.append(fp + np.int32(len(vt)))
-        parts_c.append(np.tile([0.2, 0.6, 0.2], (len(vp), 1)))
-    v = np.vstack(parts_v)
-    f = np.vstack(parts_f)
+        v = np.vstack([v, vp])
+        f = np.vstack([f, fp + np.int32(n_tube)])
     if len(f) == 0:
         raise ValueError("result: nothing was drawn (no F segments and no polygons)")
-    return make_mesh(v, f, vertex_colors=np.vstack(parts_c) if colors else None)
+    rgb = None
+    if colors:  # brown tubes, green polygons
+        rgb = np.empty((len(v), 3))
+        rgb[:n_tube] = (0.45, 0.3, 0.15)
+        rgb[n_tube:] = (0.2, 0.6, 0.2)
+    return make_mesh(v, f, vertex_colors=rgb)
