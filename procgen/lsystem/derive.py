@@ -13,7 +13,10 @@ parameter table for parametric grammars. Three engines, chosen automatically:
   column-wise with :func:`procgen.lsystem.expr.evaluate_array`, contexts are matched
   bracket-aware in a compiled kernel.
 
-Growth is checked before each step allocates: :class:`GrowthLimitError` instead of a hang.
+The cut symbol ``%`` (:data:`procgen.lsystem.grammar.CUT`) is applied at the end of every
+step by :func:`_cut_keep`; grammars that can produce it skip the D0L engine (whose block
+copies would only cut at the end). Growth is checked before each step allocates:
+:class:`GrowthLimitError` instead of a hang.
 :func:`derive_reference` is a plain per-module Python engine kept as the tests' oracle.
 """
 
