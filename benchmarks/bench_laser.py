@@ -82,7 +82,12 @@ def accuracy_and_speed(scene, tmp, steps):
           f"{em['sigma_peak_noise_px']:.4f}, texture {em['sigma_peak_texture_px']:.4f}; "
           f"row-to-row jitter alone {em['sigma_peak_jitter_px']:.4f})")
     print(f"   predicted depth sigma: peak {1e3 * em['sigma_z_peak_pred_rms_m']:.4f} mm, laser "
-          f"plane (jackknife) {1e3 * em['sigma_z_calibration_pred_rms_m']:.4f} mm")
+          f"plane (jackknife) {1e3 * em['sigma_z_plane_pred_rms_m']:.4f} mm, camera "
+          f"intrinsics (Monte Carlo, {em['calibration_draws']} recalibrations) "
+          f"{1e3 * em['sigma_z_intrinsics_pred_rms_m']:.4f} mm; total "
+          f"{1e3 * de['predicted_total_rms_m']:.4f} mm")
+    print(f"   camera intrinsics std (OpenCV): "
+          f"{json.dumps(rep['calibration']['camera'].get('std_intrinsics'))}")
     print(f"   calibration: camera RMS {rep['calibration']['camera']['rms_px']:.4f} px (noisy "
           f"sensor), intrinsics error {json.dumps(ev['intrinsics_error'])}")
     print(f"   laser plane normal error {ev['laser_plane_error']['normal_deg']:.4f} deg, "
