@@ -73,6 +73,9 @@ class LaserReconConfig:
                               the median frame are named in the report's warnings
     evaluate : bool           score against the capture's ground truth when present
     tau : float               F-score threshold in metres
+    calibration_draws : int   Monte Carlo recalibrations propagating the camera
+                              intrinsics' uncertainty into depth (0 = off)
+    seed : int                seeds those draws (same seed -> same report)
     """
 
     detector: str = DEFAULT_DETECTOR
@@ -90,9 +93,14 @@ class LaserReconConfig:
     min_stripe_fraction: float = 0.2
     evaluate: bool = True
     tau: float = 0.0005
+    calibration_draws: int = 32
+    seed: int = 0
 
     def __post_init__(self):
         check_choice(self.detector, "detector", DETECTORS)
+        d = self.calibration_draws
+        if isinstance(d, bool) or int(d) != d or d < 0:
+            raise ValueError(f"calibration_draws: expected an integer >= 0, got {d!r}")
 
     def stripe_options(self, bit_depth: int = 8) -> StripeOptions:
         k = 1.0 if bit_depth == 8 else 257.0
@@ -300,7 +308,12 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     sp = np.where(np.isfinite(sp), sp, np.nanmedian(sp) if np.isfinite(sp).any() else 0.0)
     sigma_peak = float(np.sqrt(np.mean(sp ** 2))) if len(sp) else float("nan")
     sz_peak = depth_sigma(cam, plane, px, sp)
-    sz_cal = _plane_depth_sigma(cam, plane_cal, px)
+    sz_plane = _plane_depth_sigma(cam, plane_cal, px)
+    t = time.perf_counter()
+    sz_intr = _intrinsics_depth_sigma(cam_cal, plane_cal, px, cfg.calibration_draws,
+                                      np.random.default_rng(cfg.seed))
+    timings["calibration_propagation_s"] = time.perf_counter() - t
+    sz_cal = np.sqrt(sz_plane ** 2 + sz_intr ** 2)
     sz = np.sqrt(sz_peak ** 2 + sz_cal ** 2)
     tri_angle = _triangulation_angle(plane, pc)
     fin = np.isfinite(sig_noise)
@@ -323,6 +336,9 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
             "log_albedo_gradient_sigma_per_px": peak_model.sigma_g,
             "sigma_peak_jitter_px": sigma_peak_jitter,
             "sigma_z_peak_pred_rms_m": float(np.sqrt(np.mean(sz_peak ** 2))) if len(sz) else None,
+            "sigma_z_plane_pred_rms_m": _rms(sz_plane),
+            "sigma_z_intrinsics_pred_rms_m": _rms(sz_intr),
+            "calibration_draws": cfg.calibration_draws,
             "sigma_z_calibration_pred_rms_m": float(np.sqrt(np.mean(sz_cal ** 2)))
             if len(sz) else None,
             "sigma_z_pred_rms_m": float(np.sqrt(np.mean(sz ** 2))) if len(sz) else None,
@@ -347,7 +363,8 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
             report["evaluation"] = evaluate_laser(
                 cap, cam_cal, plane, axis_cal, obj_from_cam, mesh,
                 {"frame": kk, "row": rr, "col": uu, "points_cam": pc, "sigma_z": sz,
-                 "sigma_z_peak": sz_peak},
+                 "sigma_z_peak": sz_peak, "sigma_z_plane": sz_plane,
+                 "sigma_z_intrinsics": sz_intr},
                 tau=cfg.tau)
             report["timings"]["evaluation_s"] = time.perf_counter() - t
         for w in warnings:
@@ -385,6 +402,30 @@ def _plane_depth_sigma(cam, plane_cal, px) -> np.ndarray:
     z = np.stack([intersect_rays_plane(rays, pl)[:, 2] for pl in J])
     k = len(J)
     return np.sqrt((k - 1) / k * np.sum((z - z.mean(axis=0)) ** 2, axis=0))
+
+
+def _rms(a: np.ndarray) -> float | None:
+    return float(np.sqrt(np.mean(a ** 2))) if len(a) else None
+
+
+def _intrinsics_depth_sigma(cam_cal, plane_cal, px, draws: int,
+                            rng: np.random.Generator) -> np.ndarray:
+    """Standard deviation of each point's depth ``(n,)`` over cameras recalibrated with
+    fresh corner noise (:func:`reconstruct.calibrate_camera.bootstrap_cameras`), each
+    with the laser plane refitted under it and the stripe pixels ``px (n, 2)``
+    re-triangulated: the camera intrinsics' uncertainty carried through the whole chain
+    (an offset principal point moves the board poses, hence the plane, and the rays
+    together). Zeros when ``draws`` is 0."""
+    from reconstruct.calibrate_camera import bootstrap_cameras
+    from reconstruct.laser_calib import refit_laser_plane
+
+    if draws == 0 or len(px) == 0 or not plane_cal.observations:
+        return np.zeros(len(px))
+    z = []
+    for c in bootstrap_cameras(cam_cal, rng, draws=draws):
+        z.append(intersect_rays_plane(pixel_rays(c, px), refit_laser_plane(c, plane_cal))[:, 2])
+    z = np.stack(z)
+    return np.nanstd(z, axis=0, ddof=1) if draws > 1 else np.zeros(len(px))
 
 
 def _target(entry, jpath, i):

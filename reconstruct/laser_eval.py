@@ -11,7 +11,8 @@ files. Nothing here feeds back into the reconstruction.
   (true camera ray through the true crossing, met with the true plane), in the camera
   frame, beside the error-propagation prediction for the same points: the peak-only part
   (detected columns through the true calibration) against the peak-localisation
-  prediction, the total against peak plus laser-plane (jackknife) prediction;
+  prediction, the total against the total prediction (peak localisation, laser plane by
+  jackknife, camera intrinsics by Monte Carlo recalibration);
 * F-score of the mesh against the ground-truth surface that the camera sees lit by the
   laser in at least one frame (ray casts per frame near the sheet).
 """
@@ -177,6 +178,10 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
                               "peak_only_rms_m": noise,
                               "predicted_rms_m": pred_peak,
                               "predicted_total_rms_m": pred,
+                              "predicted_parts_rms_m": {
+                                  k: float(np.sqrt(np.mean(meas[f"sigma_z_{k}"][m] ** 2)))
+                                  for k in ("peak", "plane", "intrinsics")
+                                  if f"sigma_z_{k}" in meas},
                               "ratio_to_prediction": noise / pred_peak
                               if noise and pred_peak else None,
                               "total_ratio_to_prediction": rms / pred if rms and pred else None}
