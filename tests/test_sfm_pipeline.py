@@ -1,6 +1,6 @@
-"""SfM end to end on a small rendered orbit (12 views of 'primitives' at 320x240), plain
-image folders, and bad input. The heaviest tests of the project: one capture and one
-dense reconstruction per session."""
+"""SfM end to end on a small rendered orbit (one ring of 12 views of 'primitives' at
+320x240), plain image folders, and bad input. The heaviest tests of the project: one
+capture and one dense reconstruction per session."""
 
 import json
 import shutil
@@ -24,7 +24,7 @@ def small_recon(small_capture, tmp_path_factory):
     from reconstruct.sfm import SfmConfig, run
 
     out = tmp_path_factory.mktemp("sfm_recon") / "rec"
-    res = run(SfmConfig(seed=0), small_capture, out)
+    res = run(SfmConfig(seed=0, num_threads=1), small_capture, out)
     return res
 
 
@@ -37,24 +37,28 @@ def test_capture_folder_holds_images_gt_and_transforms(small_capture):
     assert len(tf["frames"]) == 12 and tf["camera_model"] == "OPENCV"
 
 
-_FLAKY = ("flaky under CPU load with multi-threaded pycolmap: measured rotation 0.73 deg "
-          "(< 0.5 wanted) and mesh F 0.55 (> 0.7 wanted) at integration; the 640x480 "
-          "benchmark meets every target; needs its own issue")
+# The reconstruction runs single-threaded: pycolmap's RANSAC and bundle adjustment are then
+# bit-for-bit repeatable (test_sparse_stage_is_deterministic), so the figures below are
+# fixed numbers, not samples. Measured on this fixture: 12/12 registered, rotation error
+# mean 0.065 / max 0.12 deg, ATE 0.10 % of the scene, reprojection 0.18 px, mesh F 0.98
+# (the same with all threads, also under CPU load). The bounds leave room for another
+# pycolmap/Ceres build without letting a broken pipeline through: a wrong intrinsics
+# convention or a mirrored Sim(3) gives degrees and tens of percent.
 
 
-@pytest.mark.xfail(reason=_FLAKY, strict=False)
 def test_small_orbit_registers_every_view_accurately(small_recon):
     assert small_recon.ok, small_recon.message
     rep = small_recon.report
     assert rep["registered_fraction"] == 1.0
     poses = rep["metrics"]["poses"]
-    # 320x240 and 12 views is harder than the 640x480 benchmark; still well under a degree
-    assert poses["rotation_error_deg"]["max"] < 0.5
-    assert poses["ate_fraction_of_scene"] < 0.01
-    assert rep["sparse"]["mean_reprojection_error_px"] < 0.6
+    # 320x240, 12 views: ~2.5x the measured errors (the 640x480 benchmark asks <= 0.1 deg)
+    assert poses["rotation_error_deg"]["mean"] < 0.15
+    assert poses["rotation_error_deg"]["max"] < 0.3
+    assert poses["ate_fraction_of_scene"] < 0.004
+    # SIFT keypoints on rendered images are good to a fraction of a pixel
+    assert rep["sparse"]["mean_reprojection_error_px"] < 0.4
 
 
-@pytest.mark.xfail(reason=_FLAKY, strict=False)
 def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
     rep = small_recon.report
     out = small_recon.out_dir
@@ -62,9 +66,20 @@ def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
               "sparse/0/cameras.bin", "sparse/0/images.bin", "sparse/0/points3D.bin",
               "sparse/0/text/cameras.txt", "sparse/0/text/images.txt"):
         assert (out / f).is_file(), f
-    # tau = 1% of the scene size, on the surface the cameras saw
-    assert rep["metrics"]["mesh"]["fscore"] > 0.7
-    assert rep["metrics"]["mesh"]["precision"] > 0.7
+    # tau = 1% of the scene size, on the surface the cameras saw; measured 0.98 (the
+    # benchmark's target at 640x480 is 0.85)
+    mesh = rep["metrics"]["mesh"]
+    assert mesh["fscore"] > 0.9
+    assert mesh["precision"] > 0.9 and mesh["recall"] > 0.9
+
+
+def test_sparse_stage_is_deterministic(small_capture, small_recon, tmp_path):
+    from reconstruct.sfm import SfmConfig, run
+
+    res = run(SfmConfig(seed=0, num_threads=1, dense=False), small_capture, tmp_path / "again")
+    for f in ("images.bin", "points3D.bin", "cameras.bin"):
+        a = (small_recon.out_dir / "sparse" / "0" / f).read_bytes()
+        assert (res.out_dir / "sparse" / "0" / f).read_bytes() == a, f
 
 
 def _cli(capsys, *argv):
