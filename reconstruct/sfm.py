@@ -226,6 +226,11 @@ def _clean_mesh(mesh, min_fraction: float = 0.02):
     small = counts[labels] < min_fraction * counts.max()
     mesh.remove_triangles_by_mask(small)
     mesh.remove_unreferenced_vertices()
+    if mesh.has_vertex_colors():  # TSDF colour averages can overshoot [0, 1] by rounding
+        import open3d as o3d
+
+        mesh.vertex_colors = o3d.utility.Vector3dVector(
+            np.clip(np.asarray(mesh.vertex_colors), 0.0, 1.0))
     return mesh
 
 
