@@ -108,11 +108,15 @@ def _true_focal(small_capture):
 
 def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, capsys):
     folder = _jpegs(small_capture, tmp_path / "photos")
+    # one blank frame (lens cap on) among the photos: reported by name, the rest goes on
+    cv2.imwrite(str(folder / "9999_blank.jpg"), np.full((240, 320, 3), 90, np.uint8))
     code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "rec",
                      "--no-dense", "--threads", "1")
     assert code == 0, err
     rep = json.loads((tmp_path / "rec" / "report.json").read_text())
-    assert rep["registered"] == 12
+    assert rep["registered"] == 12 and rep["num_images"] == 13
+    assert list(rep["failed_images"]) == ["9999_blank.jpg"]
+    assert rep["failed_images"]["9999_blank.jpg"].startswith("no texture")
     assert "metrics" not in rep  # no ground truth for a plain folder
     # no EXIF: COLMAP starts from 1.2 x 320 = 384 px; bundle adjustment finds the true
     # 343 px to within 1 % (measured 0.1 %)
