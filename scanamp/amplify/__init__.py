@@ -47,8 +47,9 @@ def _counts(mesh) -> dict:
     return {"vertices": len(mesh.vertices), "triangles": len(mesh.triangles)}
 
 
-def _parts(state: State):
-    return [(state.surface, SURFACE_COLOR)] + [(m, c) for _, m, c in state.parts]
+def _parts(state: State, *, unmerged: bool = False):
+    extra = state.parts + (state.parts_unmerged if unmerged else [])
+    return [(state.surface, SURFACE_COLOR)] + [(m, c) for _, m, c in extra]
 
 
 def amplify(mesh, recipe, *, seed: int = 0, out_dir: str | os.PathLike | None = None
@@ -124,13 +125,18 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         final = merge_meshes([m for m, _ in _parts(state)]) if state.parts else state.surface
         files = ["mesh.ply"]
         write_mesh(tmp / "mesh.ply", final)
-        if state.parts:
+        if state.parts or state.parts_unmerged:
             write_mesh(tmp / "surface.ply", state.surface)
             files.append("surface.ply")
-            for name, m, _ in state.parts:
+            used = set()
+            for name, m, _ in state.parts + state.parts_unmerged:
+                base, k = name, 2
+                while name in used:
+                    name, k = f"{base}_{k}", k + 1
+                used.add(name)
                 write_mesh(tmp / f"{name}.ply", m)
                 files.append(f"{name}.ply")
-        write_image(tmp / "after.png", render_parts(_parts(state), **view))
+        write_image(tmp / "after.png", render_parts(_parts(state, unmerged=True), **view))
         files += ["before.png", "after.png"]
         files += [s["animation"] for s in steps if s.get("animation")]
         report = {

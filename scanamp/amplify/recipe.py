@@ -44,7 +44,7 @@ _NOISE3 = ("fbm", "turbulence", "ridged")
 # Sizes marked "relative" are fractions of the current mesh's bounding-box diagonal.
 SPECS: dict[str, dict[str, _F]] = {
     "displace": {
-        "edge": _F(float, 0.5, 0.01, 100.0),             # target edge / input mean edge
+        "edge": _F(float, 0.5, 0.0, 100.0),              # target edge / input mean edge; 0: none
         "noise": _F(str, "fbm", choices=_NOISE3),
         "amplitude": _F(float, 0.3, 0.0, 10.0),           # RMS offset / local scale
         "scale": _F(str, "local", choices=("local", "global")),
@@ -211,6 +211,29 @@ def _check_table(table: Any, specs: dict[str, _F], path, prefix: str, *,
     return out
 
 
+def _check_simulation(params: dict, path: Path | None, where, prefix: str) -> None:
+    """Load the animate step's simulation recipe now, so a bad one fails before any work."""
+    sub = params["recipe"]
+    p = Path(sub)
+    if path is not None and p.suffix and not p.is_absolute() and (path.parent / p).exists():
+        sub = str(path.parent / p)
+    try:
+        if params["simulation"] == "boids":
+            from simulate.boids import load_recipe as load_boids
+
+            load_boids(sub)
+        else:
+            from simulate.recipes import load_recipe as load_sim
+
+            table, sub_path = load_sim(sub)
+            if table["kind"] != params["simulation"]:
+                raise InputError(f"is a {table['kind']} recipe, not {params['simulation']}",
+                                 path=sub_path)
+    except InputError as exc:
+        raise InputError(f"bad {params['simulation']} recipe: {exc}", path=where,
+                         field=f"{prefix}.recipe") from None
+
+
 def parse_recipe(data: dict, *, path: str | os.PathLike | None = None,
                  name: str | None = None) -> Recipe:
     """Validate a parsed recipe table (``path`` names it in errors)."""
@@ -248,6 +271,8 @@ def parse_recipe(data: dict, *, path: str | os.PathLike | None = None,
                 raise InputError(f"expected 2**k + 1 (3, 5, 9, 17, 33, ...), got "
                                  f"{params['control_size']}", path=where,
                                  field=f"{prefix}.control_size")
+        if kind == "animate":
+            _check_simulation(params, path, where, prefix)
         steps.append(Step(kind=kind, params=params, index=i))
     render = _check_table(require(data, "render", dict, path=where, default={}), _RENDER,
                           where, "render")
