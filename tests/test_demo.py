@@ -143,12 +143,13 @@ def test_visible_from_above_hides_what_is_covered():
 
     from procgen.meshes import merge_meshes
 
-    ground = o3d.geometry.TriangleMesh.create_box(1.0, 1.0, 0.01).translate((-0.5, -0.5, -0.01))
-    roof = o3d.geometry.TriangleMesh.create_box(0.4, 0.4, 0.02).translate((-0.2, -0.2, 0.3))
+    ground = o3d.geometry.TriangleMesh.create_box(4.0, 4.0, 0.01).translate((-2, -2, -0.01))
+    # a low wide roof: from its centre, even the 20-degree rays meet it (0.1 / tan 20 < 1)
+    roof = o3d.geometry.TriangleMesh.create_box(2.0, 2.0, 0.02).translate((-1, -1, 0.1))
     mask = visible_from_above(merge_meshes([ground, roof]))
-    pts = np.array([[0.0, 0.0, 0.0],      # under the middle of a wide roof: hidden
-                    [0.45, 0.45, 0.0],    # open ground: visible
-                    [0.0, 0.0, 0.32],     # on the roof: visible
+    pts = np.array([[0.0, 0.0, 0.0],      # under the middle of the roof: hidden
+                    [1.9, 1.9, 0.0],      # open ground: visible
+                    [0.0, 0.0, 0.12],     # on the roof: visible
                     [0.0, 0.0, -0.005]])  # inside the ground slab: hidden
     assert mask(pts).tolist() == [False, True, True, False]
 
