@@ -143,19 +143,21 @@ def _plots(fig: Path, dists: dict, tau: float) -> tuple[dict, dict]:
     plt.close(f1)
 
     f2, axes = plt.subplots(1, 2, figsize=(9, 3.4), dpi=100, sharey=False)
-    hi = 10 * tau
-    bins = np.linspace(0, hi, 41)
+    lo, hi = tau / 100.0, 10.0 * tau
+    bins = np.geomspace(lo, hi, 41)
     for ax, key, title in ((axes[0], "accuracy", "accuracy: reconstruction -> truth"),
                            (axes[1], "completeness", "completeness: truth -> reconstruction")):
         for name, d in dists.items():
-            x = np.clip(d[key], 0, hi)
-            ax.hist(x * 1e3, bins=bins * 1e3, histtype="step", lw=1.5, density=True,
-                    color=_COLORS.get(name), label=name)
+            x = np.clip(d[key], lo, hi)
+            ax.hist(x * 1e3, bins=bins * 1e3, histtype="step", lw=1.5,
+                    weights=np.full(len(x), 1.0 / max(len(x), 1)), color=_COLORS.get(name),
+                    label=name)
         ax.axvline(tau * 1e3, color="0.5", ls="--", lw=1)
-        ax.set_xlabel("distance (mm; last bin: beyond)")
+        ax.set_xscale("log")
+        ax.set_xlabel("distance (mm; end bins gather the rest)")
         ax.set_title(title, fontsize=10)
         ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("density")
+    axes[0].set_ylabel("fraction of samples")
     axes[0].legend(fontsize=8)
     f2.tight_layout()
     f2.savefig(fig / "error_histograms.png")
