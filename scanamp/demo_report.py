@@ -234,7 +234,7 @@ def write_html(path: str | os.PathLike, report: dict) -> list[str]:
     for m in r["methods"]:
         if not m["ok"]:
             rows.append(f"<tr><td>{html.escape(m['method'])}</td>"
-                        f"<td colspan='8'>failed: {html.escape(str(m['error']))}</td></tr>")
+                        f"<td colspan='9'>failed: {html.escape(str(m['error']))}</td></tr>")
             continue
         cls = ' class="best"' if m["method"] == r["best"] else ""
         rows.append(
@@ -242,7 +242,7 @@ def write_html(path: str | os.PathLike, report: dict) -> list[str]:
             f"<td>{m['points']:,}</td><td>{m['fscore']:.3f}</td><td>{m['precision']:.3f}</td>"
             f"<td>{m['recall']:.3f}</td><td>{_mm(m['accuracy_mean'])}</td>"
             f"<td>{_mm(m['completeness_mean'])}</td><td>{_mm(m['chamfer'])}</td>"
-            f"<td>{m['seconds']:.1f}</td></tr>")
+            f"<td>{m['seconds']:.1f}</td><td>{m['fscore_unaligned']:.3f}</td></tr>")
     notes = "".join(f"<li><b>{html.escape(m['method'])}</b>: {html.escape(m['label'])}; "
                     f"{html.escape(m['notes'])}; <a href=\"{html.escape(m['mesh'])}\">mesh</a>"
                     f"</li>" for m in r["methods"] if m["ok"])
@@ -270,10 +270,12 @@ Numbers: <a href="report.json">report.json</a>; the scene:
 <h2>Reconstructions against the ground truth</h2>
 <p>F-score, precision and recall at <b>tau = {tau * 1e3:.2f} mm</b> ({html.escape(r['tau_rule'])});
 accuracy (reconstruction to truth) and completeness (visible truth to reconstruction) are mean
-distances, Chamfer their sum; reference: {html.escape(r['reference'])}. Time: capture plus
-reconstruction.</p>
+distances, Chamfer their sum; reference: {html.escape(r['reference'])}. Each reconstruction
+is first aligned rigidly to the truth by ICP (its rig calibrates its own frame); "F unaligned"
+scores it in the frame its calibration gave. Time: capture plus reconstruction.</p>
 <table><tr><th>method</th><th>points</th><th>F-score</th><th>precision</th><th>recall</th>
-<th>accuracy (mm)</th><th>completeness (mm)</th><th>Chamfer (mm)</th><th>time (s)</th></tr>
+<th>accuracy (mm)</th><th>completeness (mm)</th><th>Chamfer (mm)</th><th>time (s)</th>
+<th>F unaligned</th></tr>
 {''.join(rows)}</table>
 <ul>{notes}</ul>
 <h3>Renders (acquire.render, one camera)</h3>
