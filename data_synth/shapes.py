@@ -145,8 +145,12 @@ def terrain(size: float, *, samples: int = 65, height: float = 0.005,
     h = check_positive(height, "height", allow_zero=True)
     z = fractal_terrain(int(samples), rng=np.random.default_rng(seed), method=method,
                         hurst=hurst, height=h, frequency=frequency)
+    import open3d as o3d
+
     d = s / (int(samples) - 1)
-    return heightfield_to_mesh(z, spacing=d, origin=(-s / 2, -s / 2, 0.0)), None
+    mesh = heightfield_to_mesh(z, spacing=d, origin=(-s / 2, -s / 2, 0.0))
+    mesh.triangle_uvs = o3d.utility.Vector2dVector()  # solid materials need no UVs; PLY can't
+    return mesh, None
 
 
 def lsystem_plant(grammar: str, *, height: float, n: int | None = None, seed: int = 0,
