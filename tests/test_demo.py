@@ -90,12 +90,12 @@ def test_same_seed_same_table(demo_out, report, tmp_path):
     a = next(m for m in report["methods"] if m["method"] == "laser")
     b = again["methods"][0]
     assert b["points"] == a["points"]
-    # Reconstruction and scoring repeat to floating-point noise (multi-threaded
-    # calibration and meshing reductions), far below the table's printed digits.
-    for key in ("fscore", "precision", "recall"):
-        assert b[key] == pytest.approx(a[key], abs=2e-3), key
+    # the demo runs OpenCV on one thread so calibrations repeat exactly; only Open3D's
+    # multi-threaded ICP may differ in the last bit
+    for key in ("fscore", "precision", "recall", "fscore_unaligned"):
+        assert b[key] == pytest.approx(a[key], abs=1e-9), key
     for key in ("accuracy_mean", "completeness_mean", "chamfer"):
-        assert b[key] == pytest.approx(a[key], rel=2e-2), key
+        assert b[key] == pytest.approx(a[key], rel=1e-9), key
     assert again["tau"] == report["tau"]
 
 
