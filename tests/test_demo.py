@@ -81,8 +81,19 @@ def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
     assert report["animations"]["boids"]["n"] == report["settings"]["boids"][0]
 
 
-def test_same_seed_same_table(demo_out, report, tmp_path):
-    again = run(tmp_path / "again", seed=0, scale="test", methods=("laser",))
+def test_same_seed_same_table(demo_out, report, tmp_path, monkeypatch):
+    import scanamp.demo as demo
+
+    def sfm_fails(*args):
+        raise RuntimeError("SfM failed: registered 2 of 12 images")
+
+    # a method whose algorithm fails is recorded in its row and the demo goes on
+    monkeypatch.setitem(demo._RUNNERS, "sfm", sfm_fails)
+    again = run(tmp_path / "again", seed=0, scale="test", methods=("laser", "sfm"))
+    assert again["methods"][1] == {"method": "sfm", "ok": False,
+                                   "error": "SfM failed: registered 2 of 12 images"}
+    assert again["best"] == "laser"
+    assert "failed: SfM failed" in (tmp_path / "again" / "report.html").read_text()
     # scene and capture: identical bytes
     for rel in ("scene/mesh.ply", "scene/scene.toml", "captures/laser/capture.json",
                 "captures/laser/images/scan_0005.png"):
