@@ -12,8 +12,8 @@ Spec (see ``data_synth/scene_specs/*.toml`` for the built-in ones)::
     intensity = 1.0
     [[objects]]
     name = "ball"
-    shape = "sphere"       # sphere | box | cylinder | torus | plane | blob | mesh |
-                           # charuco | chessboard
+    shape = "sphere"       # sphere | box | cylinder | torus | plane | blob | terrain |
+                           # lsystem | shell | mesh | charuco | chessboard
     radius = 0.05          # shape parameters (see data_synth.shapes)
     position = [0, 0, 0.05]
     rotation_deg = [0, 0, 0]   # extrinsic X, then Y, then Z rotations, degrees
@@ -49,7 +49,8 @@ from procgen.validate import InputError
 __all__ = ["SceneBundle", "build_scene", "load_scene", "write_scene", "scene_names",
            "euler_xyz_deg"]
 
-SHAPES = ("sphere", "box", "cylinder", "torus", "plane", "blob", "mesh", "charuco", "chessboard")
+SHAPES = ("sphere", "box", "cylinder", "torus", "plane", "blob", "terrain", "lsystem", "shell",
+          "mesh", "charuco", "chessboard")
 
 
 def scene_names() -> list[str]:
@@ -133,6 +134,9 @@ def _shape(obj, shape, *, path, prefix, seed, base_dir):
     def num(key, default=...):
         return require(obj, key, float, path=path, prefix=prefix, default=default)
 
+    def integer(key, default=...):
+        return require(obj, key, int, path=path, prefix=prefix, default=default)
+
     try:
         if shape == "sphere":
             return shapes.sphere(num("radius"))
@@ -151,6 +155,27 @@ def _shape(obj, shape, *, path, prefix, seed, base_dir):
                                                     prefix=prefix, default=5),
                                seed=require(obj, "seed", int, path=path, prefix=prefix,
                                             default=seed))
+        if shape == "terrain":
+            return shapes.terrain(num("size"), samples=integer("samples", 65),
+                                  height=num("height", 0.005),
+                                  method=require(obj, "method", str, path=path, prefix=prefix,
+                                                 default="fbm"),
+                                  hurst=num("hurst", 0.8), frequency=num("frequency", 3.0),
+                                  seed=integer("seed", seed))
+        if shape == "lsystem":
+            n = require(obj, "n", int, path=path, prefix=prefix, default=-1)
+            return shapes.lsystem_plant(require(obj, "grammar", str, path=path, prefix=prefix),
+                                        height=num("height"), n=None if n < 0 else n,
+                                        seed=integer("seed", seed),
+                                        min_radius=num("min_radius", 0.0),
+                                        sides=integer("sides", 8),
+                                        leaves=require(obj, "leaves", bool, path=path,
+                                                       prefix=prefix, default=False))
+        if shape == "shell":
+            return shapes.seashell(require(obj, "preset", str, path=path, prefix=prefix,
+                                           default="spherical"),
+                                   size=num("size"), n_theta=integer("n_theta", 240),
+                                   n_s=integer("n_s", 32))
         if shape == "mesh":
             rel = require(obj, "path", str, path=path, prefix=prefix)
             p = Path(rel) if Path(rel).is_absolute() or base_dir is None else base_dir / rel

@@ -12,7 +12,8 @@ from procgen.meshes import make_mesh, mesh_arrays
 from procgen.noise import perlin
 from procgen.validate import check_positive, check_range
 
-__all__ = ["sphere", "box", "cylinder", "torus", "plane", "blob", "icosphere"]
+__all__ = ["sphere", "box", "cylinder", "torus", "plane", "blob", "icosphere", "terrain",
+           "lsystem_plant", "seashell"]
 
 
 def icosphere(subdivisions: int):
@@ -127,3 +128,71 @@ def blob(radius: float, *, amplitude: float = 0.18, frequency: float = 1.4,
         fr *= 2.0
     v = u * (R * (1.0 + A * disp / 0.7))[:, None]
     return make_mesh(v, f), None
+
+
+def terrain(size: float, *, samples: int = 65, height: float = 0.005,
+            method: str = "fbm", hurst: float = 0.8, frequency: float = 3.0,
+            seed: int = 0):
+    """A square fractal heightfield ``size`` metres a side, centred on the origin at z = 0.
+
+    Heights from :func:`procgen.terrain.fractal_terrain` (standard deviation ``height``),
+    triangulated by :func:`procgen.terrain.heightfield_to_mesh` (an open surface facing +z).
+    ``samples`` is the grid size a side, ``2**n + 1``.
+    """
+    from procgen.terrain import fractal_terrain, heightfield_to_mesh
+
+    s = check_positive(size, "size")
+    h = check_positive(height, "height", allow_zero=True)
+    z = fractal_terrain(int(samples), rng=np.random.default_rng(seed), method=method,
+                        hurst=hurst, height=h, frequency=frequency)
+    import open3d as o3d
+
+    d = s / (int(samples) - 1)
+    mesh = heightfield_to_mesh(z, spacing=d, origin=(-s / 2, -s / 2, 0.0))
+    mesh.triangle_uvs = o3d.utility.Vector2dVector()  # solid materials need no UVs; PLY can't
+    return mesh, None
+
+
+def lsystem_plant(grammar: str, *, height: float, n: int | None = None, seed: int = 0,
+                  min_radius: float = 0.0, sides: int = 8, leaves: bool = False):
+    """An L-system plant (:mod:`procgen.lsystem`) scaled to ``height`` metres tall.
+
+    The grammar (a shipped example name or a ``.lsys`` path) is derived ``n`` steps
+    (default: the grammar's), interpreted by the turtle (growing along +z from the origin)
+    and meshed as tubes; the whole plant is scaled so its z extent is ``height``.
+    ``min_radius`` (metres, after scaling) keeps thin twigs visible to scanners.
+    """
+    from procgen.lsystem import derive, interpret, load_grammar, to_mesh
+
+    h = check_positive(height, "height")
+    r_min = check_positive(min_radius, "min_radius", allow_zero=True)
+    g = load_grammar(grammar)
+    result = interpret(derive(g, n, rng=np.random.default_rng(seed)), g)
+    if len(result) == 0:
+        raise ValueError(f"grammar: {grammar!r} drew no segments")
+    z = np.concatenate([result.starts[:, 2], result.ends[:, 2]])
+    extent = float(z.max() - z.min())
+    if not extent > 0:
+        raise ValueError(f"grammar: {grammar!r} draws no height to scale to {h} m")
+    k = h / extent
+    mesh = to_mesh(result, sides=int(sides), caps=True, leaves=bool(leaves),
+                   min_radius=r_min / k, colors=False)
+    mesh.scale(k, center=np.zeros(3))
+    mesh.compute_vertex_normals()
+    return mesh, None
+
+
+def seashell(preset: str = "spherical", *, size: float = 0.05, n_theta: int = 240,
+             n_s: int = 32):
+    """A Cortie seashell (:func:`procgen.shells.cortie_shell`, a preset of
+    :data:`procgen.shells.SHAPES`) scaled so its largest extent is ``size`` metres,
+    centred on the origin."""
+    from procgen.shells import cortie_shell
+
+    s = check_positive(size, "size")
+    v, f = cortie_shell(preset, n_theta=int(n_theta), n_s=int(n_s))
+    v = v - 0.5 * (v.max(axis=0) + v.min(axis=0))
+    v *= s / float(np.ptp(v, axis=0).max())
+    mesh = make_mesh(v, f)
+    mesh.compute_vertex_normals()
+    return mesh, None
