@@ -20,3 +20,15 @@ def test_notebook_runs_top_to_bottom(path, tmp_path):
     errors = [o for c in code for o in c.get("outputs", []) if o.get("output_type") == "error"]
     assert not errors, f"{path.name}: {errors[0].get('ename')}: {errors[0].get('evalue')}"
 
+
+
+def test_the_five_walkthroughs_are_shipped_with_their_outputs():
+    paths = _execute.notebooks()
+    assert [p.stem[:2] for p in paths] == ["01", "02", "03", "04", "05"], paths
+    import nbformat
+
+    for path in paths:  # stored executed, so a reader sees the plots without running them
+        nb = nbformat.read(path, as_version=4)
+        images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+                  if "image/png" in o.get("data", {})]
+        assert images, f"{path.name} is stored without its figures"
