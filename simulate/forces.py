@@ -9,7 +9,8 @@ fused particle stepper of :mod:`simulate.particles`):
 * :class:`Damping` ``a = -rate v``
 * :class:`Turbulence` Perlin vector noise ``a = A (n1, n2, n3)(x / s)`` or curl noise
   ``a = A grad n1 x grad n2`` — the curl of ``n1 grad n2``, divergence-free exactly
-  (analytic gradients of Perlin's improved noise, no finite differences)
+  (analytic gradients of improved noise, no finite differences; both potentials come
+  from one lattice walk, :func:`curl_potentials`)
 * :class:`Attractor` softened inverse square toward (or, negative, away from) a point
 * :class:`Vortex` swirl about an axis, ``a = S axis x r_perp / (|r_perp|^2 + R^2)``
 * :class:`Buoyancy` ``a = beta T up`` with a per-particle temperature ``T``
@@ -30,13 +31,12 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.noise import noise3_grad
-from procgen.noise.perlin import noise3, perm_table
+from procgen.noise.perlin import _GX, _GY, _GZ, noise3, perm_table
 from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
            "Pairwise", "Springs", "ForceSet", "local_accel", "pairwise_accel",
-           "pairwise_accel_reference", "spring_forces", "noise3_grad", "NPARAM"]
+           "pairwise_accel_reference", "spring_forces", "curl_potentials", "NPARAM"]
 
 NPARAM = 10
 _GRAVITY, _WIND, _DAMPING, _TURB_PERLIN, _TURB_CURL, _ATTRACTOR, _VORTEX, _BUOYANCY = range(8)
@@ -195,11 +195,132 @@ class Springs:
         return np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), k, r, d
 
 
-# -- Perlin gradient -------------------------------------------------------------------
+# -- curl noise: two potentials in one lattice walk --------------------------------------
 
-# Offsets decorrelating the noise components (irrational, far from lattice points).
+# Offsets decorrelating the Perlin-vector components (irrational, far from lattice points).
 _O1 = (31.416, 47.853, 12.734)
 _O2 = (-19.271, 8.917, 53.129)
+
+
+@nb.njit(inline="always", cache=True)
+def _corner_grad(ga, gb, gc, gd, ge, gf, gg, gh, x, y, z, x1, y1, z1, u, v, w, du, dv, dw):
+    """Value and gradient of improved noise in one cell from its 8 gradient indices.
+
+    Corners a..h = (000, 100, 010, 110, 001, 101, 011, 111); ``x, y, z`` the position in
+    the cell, ``x1 = x - 1`` etc., ``u, v, w`` the faded coordinates and ``du, dv, dw``
+    the fade's derivatives.
+    """
+    va = _GX[ga] * x + _GY[ga] * y + _GZ[ga] * z
+    vb = _GX[gb] * x1 + _GY[gb] * y + _GZ[gb] * z
+    vc = _GX[gc] * x + _GY[gc] * y1 + _GZ[gc] * z
+    vd = _GX[gd] * x1 + _GY[gd] * y1 + _GZ[gd] * z
+    ve = _GX[ge] * x + _GY[ge] * y + _GZ[ge] * z1
+    vf = _GX[gf] * x1 + _GY[gf] * y + _GZ[gf] * z1
+    vg = _GX[gg] * x + _GY[gg] * y1 + _GZ[gg] * z1
+    vh = _GX[gh] * x1 + _GY[gh] * y1 + _GZ[gh] * z1
+    # value differences along x, bilinear in (v, w): the x-derivative's fade term
+    ab = vb - va
+    cd = vd - vc
+    ef = vf - ve
+    gh_ = vh - vg
+    ex0 = ab + v * (cd - ab)
+    ex1 = ef + v * (gh_ - ef)
+    # y: differences c-a, d-b, g-e, h-f bilinear in (u, w)
+    ac = vc - va
+    bd = vd - vb
+    eg = vg - ve
+    fh = vh - vf
+    ey0 = ac + u * (bd - ac)
+    ey1 = eg + u * (fh - eg)
+    # z: differences e-a, f-b, g-c, h-d bilinear in (u, v)
+    ae = ve - va
+    bf = vf - vb
+    cg = vg - vc
+    dh = vh - vd
+    m0 = ae + u * (bf - ae)
+    m1 = cg + u * (dh - cg)
+    ez = m0 + v * (m1 - m0)
+    # value: trilinear
+    x00 = va + u * ab
+    x10 = vc + u * cd
+    x01 = ve + u * ef
+    x11 = vg + u * gh_
+    y0 = x00 + v * (x10 - x00)
+    y1v = x01 + v * (x11 - x01)
+    n = y0 + w * (y1v - y0)
+    # gradient: the trilinear interpolation of the corner gradients + fade terms
+    gx = _tri(_GX[ga], _GX[gb], _GX[gc], _GX[gd], _GX[ge], _GX[gf], _GX[gg], _GX[gh], u, v, w)
+    gy = _tri(_GY[ga], _GY[gb], _GY[gc], _GY[gd], _GY[ge], _GY[gf], _GY[gg], _GY[gh], u, v, w)
+    gz = _tri(_GZ[ga], _GZ[gb], _GZ[gc], _GZ[gd], _GZ[ge], _GZ[gf], _GZ[gg], _GZ[gh], u, v, w)
+    gx += du * (ex0 + w * (ex1 - ex0))
+    gy += dv * (ey0 + w * (ey1 - ey0))
+    gz += dw * ez
+    return n, gx, gy, gz
+
+
+@nb.njit(inline="always", cache=True)
+def _tri(a, b, c, d, e, f, g, h, u, v, w):
+    ab = a + u * (b - a)
+    cd = c + u * (d - c)
+    ef = e + u * (f - e)
+    gh = g + u * (h - g)
+    lo = ab + v * (cd - ab)
+    hi = ef + v * (gh - ef)
+    return lo + w * (hi - lo)
+
+
+@nb.njit(inline="always", cache=True)
+def curl_potentials(p, x, y, z):
+    """Two decorrelated improved noises and their gradients from one lattice walk.
+
+    The corner hashes are Perlin's (``p`` a :func:`perm_table`); the first noise takes its
+    gradient index from the low four bits of each hash — it is :func:`noise3` exactly —
+    and the second from the high four bits. Over a permutation of 0..255 the two nibbles
+    are uniform and independent, so the second noise is another improved noise on the
+    same lattice, for the price of eight more dot products instead of a second walk.
+
+    Returns ``(n1, dn1/dx, dn1/dy, dn1/dz, n2, dn2/dx, dn2/dy, dn2/dz)``.
+    """
+    fx = np.floor(x)
+    fy = np.floor(y)
+    fz = np.floor(z)
+    X = np.int64(fx) & 255
+    Y = np.int64(fy) & 255
+    Z = np.int64(fz) & 255
+    x -= fx
+    y -= fy
+    z -= fz
+    u = x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
+    v = y * y * y * (y * (y * 6.0 - 15.0) + 10.0)
+    w = z * z * z * (z * (z * 6.0 - 15.0) + 10.0)
+    du = 30.0 * x * x * (x * (x - 2.0) + 1.0)
+    dv = 30.0 * y * y * (y * (y - 2.0) + 1.0)
+    dw = 30.0 * z * z * (z * (z - 2.0) + 1.0)
+    A = p[X] + Y
+    AA = p[A] + Z
+    AB = p[A + 1] + Z
+    B = p[X + 1] + Y
+    BA = p[B] + Z
+    BB = p[B + 1] + Z
+    ha = p[AA]
+    hb = p[BA]
+    hc = p[AB]
+    hd = p[BB]
+    he = p[AA + 1]
+    hf = p[BA + 1]
+    hg = p[AB + 1]
+    hh = p[BB + 1]
+    x1 = x - 1.0
+    y1 = y - 1.0
+    z1 = z - 1.0
+    n1, g1x, g1y, g1z = _corner_grad(ha & 15, hb & 15, hc & 15, hd & 15, he & 15, hf & 15,
+                                     hg & 15, hh & 15, x, y, z, x1, y1, z1, u, v, w,
+                                     du, dv, dw)
+    n2, g2x, g2y, g2z = _corner_grad((ha >> 4) & 15, (hb >> 4) & 15, (hc >> 4) & 15,
+                                     (hd >> 4) & 15, (he >> 4) & 15, (hf >> 4) & 15,
+                                     (hg >> 4) & 15, (hh >> 4) & 15, x, y, z, x1, y1, z1,
+                                     u, v, w, du, dv, dw)
+    return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
 @nb.njit(cache=True, fastmath=True)
@@ -235,8 +356,7 @@ def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
                 ay += amp * noise3(p, qx + _O1[0], qy + _O1[1], qz + _O1[2])
                 az += amp * noise3(p, qx + _O2[0], qy + _O2[1], qz + _O2[2])
             else:
-                _, ux, uy, uz = noise3_grad(p, qx, qy, qz)
-                _, wx, wy, wz = noise3_grad(p, qx + _O1[0], qy + _O1[1], qz + _O1[2])
+                _, ux, uy, uz, _, wx, wy, wz = curl_potentials(p, qx, qy, qz)
                 ax += amp * (uy * wz - uz * wy)
                 ay += amp * (uz * wx - ux * wz)
                 az += amp * (ux * wy - uy * wx)

@@ -7,6 +7,10 @@ compiled kernel per step (:func:`advance_local`: every stage of the method in
 registers, parallel over particles); pairwise forces and springs go through the
 generic integrators of :mod:`simulate.integrators` over the whole state.
 
+Note on numba's cache: the fused kernel inlines :func:`simulate.forces._accel` when it
+is compiled, but numba keys its on-disk cache on this file only. After changing the
+force kernels, touch this file (or clear ``simulate/__pycache__``) so it recompiles.
+
 Attributes (colour, size, opacity, mass) are :class:`Ramp` functions of age, life
 fraction or temperature; temperature relaxes to ``ambient`` with time constant
 ``cooling_time``. Particles die at the end of their lifetime, inside a
