@@ -33,6 +33,7 @@ import numpy as np
 
 from procgen.noise.perlin import _GX, _GY, _GZ, noise3, perm_table
 from procgen.validate import check_array, check_choice, check_positive
+from simulate.neighbours import build_grid, cell_range, threads_for
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
            "Pairwise", "Springs", "ForceSet", "local_accel", "pairwise_accel",
@@ -433,33 +434,22 @@ def _pack(forces):
 # -- pairwise forces through a neighbour grid ---------------------------------------
 
 @nb.njit(parallel=True, cache=True)
-def _pairwise_grid(x, inv_m, sorted_keys, order, cell, lo, dims, radius, att, rep, out):
-    n = x.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    for i in nb.prange(n):
+def _pairwise_grid(x, inv_m, dims, cell, order, start, radius, att, rep, out):
+    nx, ny = dims[0], dims[1]
+    for i in nb.prange(x.shape[0]):
         ax = 0.0
         ay = 0.0
         az = 0.0
-        cx = int(np.floor((x[i, 0] - lo[0]) / cell))
-        cy = int(np.floor((x[i, 1] - lo[1]) / cell))
-        cz = int(np.floor((x[i, 2] - lo[2]) / cell))
-        for oz in range(-1, 2):
-            kz = cz + oz
-            if kz < 0 or kz >= nz:
-                continue
-            for oy in range(-1, 2):
-                ky = cy + oy
-                if ky < 0 or ky >= ny:
-                    continue
-                for ox in range(-1, 2):
-                    kx = cx + ox
-                    if kx < 0 or kx >= nx:
-                        continue
-                    key = kx + nx * (ky + ny * kz)
-                    a = np.searchsorted(sorted_keys, key)
-                    while a < n and sorted_keys[a] == key:
-                        j = order[a]
-                        a += 1
+        c = cell[i]
+        x0, x1 = cell_range(c, dims, 0)
+        y0, y1 = cell_range(c, dims, 1)
+        z0, z1 = cell_range(c, dims, 2)
+        for cz in range(z0, z1 + 1):
+            for cy in range(y0, y1 + 1):
+                for cx in range(x0, x1 + 1):
+                    cc = cx + nx * (cy + ny * cz)
+                    for k in range(start[cc], start[cc + 1]):
+                        j = order[k]
                         if j == i:
                             continue
                         dx = x[j, 0] - x[i, 0]
@@ -481,8 +471,10 @@ def _pairwise_grid(x, inv_m, sorted_keys, order, cell, lo, dims, radius, att, re
 def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     """Accelerations ``(n, 3)`` from :class:`Pairwise` forces, through a uniform grid.
 
-    Cells are ``radius`` wide, so each particle visits the 27 cells around its own;
-    cost O(n k) for k neighbours (a sort of the cell keys plus binary searches).
+    The grid is :func:`simulate.neighbours.build_grid` (cells at least ``radius`` wide,
+    points counting-sorted by cell), so each particle visits the 27 cells around its
+    own: cost O(n k) for k neighbours. A non-finite position gives NaN accelerations
+    (the caller detects and reports the blow-up).
     """
     x = np.ascontiguousarray(check_array(x, "x", shape=(None, 3), finite=False))
     n = len(x)
@@ -490,21 +482,12 @@ def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     out = np.zeros((n, 3))
     if n < 2:
         return out
-    if not np.all(np.isfinite(x)):  # let the caller detect and report the blow-up
+    if not np.all(np.isfinite(x.max(axis=0) - x.min(axis=0))):  # also an overflowing extent
         return np.full((n, 3), np.nan)
-    cell = float(force.radius)
-    lo = x.min(axis=0)
-    span = (x.max(axis=0) - lo) / cell
-    if not np.all(np.isfinite(span)):  # blown-up states overflow: report, do not raise
-        return np.full((n, 3), np.nan)
-    dims = np.floor(span).astype(np.int64) + 1
-    if float(np.prod(dims.astype(np.float64))) > 2.0**62:
-        raise ValueError(f"radius: {cell} m is too small for a grid over the particles' extent")
-    c = np.floor((x - lo) / cell).astype(np.int64)
-    keys = c[:, 0] + dims[0] * (c[:, 1] + dims[1] * c[:, 2])
-    order = np.argsort(keys, kind="stable")
-    _pairwise_grid(x, inv_m, keys[order], order.astype(np.int64), cell, lo, dims, cell,
-                   float(force.attraction), float(force.repulsion), out)
+    grid = build_grid(x, force.radius)
+    with threads_for(n):
+        _pairwise_grid(x, inv_m, grid.dims, grid.cell, grid.order, grid.start,
+                       float(force.radius), float(force.attraction), float(force.repulsion), out)
     return out
 
 

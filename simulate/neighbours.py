@@ -129,12 +129,15 @@ def build_grid(points: np.ndarray, radius: float, *, lo: np.ndarray | None = Non
     hi = pts.max(axis=0) if (hi is None and n) else (lo + h if hi is None else
                                                       np.asarray(hi, float))
     extent = np.maximum(np.asarray(hi, float) - lo, 0.0)
+    if not np.all(np.isfinite(extent)):
+        raise ValueError(f"points: expected a finite extent, got {extent.tolist()}")
     limit = max(_CELLS_PER_POINT * n, _MIN_CELLS)
-    while True:
-        dims = np.floor(extent / h).astype(np.int64) + 1
-        if int(np.prod(dims)) <= limit:
+    while True:  # counted in floats: a huge extent must not overflow int64
+        dims_f = np.floor(extent / h) + 1.0
+        if float(np.prod(dims_f)) <= limit:
             break
         h *= 1.25
+    dims = dims_f.astype(np.int64)
     cell = np.empty(n, np.int64)
     _cell_index(pts, np.asarray(lo, float), h, dims, cell)
     ncells = int(np.prod(dims))
