@@ -28,14 +28,6 @@ log = logging.getLogger(__name__)
 __all__ = ["run_simulation"]
 
 
-def _write_ply_points(path: Path, points: np.ndarray, colors: np.ndarray) -> None:
-    if len(points):
-        write_points(path, points, colors=colors)
-    else:  # open3d refuses to write an empty cloud; an empty frame is still a frame
-        path.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty double x\n"
-                        "property double y\nproperty double z\nend_header\n")
-
-
 def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathLike, *,
                    mesh_path: str | os.PathLike | None = None, frames: int | None = None,
                    render: bool = True, width: int = 480, height: int = 360,
@@ -76,8 +68,8 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
                     "id": fr["ids"], "velocity": fr["velocity"], "age": fr["age"],
                     "temperature": fr["temperature"], "color": fr["colors"],
                     "size": fr["sizes"], "emitter": fr["emitter"]})
-                _write_ply_points(tmp / "ply" / f"frame_{k:05d}.ply", fr["points"],
-                                  fr["colors"])
+                write_points(tmp / "ply" / f"frame_{k:05d}.ply", fr["points"],
+                             colors=fr["colors"])
                 per_frame.append({"frame": st.frame, "time": st.time, "alive": st.alive,
                                   "born": st.born, "died": st.died, "impacts": st.impacts,
                                   "escapes": st.escapes, "kinetic": st.kinetic,
