@@ -11,7 +11,17 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from procgen.noise.perlin import _GX, _GY, _GZ, _fade, _lerp, noise3
+from procgen.noise.perlin import (
+    _GX,
+    _GY,
+    _GZ,
+    _cell,
+    _corner_values,
+    _hashes,
+    _lerp,
+    _trilerp,
+    noise3,
+)
 
 
 def _gradient_table4() -> np.ndarray:
@@ -39,57 +49,31 @@ def _grad4(h, x, y, z, w):
 
 
 @nb.njit(inline="always", cache=True)
-def noise4(p, x, y, z, w):
-    """4-D improved gradient noise (Perlin's construction, 32 gradients); 0 on the lattice."""
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    fw = np.floor(w)
-    X = np.int64(fx) & 255
-    Y = np.int64(fy) & 255
-    Z = np.int64(fz) & 255
-    W = np.int64(fw) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    w -= fw
-    u = _fade(x)
-    v = _fade(y)
-    s = _fade(z)
-    t = _fade(w)
+def _corner_values4(p, h, W, x, y, z, w):
+    """Gradient dot offset at the 8 corners of a 3-D cell on the hyperplane of ``W``."""
     x1 = x - 1.0
     y1 = y - 1.0
     z1 = z - 1.0
-    w1 = w - 1.0
-    A = p[X] + Y
-    B = p[X + 1] + Y
-    AA = p[A] + Z
-    AB = p[A + 1] + Z
-    BA = p[B] + Z
-    BB = p[B + 1] + Z
-    AAA = p[AA] + W
-    AAB = p[AA + 1] + W
-    ABA = p[AB] + W
-    ABB = p[AB + 1] + W
-    BAA = p[BA] + W
-    BAB = p[BA + 1] + W
-    BBA = p[BB] + W
-    BBB = p[BB + 1] + W
-    w0 = _lerp(
-        s,
-        _lerp(v, _lerp(u, _grad4(p[AAA], x, y, z, w), _grad4(p[BAA], x1, y, z, w)),
-              _lerp(u, _grad4(p[ABA], x, y1, z, w), _grad4(p[BBA], x1, y1, z, w))),
-        _lerp(v, _lerp(u, _grad4(p[AAB], x, y, z1, w), _grad4(p[BAB], x1, y, z1, w)),
-              _lerp(u, _grad4(p[ABB], x, y1, z1, w), _grad4(p[BBB], x1, y1, z1, w))),
-    )
-    w1v = _lerp(
-        s,
-        _lerp(v, _lerp(u, _grad4(p[AAA + 1], x, y, z, w1), _grad4(p[BAA + 1], x1, y, z, w1)),
-              _lerp(u, _grad4(p[ABA + 1], x, y1, z, w1), _grad4(p[BBA + 1], x1, y1, z, w1))),
-        _lerp(v, _lerp(u, _grad4(p[AAB + 1], x, y, z1, w1), _grad4(p[BAB + 1], x1, y, z1, w1)),
-              _lerp(u, _grad4(p[ABB + 1], x, y1, z1, w1), _grad4(p[BBB + 1], x1, y1, z1, w1))),
-    )
-    return _lerp(t, w0, w1v)
+    return (_grad4(p[h[0] + W], x, y, z, w), _grad4(p[h[1] + W], x1, y, z, w),
+            _grad4(p[h[2] + W], x, y1, z, w), _grad4(p[h[3] + W], x1, y1, z, w),
+            _grad4(p[h[4] + W], x, y, z1, w), _grad4(p[h[5] + W], x1, y, z1, w),
+            _grad4(p[h[6] + W], x, y1, z1, w), _grad4(p[h[7] + W], x1, y1, z1, w))
+
+
+@nb.njit(inline="always", cache=True)
+def noise4(p, x, y, z, w):
+    """4-D improved gradient noise (Perlin's construction, 32 gradients); 0 on the lattice."""
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, s = _cell(z)
+    iw, w, t = _cell(w)
+    X = ix & 255
+    Y = iy & 255
+    W = iw & 255
+    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
+    w0 = _trilerp(u, v, s, _corner_values4(p, h, W, x, y, z, w))
+    w1 = _trilerp(u, v, s, _corner_values4(p, h, W + 1, x, y, z, w - 1.0))
+    return _lerp(t, w0, w1)
 
 
 @nb.njit(inline="always", cache=True)
@@ -98,49 +82,36 @@ def _dfade(t):
 
 
 @nb.njit(inline="always", cache=True)
+def _blend(g, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw):
+    """One component of the corner gradients ``g[h]`` interpolated over the cell."""
+    a, b, c, d, e, f, gg, h = g[ha], g[hb], g[hc], g[hd], g[he], g[hf], g[hg], g[hh]
+    return (a + u * (b - a) + v * (c - a) + w * (e - a) + uv * (a - b - c + d)
+            + vw * (a - c - e + gg) + wu * (a - b - e + f)
+            + uvw * (-a + b + c - d + e - f - gg + h))
+
+
+@nb.njit(inline="always", cache=True)
 def noise3_grad(p, x, y, z):
     """Improved noise and its analytic gradient at one point: ``(n, dn/dx, dn/dy, dn/dz)``."""
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    X = np.int64(fx) & 255
-    Y = np.int64(fy) & 255
-    Z = np.int64(fz) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    u = _fade(x)
-    v = _fade(y)
-    w = _fade(z)
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
     du = _dfade(x)
     dv = _dfade(y)
     dw = _dfade(z)
-    A = p[X] + Y
-    AA = p[A] + Z
-    AB = p[A + 1] + Z
-    B = p[X + 1] + Y
-    BA = p[B] + Z
-    BB = p[B + 1] + Z
+    X = ix & 255
+    Y = iy & 255
+    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
     # corners a..h = (000, 100, 010, 110, 001, 101, 011, 111), gradient indices
-    ha = p[AA] & 15
-    hb = p[BA] & 15
-    hc = p[AB] & 15
-    hd = p[BB] & 15
-    he = p[AA + 1] & 15
-    hf = p[BA + 1] & 15
-    hg = p[AB + 1] & 15
-    hh = p[BB + 1] & 15
-    x1 = x - 1.0
-    y1 = y - 1.0
-    z1 = z - 1.0
-    va = _GX[ha] * x + _GY[ha] * y + _GZ[ha] * z
-    vb = _GX[hb] * x1 + _GY[hb] * y + _GZ[hb] * z
-    vc = _GX[hc] * x + _GY[hc] * y1 + _GZ[hc] * z
-    vd = _GX[hd] * x1 + _GY[hd] * y1 + _GZ[hd] * z
-    ve = _GX[he] * x + _GY[he] * y + _GZ[he] * z1
-    vf = _GX[hf] * x1 + _GY[hf] * y + _GZ[hf] * z1
-    vg = _GX[hg] * x + _GY[hg] * y1 + _GZ[hg] * z1
-    vh = _GX[hh] * x1 + _GY[hh] * y1 + _GZ[hh] * z1
+    ha = h[0] & 15
+    hb = h[1] & 15
+    hc = h[2] & 15
+    hd = h[3] & 15
+    he = h[4] & 15
+    hf = h[5] & 15
+    hg = h[6] & 15
+    hh = h[7] & 15
+    va, vb, vc, vd, ve, vf, vg, vh = _corner_values(h, x, y, z)
     k1 = vb - va
     k2 = vc - va
     k3 = ve - va
@@ -154,75 +125,25 @@ def noise3_grad(p, x, y, z):
     wu = w * u
     uvw = uv * w
     # gradient: interpolated corner gradients + fade derivatives times the value differences
-    gx = (_GX[ha] + u * (_GX[hb] - _GX[ha]) + v * (_GX[hc] - _GX[ha]) + w * (_GX[he] - _GX[ha])
-          + uv * (_GX[ha] - _GX[hb] - _GX[hc] + _GX[hd])
-          + vw * (_GX[ha] - _GX[hc] - _GX[he] + _GX[hg])
-          + wu * (_GX[ha] - _GX[hb] - _GX[he] + _GX[hf])
-          + uvw * (-_GX[ha] + _GX[hb] + _GX[hc] - _GX[hd] + _GX[he] - _GX[hf] - _GX[hg] + _GX[hh])
-          + du * (k1 + v * k4 + w * k6 + vw * k7))
-    gy = (_GY[ha] + u * (_GY[hb] - _GY[ha]) + v * (_GY[hc] - _GY[ha]) + w * (_GY[he] - _GY[ha])
-          + uv * (_GY[ha] - _GY[hb] - _GY[hc] + _GY[hd])
-          + vw * (_GY[ha] - _GY[hc] - _GY[he] + _GY[hg])
-          + wu * (_GY[ha] - _GY[hb] - _GY[he] + _GY[hf])
-          + uvw * (-_GY[ha] + _GY[hb] + _GY[hc] - _GY[hd] + _GY[he] - _GY[hf] - _GY[hg] + _GY[hh])
-          + dv * (k2 + u * k4 + w * k5 + wu * k7))
-    gz = (_GZ[ha] + u * (_GZ[hb] - _GZ[ha]) + v * (_GZ[hc] - _GZ[ha]) + w * (_GZ[he] - _GZ[ha])
-          + uv * (_GZ[ha] - _GZ[hb] - _GZ[hc] + _GZ[hd])
-          + vw * (_GZ[ha] - _GZ[hc] - _GZ[he] + _GZ[hg])
-          + wu * (_GZ[ha] - _GZ[hb] - _GZ[he] + _GZ[hf])
-          + uvw * (-_GZ[ha] + _GZ[hb] + _GZ[hc] - _GZ[hd] + _GZ[he] - _GZ[hf] - _GZ[hg] + _GZ[hh])
-          + dw * (k3 + v * k5 + u * k6 + uv * k7))
+    gx = _blend(_GX, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + du * (
+        k1 + v * k4 + w * k6 + vw * k7)
+    gy = _blend(_GY, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + dv * (
+        k2 + u * k4 + w * k5 + wu * k7)
+    gz = _blend(_GZ, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + dw * (
+        k3 + v * k5 + u * k6 + uv * k7)
     return n, gx, gy, gz
 
 
 @nb.njit(inline="always", cache=True)
 def noise3_periodic(p, x, y, z, px, py):
     """Improved noise with integer periods ``px`` along x and ``py`` along y (both <= 256)."""
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    ix = np.int64(fx) % px
-    iy = np.int64(fy) % py
-    X = ix & 255
-    Y = iy & 255
-    X1 = ((ix + 1) % px) & 255
-    Y1 = ((iy + 1) % py) & 255
-    Z = np.int64(fz) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    u = _fade(x)
-    v = _fade(y)
-    w = _fade(z)
-    AA = p[p[p[X] + Y] + Z]
-    AB = p[p[p[X] + Y1] + Z]
-    BA = p[p[p[X1] + Y] + Z]
-    BB = p[p[p[X1] + Y1] + Z]
-    AA1 = p[p[p[X] + Y] + Z + 1]
-    AB1 = p[p[p[X] + Y1] + Z + 1]
-    BA1 = p[p[p[X1] + Y] + Z + 1]
-    BB1 = p[p[p[X1] + Y1] + Z + 1]
-    x1 = x - 1.0
-    y1 = y - 1.0
-    z1 = z - 1.0
-    h = AA & 15
-    ga = _GX[h] * x + _GY[h] * y + _GZ[h] * z
-    h = BA & 15
-    gb = _GX[h] * x1 + _GY[h] * y + _GZ[h] * z
-    h = AB & 15
-    gc = _GX[h] * x + _GY[h] * y1 + _GZ[h] * z
-    h = BB & 15
-    gd = _GX[h] * x1 + _GY[h] * y1 + _GZ[h] * z
-    h = AA1 & 15
-    ge = _GX[h] * x + _GY[h] * y + _GZ[h] * z1
-    h = BA1 & 15
-    gf = _GX[h] * x1 + _GY[h] * y + _GZ[h] * z1
-    h = AB1 & 15
-    gg = _GX[h] * x + _GY[h] * y1 + _GZ[h] * z1
-    h = BB1 & 15
-    gh = _GX[h] * x1 + _GY[h] * y1 + _GZ[h] * z1
-    return _lerp(w, _lerp(v, _lerp(u, ga, gb), _lerp(u, gc, gd)),
-                 _lerp(v, _lerp(u, ge, gf), _lerp(u, gg, gh)))
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
+    ix %= px
+    iy %= py
+    h = _hashes(p, ix & 255, ((ix + 1) % px) & 255, iy & 255, ((iy + 1) % py) & 255, iz & 255)
+    return _trilerp(u, v, w, _corner_values(h, x, y, z))
 
 
 # mode: 0 fBm, 1 turbulence (sum of |noise|), 2 ridged multifractal (Musgrave)

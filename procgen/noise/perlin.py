@@ -102,36 +102,54 @@ def _grad(h, x, y, z):
 
 
 @nb.njit(inline="always", cache=True)
-def noise3(p, x, y, z):
-    """Improved noise at one point; ``p`` is a table from :func:`perm_table`."""
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    X = np.int64(fx) & 255
-    Y = np.int64(fy) & 255
-    Z = np.int64(fz) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    u = _fade(x)
-    v = _fade(y)
-    w = _fade(z)
+def _cell(x):
+    """Lattice cell of one coordinate: ``(integer part as int64, fraction, fade(fraction))``."""
+    f = np.floor(x)
+    x -= f
+    return np.int64(f), x, _fade(x)
+
+
+@nb.njit(inline="always", cache=True)
+def _hashes(p, X, X1, Y, Y1, Z):
+    """Hashes of the 8 cell corners in the order (000, 100, 010, 110, 001, 101, 011, 111).
+
+    ``X1``/``Y1`` are the next lattice indices (``X + 1``, or wrapped for periodic noise);
+    all indices are already reduced to [0, 255]."""
     A = p[X] + Y
-    AA = p[A] + Z
-    AB = p[A + 1] + Z
-    B = p[X + 1] + Y
-    BA = p[B] + Z
-    BB = p[B + 1] + Z
+    B = p[X1] + Y
+    A1 = p[X] + Y1
+    B1 = p[X1] + Y1
+    return (p[p[A] + Z], p[p[B] + Z], p[p[A1] + Z], p[p[B1] + Z],
+            p[p[A] + Z + 1], p[p[B] + Z + 1], p[p[A1] + Z + 1], p[p[B1] + Z + 1])
+
+
+@nb.njit(inline="always", cache=True)
+def _corner_values(h, x, y, z):
+    """Gradient dot offset at the 8 corners (hashes ``h`` from :func:`_hashes`)."""
     x1 = x - 1.0
     y1 = y - 1.0
     z1 = z - 1.0
-    return _lerp(
-        w,
-        _lerp(v, _lerp(u, _grad(p[AA], x, y, z), _grad(p[BA], x1, y, z)),
-              _lerp(u, _grad(p[AB], x, y1, z), _grad(p[BB], x1, y1, z))),
-        _lerp(v, _lerp(u, _grad(p[AA + 1], x, y, z1), _grad(p[BA + 1], x1, y, z1)),
-              _lerp(u, _grad(p[AB + 1], x, y1, z1), _grad(p[BB + 1], x1, y1, z1))),
-    )
+    return (_grad(h[0], x, y, z), _grad(h[1], x1, y, z), _grad(h[2], x, y1, z),
+            _grad(h[3], x1, y1, z), _grad(h[4], x, y, z1), _grad(h[5], x1, y, z1),
+            _grad(h[6], x, y1, z1), _grad(h[7], x1, y1, z1))
+
+
+@nb.njit(inline="always", cache=True)
+def _trilerp(u, v, w, c):
+    return _lerp(w, _lerp(v, _lerp(u, c[0], c[1]), _lerp(u, c[2], c[3])),
+                 _lerp(v, _lerp(u, c[4], c[5]), _lerp(u, c[6], c[7])))
+
+
+@nb.njit(inline="always", cache=True)
+def noise3(p, x, y, z):
+    """Improved noise at one point; ``p`` is a table from :func:`perm_table`."""
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
+    X = ix & 255
+    Y = iy & 255
+    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
+    return _trilerp(u, v, w, _corner_values(h, x, y, z))
 
 
 @nb.njit(parallel=True, cache=True)
