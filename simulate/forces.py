@@ -31,7 +31,17 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.noise.perlin import _GX, _GY, _GZ, noise3, perm_table
+from procgen.noise.perlin import (
+    _GX,
+    _GY,
+    _GZ,
+    _cell,
+    _corner_values,
+    _hashes,
+    _trilerp,
+    noise3,
+    perm_table,
+)
 from procgen.validate import check_array, check_choice, check_positive
 from simulate.neighbours import build_grid, cell_range, threads_for
 
@@ -204,70 +214,28 @@ _O2 = (-19.271, 8.917, 53.129)
 
 
 @nb.njit(inline="always", cache=True)
-def _corner_grad(ga, gb, gc, gd, ge, gf, gg, gh, x, y, z, x1, y1, z1, u, v, w, du, dv, dw):
-    """Value and gradient of improved noise in one cell from its 8 gradient indices.
-
-    Corners a..h = (000, 100, 010, 110, 001, 101, 011, 111); ``x, y, z`` the position in
-    the cell, ``x1 = x - 1`` etc., ``u, v, w`` the faded coordinates and ``du, dv, dw``
-    the fade's derivatives.
-    """
-    va = _GX[ga] * x + _GY[ga] * y + _GZ[ga] * z
-    vb = _GX[gb] * x1 + _GY[gb] * y + _GZ[gb] * z
-    vc = _GX[gc] * x + _GY[gc] * y1 + _GZ[gc] * z
-    vd = _GX[gd] * x1 + _GY[gd] * y1 + _GZ[gd] * z
-    ve = _GX[ge] * x + _GY[ge] * y + _GZ[ge] * z1
-    vf = _GX[gf] * x1 + _GY[gf] * y + _GZ[gf] * z1
-    vg = _GX[gg] * x + _GY[gg] * y1 + _GZ[gg] * z1
-    vh = _GX[gh] * x1 + _GY[gh] * y1 + _GZ[gh] * z1
-    # value differences along x, bilinear in (v, w): the x-derivative's fade term
-    ab = vb - va
-    cd = vd - vc
-    ef = vf - ve
-    gh_ = vh - vg
-    ex0 = ab + v * (cd - ab)
-    ex1 = ef + v * (gh_ - ef)
-    # y: differences c-a, d-b, g-e, h-f bilinear in (u, w)
-    ac = vc - va
-    bd = vd - vb
-    eg = vg - ve
-    fh = vh - vf
-    ey0 = ac + u * (bd - ac)
-    ey1 = eg + u * (fh - eg)
-    # z: differences e-a, f-b, g-c, h-d bilinear in (u, v)
-    ae = ve - va
-    bf = vf - vb
-    cg = vg - vc
-    dh = vh - vd
-    m0 = ae + u * (bf - ae)
-    m1 = cg + u * (dh - cg)
-    ez = m0 + v * (m1 - m0)
-    # value: trilinear
-    x00 = va + u * ab
-    x10 = vc + u * cd
-    x01 = ve + u * ef
-    x11 = vg + u * gh_
-    y0 = x00 + v * (x10 - x00)
-    y1v = x01 + v * (x11 - x01)
-    n = y0 + w * (y1v - y0)
-    # gradient: the trilinear interpolation of the corner gradients + fade terms
-    gx = _tri(_GX[ga], _GX[gb], _GX[gc], _GX[gd], _GX[ge], _GX[gf], _GX[gg], _GX[gh], u, v, w)
-    gy = _tri(_GY[ga], _GY[gb], _GY[gc], _GY[gd], _GY[ge], _GY[gf], _GY[gg], _GY[gh], u, v, w)
-    gz = _tri(_GZ[ga], _GZ[gb], _GZ[gc], _GZ[gd], _GZ[ge], _GZ[gf], _GZ[gg], _GZ[gh], u, v, w)
-    gx += du * (ex0 + w * (ex1 - ex0))
-    gy += dv * (ey0 + w * (ey1 - ey0))
-    gz += dw * ez
-    return n, gx, gy, gz
+def _gradient(h, c, x, y, z, u, v, w, du, dv, dw):
+    """Gradient of improved noise in a cell from the corner hashes ``h`` and the corner
+    values ``c`` (corners ordered as :func:`procgen.noise.perlin._hashes`): the
+    interpolated corner gradients plus the fade derivatives times the value differences."""
+    gx = _trilerp(u, v, w, (_GX[h[0] & 15], _GX[h[1] & 15], _GX[h[2] & 15], _GX[h[3] & 15],
+                            _GX[h[4] & 15], _GX[h[5] & 15], _GX[h[6] & 15], _GX[h[7] & 15]))
+    gy = _trilerp(u, v, w, (_GY[h[0] & 15], _GY[h[1] & 15], _GY[h[2] & 15], _GY[h[3] & 15],
+                            _GY[h[4] & 15], _GY[h[5] & 15], _GY[h[6] & 15], _GY[h[7] & 15]))
+    gz = _trilerp(u, v, w, (_GZ[h[0] & 15], _GZ[h[1] & 15], _GZ[h[2] & 15], _GZ[h[3] & 15],
+                            _GZ[h[4] & 15], _GZ[h[5] & 15], _GZ[h[6] & 15], _GZ[h[7] & 15]))
+    # x: differences b-a, d-c, f-e, h-g bilinear in (v, w); y and z alike
+    gx += du * _bilerp(v, w, c[1] - c[0], c[3] - c[2], c[5] - c[4], c[7] - c[6])
+    gy += dv * _bilerp(u, w, c[2] - c[0], c[3] - c[1], c[6] - c[4], c[7] - c[5])
+    gz += dw * _bilerp(u, v, c[4] - c[0], c[5] - c[1], c[6] - c[2], c[7] - c[3])
+    return _trilerp(u, v, w, c), gx, gy, gz
 
 
 @nb.njit(inline="always", cache=True)
-def _tri(a, b, c, d, e, f, g, h, u, v, w):
-    ab = a + u * (b - a)
-    cd = c + u * (d - c)
-    ef = e + u * (f - e)
-    gh = g + u * (h - g)
-    lo = ab + v * (cd - ab)
-    hi = ef + v * (gh - ef)
-    return lo + w * (hi - lo)
+def _bilerp(s, t, a, b, c, d):
+    ab = a + s * (b - a)
+    cd = c + s * (d - c)
+    return ab + t * (cd - ab)
 
 
 @nb.njit(inline="always", cache=True)
@@ -282,45 +250,18 @@ def curl_potentials(p, x, y, z):
 
     Returns ``(n1, dn1/dx, dn1/dy, dn1/dz, n2, dn2/dx, dn2/dy, dn2/dz)``.
     """
-    fx = np.floor(x)
-    fy = np.floor(y)
-    fz = np.floor(z)
-    X = np.int64(fx) & 255
-    Y = np.int64(fy) & 255
-    Z = np.int64(fz) & 255
-    x -= fx
-    y -= fy
-    z -= fz
-    u = x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
-    v = y * y * y * (y * (y * 6.0 - 15.0) + 10.0)
-    w = z * z * z * (z * (z * 6.0 - 15.0) + 10.0)
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
     du = 30.0 * x * x * (x * (x - 2.0) + 1.0)
     dv = 30.0 * y * y * (y * (y - 2.0) + 1.0)
     dw = 30.0 * z * z * (z * (z - 2.0) + 1.0)
-    A = p[X] + Y
-    AA = p[A] + Z
-    AB = p[A + 1] + Z
-    B = p[X + 1] + Y
-    BA = p[B] + Z
-    BB = p[B + 1] + Z
-    ha = p[AA]
-    hb = p[BA]
-    hc = p[AB]
-    hd = p[BB]
-    he = p[AA + 1]
-    hf = p[BA + 1]
-    hg = p[AB + 1]
-    hh = p[BB + 1]
-    x1 = x - 1.0
-    y1 = y - 1.0
-    z1 = z - 1.0
-    n1, g1x, g1y, g1z = _corner_grad(ha & 15, hb & 15, hc & 15, hd & 15, he & 15, hf & 15,
-                                     hg & 15, hh & 15, x, y, z, x1, y1, z1, u, v, w,
-                                     du, dv, dw)
-    n2, g2x, g2y, g2z = _corner_grad((ha >> 4) & 15, (hb >> 4) & 15, (hc >> 4) & 15,
-                                     (hd >> 4) & 15, (he >> 4) & 15, (hf >> 4) & 15,
-                                     (hg >> 4) & 15, (hh >> 4) & 15, x, y, z, x1, y1, z1,
-                                     u, v, w, du, dv, dw)
+    X = ix & 255
+    Y = iy & 255
+    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
+    g = (h[0] >> 4, h[1] >> 4, h[2] >> 4, h[3] >> 4, h[4] >> 4, h[5] >> 4, h[6] >> 4, h[7] >> 4)
+    n1, g1x, g1y, g1z = _gradient(h, _corner_values(h, x, y, z), x, y, z, u, v, w, du, dv, dw)
+    n2, g2x, g2y, g2z = _gradient(g, _corner_values(g, x, y, z), x, y, z, u, v, w, du, dv, dw)
     return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
