@@ -43,7 +43,7 @@ from procgen.noise.perlin import (
     perm_table,
 )
 from procgen.validate import check_array, check_choice, check_positive
-from simulate.neighbours import build_grid, cell_range, threads_for
+from simulate.neighbours import neighbour_lists, threads_for
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
            "Pairwise", "Springs", "ForceSet", "local_accel", "pairwise_accel",
@@ -375,35 +375,24 @@ def _pack(forces):
 # -- pairwise forces through a neighbour grid ---------------------------------------
 
 @nb.njit(parallel=True, cache=True)
-def _pairwise_grid(x, inv_m, dims, cell, order, start, radius, att, rep, out):
-    nx, ny = dims[0], dims[1]
+def _pairwise_sum(x, inv_m, offsets, indices, radius, att, rep, out):
     for i in nb.prange(x.shape[0]):
         ax = 0.0
         ay = 0.0
         az = 0.0
-        c = cell[i]
-        x0, x1 = cell_range(c, dims, 0)
-        y0, y1 = cell_range(c, dims, 1)
-        z0, z1 = cell_range(c, dims, 2)
-        for cz in range(z0, z1 + 1):
-            for cy in range(y0, y1 + 1):
-                for cx in range(x0, x1 + 1):
-                    cc = cx + nx * (cy + ny * cz)
-                    for k in range(start[cc], start[cc + 1]):
-                        j = order[k]
-                        if j == i:
-                            continue
-                        dx = x[j, 0] - x[i, 0]
-                        dy = x[j, 1] - x[i, 1]
-                        dz = x[j, 2] - x[i, 2]
-                        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-                        if r >= radius or r == 0.0:
-                            continue
-                        w = 1.0 - r / radius
-                        s = (att * w - rep * w * w) / r * inv_m[i]
-                        ax += s * dx
-                        ay += s * dy
-                        az += s * dz
+        for k in range(offsets[i], offsets[i + 1]):
+            j = indices[k]
+            dx = x[j, 0] - x[i, 0]
+            dy = x[j, 1] - x[i, 1]
+            dz = x[j, 2] - x[i, 2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if r == 0.0:
+                continue
+            w = 1.0 - r / radius
+            s = (att * w - rep * w * w) / r * inv_m[i]
+            ax += s * dx
+            ay += s * dy
+            az += s * dz
         out[i, 0] = ax
         out[i, 1] = ay
         out[i, 2] = az
@@ -412,9 +401,9 @@ def _pairwise_grid(x, inv_m, dims, cell, order, start, radius, att, rep, out):
 def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     """Accelerations ``(n, 3)`` from :class:`Pairwise` forces, through a uniform grid.
 
-    The grid is :func:`simulate.neighbours.build_grid` (cells at least ``radius`` wide,
-    points counting-sorted by cell), so each particle visits the 27 cells around its
-    own: cost O(n k) for k neighbours. A non-finite position gives NaN accelerations
+    Neighbours come from :func:`simulate.neighbours.neighbour_lists` (a uniform grid,
+    points counting-sorted by cell, the 27 cells around each particle): cost O(n k)
+    for k neighbours, summed in neighbour-index order. A non-finite position gives NaN accelerations
     (the caller detects and reports the blow-up).
     """
     x = np.ascontiguousarray(check_array(x, "x", shape=(None, 3), finite=False))
@@ -425,10 +414,10 @@ def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
         return out
     if not np.all(np.isfinite(x.max(axis=0) - x.min(axis=0))):  # also an overflowing extent
         return np.full((n, 3), np.nan)
-    grid = build_grid(x, force.radius)
+    offsets, indices = neighbour_lists(x, force.radius)
     with threads_for(n):
-        _pairwise_grid(x, inv_m, grid.dims, grid.cell, grid.order, grid.start,
-                       float(force.radius), float(force.attraction), float(force.repulsion), out)
+        _pairwise_sum(x, inv_m, offsets, indices, float(force.radius),
+                      float(force.attraction), float(force.repulsion), out)
     return out
 
 
