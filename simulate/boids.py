@@ -602,6 +602,16 @@ def _sums_reference(x, v, P, couzin, block=512):
     return sums, counts
 
 
+
+@nb.njit(inline="always", cache=True)
+def _reflect(p, v, lo, hi):
+    """Mirror a coordinate that left ``[lo, hi]`` back inside; its velocity points in."""
+    if p < lo:
+        return min(2 * lo - p, hi), abs(v)
+    if p > hi:
+        return max(2 * hi - p, lo), -abs(v)
+    return p, v
+
 @nb.njit(parallel=True, cache=True, error_model="numpy")
 def _integrate(x, v, steer, noise, P, couzin, xn, vn):
     """Advance every boid one step: truncate steering (Reynolds) or turn (Couzin), move,
@@ -678,24 +688,9 @@ def _integrate(x, v, steer, noise, P, couzin, xn, vn):
         py = x[i, 1] + vy * dt
         pz = x[i, 2] + vz * dt
         if P[_BOUNDED] > 0:
-            if px < P[_LOX]:
-                px = min(2 * P[_LOX] - px, P[_HIX])
-                vx = abs(vx)
-            elif px > P[_HIX]:
-                px = max(2 * P[_HIX] - px, P[_LOX])
-                vx = -abs(vx)
-            if py < P[_LOY]:
-                py = min(2 * P[_LOY] - py, P[_HIY])
-                vy = abs(vy)
-            elif py > P[_HIY]:
-                py = max(2 * P[_HIY] - py, P[_LOY])
-                vy = -abs(vy)
-            if pz < P[_LOZ]:
-                pz = min(2 * P[_LOZ] - pz, P[_HIZ])
-                vz = abs(vz)
-            elif pz > P[_HIZ]:
-                pz = max(2 * P[_HIZ] - pz, P[_LOZ])
-                vz = -abs(vz)
+            px, vx = _reflect(px, vx, P[_LOX], P[_HIX])
+            py, vy = _reflect(py, vy, P[_LOY], P[_HIY])
+            pz, vz = _reflect(pz, vz, P[_LOZ], P[_HIZ])
         xn[i, 0], xn[i, 1], xn[i, 2] = px, py, pz
         vn[i, 0], vn[i, 1], vn[i, 2] = vx, vy, vz
 
