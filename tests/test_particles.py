@@ -125,3 +125,13 @@ def test_step_size_warning(caplog):
     with caplog.at_level(logging.WARNING):
         _system(0, forces=ForceSet([Wind(drag=100.0)]), method="euler", substeps=1)
     assert "stability limit" in caplog.text
+
+
+def test_package_names_its_public_api():
+    import simulate
+    from simulate.boids import step
+
+    assert all(getattr(simulate, name) is not None for name in simulate.__all__)
+    assert simulate.step_flock is step and simulate.ParticleSystem is ParticleSystem
+    with pytest.raises(AttributeError):
+        simulate.no_such_name  # noqa: B018
