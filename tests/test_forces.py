@@ -158,3 +158,18 @@ def test_bad_force_parameters():
         ForceSet([Vortex(axis=(0, 0, 0))])
     with pytest.raises(ValueError, match="radius"):
         Pairwise(radius=0)
+
+
+def test_attractor_vortex_damping_closed_forms():
+    x = np.array([[2.0, 0, 0], [0, 3.0, 1.0]])
+    v = np.array([[0.0, 1.0, 0], [1.0, 0, 0]])
+    att = ForceSet([Attractor((0, 0, 0), strength=2.0, softening=1e-9)]).accel(0, x, v, 1.0)
+    r = np.linalg.norm(x, axis=1)
+    np.testing.assert_allclose(att, -2.0 * x / r[:, None] ** 3, rtol=1e-12)  # inverse square
+    vor = ForceSet([Vortex((0, 0, 5.0), (0, 0, 2.0), strength=3.0, radius=0.5)]).accel(0, x, v,
+                                                                                      1.0)
+    # counter-clockwise about +z: at (2, 0) along +y, at (0, 3) along -x; 3 / (r^2 + 0.25)
+    np.testing.assert_allclose(vor[0], [0, 3.0 * 2 / (4 + 0.25), 0], atol=1e-12)
+    np.testing.assert_allclose(vor[1], [-3.0 * 3 / (9 + 0.25), 0, 0], atol=1e-12)
+    damp = ForceSet([Damping(0.7)]).accel(0, x, v, 2.0)
+    np.testing.assert_allclose(damp, -0.7 * v, atol=0)
