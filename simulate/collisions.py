@@ -224,11 +224,10 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
     cast_skin = 16.0 * np.finfo(np.float32).eps * (scale + float(np.abs(x0).max(initial=0.0)))
     e, mu = float(params.restitution), float(params.friction)
     acc, dv_fix, rays = _prepare(x0, v0, x, v, float(h), cast_skin)
-    # One cast of every chord; only particles whose chord meets the mesh go on (the
-    # others keep the integrator's state exactly).
-    t_first, _ = collider.cast_rays32(rays)
+    # One any-hit test of every chord; only particles whose chord meets the mesh go on
+    # (the others keep the integrator's state exactly).
+    idx = np.nonzero(collider.segments_hit(rays))[0]
     stats.casts += n
-    idx = np.nonzero(t_first <= 1.0)[0]
     side = np.zeros(n) if inside is None else np.where(np.asarray(inside, bool), -1.0, 1.0)
     o = x0[idx].copy()
     vel = v0[idx].copy()
