@@ -265,7 +265,7 @@ def curl_potentials(p, x, y, z):
     return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=True, inline="always")
 def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
     ax = 0.0
     ay = 0.0
@@ -353,9 +353,10 @@ def local_accel(forces, t: float, x: np.ndarray, v: np.ndarray, mass, *,
     temp = np.broadcast_to(np.asarray(0.0 if temperature is None else temperature,
                                       np.float64), (n,))
     out = np.empty((n, 3))
-    _accel_all(codes, params, perms, float(t), np.ascontiguousarray(x, np.float64),
-               np.ascontiguousarray(v, np.float64), np.ascontiguousarray(inv_m),
-               np.ascontiguousarray(temp), out)
+    with threads_for(n):
+        _accel_all(codes, params, perms, float(t), np.ascontiguousarray(x, np.float64),
+                   np.ascontiguousarray(v, np.float64), np.ascontiguousarray(inv_m),
+                   np.ascontiguousarray(temp), out)
     return out
 
 
@@ -507,9 +508,10 @@ class ForceSet:
         temp = np.ascontiguousarray(np.broadcast_to(
             np.asarray(0.0 if temperature is None else temperature, np.float64), (n,)))
         out = np.empty((n, 3))
-        _accel_all(self.codes, self.params, self.perms, float(t),
-                   np.ascontiguousarray(x, np.float64), np.ascontiguousarray(v, np.float64),
-                   1.0 / m, temp, out)
+        with threads_for(n):
+            _accel_all(self.codes, self.params, self.perms, float(t),
+                       np.ascontiguousarray(x, np.float64), np.ascontiguousarray(v, np.float64),
+                       1.0 / m, temp, out)
         for p in self.pairwise:
             out += pairwise_accel(x, m, p)
         if self.springs:
