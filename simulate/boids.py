@@ -302,6 +302,13 @@ def _steer_to(dx, dy, dz, vx, vy, vz, vmax, fmax):
 
 
 @nb.njit(cache=True, inline="always")
+def _steer_add(ax, ay, az, weight, dx, dy, dz, vx, vy, vz, vmax, fmax):
+    """``a + weight * steer_to(d)``: one weighted behaviour added to the steering."""
+    sx, sy, sz = _steer_to(dx, dy, dz, vx, vy, vz, vmax, fmax)
+    return ax + weight * sx, ay + weight * sy, az + weight * sz
+
+
+@nb.njit(cache=True, inline="always")
 def _bounds_push(x, y, z, P):
     """Inward push, growing linearly from 0 at ``margin`` inside a wall to 1 at it."""
     bx = by = bz = 0.0
@@ -332,36 +339,21 @@ def _reynolds_finish(i, k, xs, vs, ws, x, v, P, sep, ali, coh, nsep, nali, ncoh,
     fmax = P[_FMAX]
     ax = ay = az = 0.0
     if nsep > 0:
-        sx, sy, sz = _steer_to(sep[0], sep[1], sep[2], vx, vy, vz, vmax, fmax)
-        ax += P[_WS] * sx
-        ay += P[_WS] * sy
-        az += P[_WS] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WS], sep[0], sep[1], sep[2], vx, vy, vz, vmax, fmax)
     if nali > 0:
-        sx, sy, sz = _steer_to(ali[0] / nali, ali[1] / nali, ali[2] / nali, vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WA] * sx
-        ay += P[_WA] * sy
-        az += P[_WA] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WA], ali[0] / nali, ali[1] / nali, ali[2] / nali,
+                                vx, vy, vz, vmax, fmax)
     if ncoh > 0:
-        sx, sy, sz = _steer_to(coh[0] / ncoh, coh[1] / ncoh, coh[2] / ncoh, vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WC] * sx
-        ay += P[_WC] * sy
-        az += P[_WC] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WC], coh[0] / ncoh, coh[1] / ncoh, coh[2] / ncoh,
+                                vx, vy, vz, vmax, fmax)
     if P[_WW] > 0:
-        sx, sy, sz = _steer_to(ws[k, 0], ws[k, 1], ws[k, 2], vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WW] * sx
-        ay += P[_WW] * sy
-        az += P[_WW] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WW], ws[k, 0], ws[k, 1], ws[k, 2],
+                                vx, vy, vz, vmax, fmax)
     nlead = np.int64(P[_NLEAD])
     if i < nlead or nlead == 0:
         if P[_WG] > 0:
-            sx, sy, sz = _steer_to(P[_GX] - px, P[_GY] - py, P[_GZ] - pz, vx, vy, vz,
-                                   vmax, fmax)
-            ax += P[_WG] * sx
-            ay += P[_WG] * sy
-            az += P[_WG] * sz
+            ax, ay, az = _steer_add(ax, ay, az, P[_WG], P[_GX] - px, P[_GY] - py, P[_GZ] - pz,
+                                    vx, vy, vz, vmax, fmax)
     elif P[_WL] > 0:
         best = -1
         bd = np.inf
@@ -380,10 +372,8 @@ def _reynolds_finish(i, k, xs, vs, ws, x, v, P, sep, ali, coh, nsep, nali, ncoh,
             tx -= lvx / ls * P[_LDIST]
             ty -= lvy / ls * P[_LDIST]
             tz -= lvz / ls * P[_LDIST]
-        sx, sy, sz = _steer_to(tx - px, ty - py, tz - pz, vx, vy, vz, vmax, fmax)
-        ax += P[_WL] * sx
-        ay += P[_WL] * sy
-        az += P[_WL] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WL], tx - px, ty - py, tz - pz,
+                                vx, vy, vz, vmax, fmax)
     bx, by, bz = _bounds_push(px, py, pz, P)
     out[k, 0] = ax + P[_WB] * fmax * bx
     out[k, 1] = ay + P[_WB] * fmax * by

@@ -116,7 +116,9 @@ class MeshCollider:
 
         rays = np.ascontiguousarray(rays, np.float32)
         hit = self._scene.test_occlusions(o3d.core.Tensor(rays), tnear=0.0, tfar=1.0).numpy()
-        return hit & np.any(rays[:, 3:] != 0, axis=1)
+        k = np.nonzero(hit)[0]  # few: check the directions of the hits only
+        hit[k] = np.any(rays[k, 3:] != 0, axis=1)
+        return hit
 
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance ``(n,) float64``: negative inside a closed mesh."""
