@@ -14,7 +14,8 @@ from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig, rot_z
 
 __all__ = ["write_gt_meshes", "turntable_scene", "render_light_sets", "rig_lamp", "board_scene",
-           "calibration_board_poses", "axis_board_poses"]
+           "calibration_board_poses", "axis_board_poses",
+           "axis_board_mount"]
 
 
 def turntable_scene(scene: RenderScene, angle_rad: float) -> RenderScene:
@@ -81,30 +82,50 @@ def _board_pose(cfg: RigConfig, centre: np.ndarray, tilt_x: float, tilt_y: float
     return T
 
 
+# board centres across the field of view (in units of the half field at the working
+# distance): corners first, so that even a few views constrain the distortion and the
+# principal point, which a board kept in the middle of the image leaves loose
+_CAL_GRID = ((-1, -1), (1, 1), (1, -1), (-1, 1), (0, 0), (-1, 0), (1, 0), (0, -1), (0, 1))
+
+
 def calibration_board_poses(cfg: RigConfig, n: int, rng: np.random.Generator) -> list:
-    """``n`` board poses in front of the rig, varied in position and tilt."""
+    """``n`` board poses in front of the rig, spread over the field of view and tilted.
+
+    The centres cycle through a 3 x 3 grid over the central ~90 % of the image (jittered),
+    at depths within the working distance -0.08..+0.06 m, tilted up to 35 degrees.
+    """
     Wr = cfg.world_from_rig()
     aim = Wr[:3, 3] + cfg.distance * Wr[:3, 2]
+    half_x = cfg.distance * np.tan(np.radians(cfg.fov_deg) / 2)
+    half_y = half_x * cfg.height / cfg.width
     out = []
-    for _ in range(n):
-        off = Wr[:3, :3] @ np.array([rng.uniform(-0.04, 0.04), rng.uniform(-0.03, 0.03),
+    for i in range(n):
+        gx, gy = _CAL_GRID[i % len(_CAL_GRID)]
+        off = Wr[:3, :3] @ np.array([(0.45 * gx + rng.uniform(-0.05, 0.05)) * half_x,
+                                     (0.45 * gy + rng.uniform(-0.05, 0.05)) * half_y,
                                      rng.uniform(-0.08, 0.06)])
-        out.append(_board_pose(cfg, aim + off, np.radians(rng.uniform(-30, 30)),
-                               np.radians(rng.uniform(-30, 30)),
-                               np.radians(rng.uniform(-15, 15))))
+        # tilt away from the image border so the board stays readable there
+        tx = np.radians(rng.uniform(-35, 35) if gy == 0 else -gy * rng.uniform(10, 35))
+        ty = np.radians(rng.uniform(-35, 35) if gx == 0 else gx * rng.uniform(10, 35))
+        out.append(_board_pose(cfg, aim + off, tx, ty, np.radians(rng.uniform(-15, 15))))
     return out
 
 
+def axis_board_mount(cfg: RigConfig) -> np.ndarray:
+    """``table_from_target (4, 4)``: the axis board's jig on the platter at stage angle 0
+    (the world frame is the turntable frame: Z on the axis, origin on the platter)."""
+    return _board_pose(cfg, np.array([0.02, 0.01, cfg.aim_height]), np.radians(-10.0),
+                       np.radians(10.0), 0.0)
+
+
 def axis_board_poses(cfg: RigConfig, n: int) -> tuple[list, list]:
-    """A board fixed on the turntable, seen at ``n`` stage angles in [-40, 40] degrees.
+    """A board fixed on the turntable (:func:`axis_board_mount`), seen at ``n`` stage
+    angles in [-40, 40] degrees.
 
     Returns ``(world_from_target list, angles_deg list)``.
     """
-    Wr = cfg.world_from_rig()
-    base = _board_pose(cfg, np.array([0.02, 0.01, cfg.aim_height]), np.radians(-10.0),
-                       np.radians(10.0), 0.0)
+    base = axis_board_mount(cfg)
     angles = np.linspace(-40.0, 40.0, n)
-    del Wr
     return [rot_z(np.radians(a)) @ base for a in angles], [float(a) for a in angles]
 
 

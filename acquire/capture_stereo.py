@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from acquire._rig_render import (
+    axis_board_mount,
     axis_board_poses,
     board_scene,
     calibration_board_poses,
@@ -142,7 +143,10 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
                 {"kind": "stereo", "images": cal_pairs, "cameras": ["left", "right"],
                  "target": rig.target().to_dict()},
                 {"kind": "axis", "images": axis_imgs, "camera": "left",
-                 "stage_angles_deg": angles, "target": rig.target().to_dict()},
+                 "stage_angles_deg": angles, "target": rig.target().to_dict(),
+                 # the board's jig on the platter (stage angle 0): a drawing, not a
+                 # measurement; it fixes the turntable frame's origin and heading
+                 "table_from_target": axis_board_mount(rig).tolist()},
             ],
             "ground_truth": {
                 "cameras": {"left": left.to_dict(), "right": right.to_dict()},

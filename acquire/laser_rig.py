@@ -82,7 +82,7 @@ class LaserRig:
     # calibration plan
     target: dict = field(default_factory=lambda: ChArUcoTarget(
         squares_x=9, squares_y=7, square_length=0.016, marker_length=0.012).to_dict())
-    camera_views: int = 12
+    camera_views: int = 20
     laser_views: int = 4
     axis_views: int = 9
     axis_span_deg: float = 90.0

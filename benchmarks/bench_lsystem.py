@@ -5,7 +5,7 @@ also against its absolute target (20 M symbols/s, 1 M modules/s, 1 M segments/s)
 import numpy as np
 from _timing import best_of, report
 
-from procgen.lsystem import derive, derive_reference, interpret, load_grammar, tube_arrays
+from procgen.lsystem import derive, derive_reference, interpret, load_grammar, to_mesh, tube_arrays
 
 
 def _python_d0l(axiom, rules, n):
@@ -59,6 +59,13 @@ def main():
     m = len(interpret(s, g))
     print(f"   turtle + tubes (8 sides, {m / 1e6:.2f} M segments): {m / tt / 1e6:.2f} M segments/s")
     report("turtle + tube meshing vs 1 M segments/s", m / tt, 1e6, 1.0)
+    # information: the same into the canonical open3d mesh (copies + vertex normals)
+    s7 = derive(g, 7)
+    m7 = len(interpret(s7, g))
+    tm = best_of(lambda: to_mesh(interpret(s7, g), sides=8, leaves=False, colors=False),
+                 repeat=2)
+    print(f"   turtle + tubes + open3d mesh with normals ({m7 / 1e3:.0f} k segments): "
+          f"{m7 / tm / 1e6:.2f} M segments/s")
 
 
 if __name__ == "__main__":

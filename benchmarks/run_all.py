@@ -2,36 +2,35 @@
 against a peer or a bound measured in the same run.
 
 Usage: ``python benchmarks/run_all.py [NAME ...]`` (names without ``bench_``).
+
+Each benchmark runs in a process of its own, so no thread pool, JIT cache or import
+state left by one (OpenMP threads spinning after a TSDF step, say) skews the next.
 """
 
-import importlib.util
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
-import cv2  # noqa: E402,F401
-
 
 def main(argv):
     here = Path(__file__).parent
-    sys.path.insert(0, str(here.parent))
     files = sorted(here.glob("bench_*.py"))
     if argv:
         files = [f for f in files if f.stem.removeprefix("bench_") in argv]
+    env = dict(os.environ)
+    env.setdefault("NUMBA_THREADING_LAYER", "omp")
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(here.parent), env.get("PYTHONPATH"))
+                                        if p)
     failed = 0
     for f in files:
         print(f"== {f.stem}", flush=True)
-        spec = importlib.util.spec_from_file_location(f.stem, f)
-        mod = importlib.util.module_from_spec(spec)
         t = time.perf_counter()
-        try:
-            spec.loader.exec_module(mod)
-            mod.main()
-        except Exception as exc:  # keep going: one broken benchmark must not hide the rest
+        rc = subprocess.call([sys.executable, str(f)], env=env, cwd=here.parent)
+        if rc:  # keep going: one broken benchmark must not hide the rest
             failed += 1
-            print(f"   FAILED: {type(exc).__name__}: {exc}")
+            print(f"   FAILED: exit status {rc}")
         print(f"   ({time.perf_counter() - t:.1f} s)", flush=True)
     return 1 if failed else 0
 

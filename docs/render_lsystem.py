@@ -19,8 +19,9 @@ pv.OFF_SCREEN = True
 
 
 def _poly(v, f):
-    f = np.asarray(f, np.int64)
-    return pv.PolyData(np.asarray(v), np.hstack([np.full((len(f), 1), 3), f]).ravel())
+    from procgen.meshes import make_mesh, to_pyvista  # the one conversion to pyvista
+
+    return to_pyvista(make_mesh(v, f, compute_normals=False))
 
 
 def render_mesh(path, v, f, *, color="tan", view="xz", size=(480, 480), colors=None):

@@ -39,7 +39,6 @@ def execute(path: Path, *, workdir: Path, timeout: int = 600) -> nbformat.Notebo
     env_path = os.environ.get("PYTHONPATH", "")
     os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env_path) if p)
     os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
-    os.environ.setdefault("MPLBACKEND", "Agg")
     try:
         client = NotebookClient(nb, timeout=timeout, kernel_name="python3",
                                 resources={"metadata": {"path": str(workdir)}})

@@ -1,7 +1,8 @@
 """Mesh, point-cloud and image files: the one place that knows these formats.
 
 Meshes: PLY, OBJ, glTF/GLB (``.gltf``/``.glb``), STL, OFF. Point clouds: PLY, PCD, XYZ.
-Images: PNG/JPEG via OpenCV (8- or 16-bit). Every writer is atomic.
+Polylines (curves): OBJ ``l`` records, PLY edges. Images: PNG/JPEG via OpenCV (8- or
+16-bit). Every writer is atomic.
 """
 
 from __future__ import annotations
@@ -17,12 +18,14 @@ from procgen.files import atomic_file
 from procgen.validate import InputError
 
 __all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image", "write_image",
-           "read_geometry", "MESH_SUFFIXES", "POINT_SUFFIXES"]
+           "read_geometry", "write_polylines", "MESH_SUFFIXES", "POINT_SUFFIXES",
+           "POLYLINE_SUFFIXES"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
 # open3d 0.20 writes .glb without its binary chunk (unreadable by open3d and VTK).
 WRITE_SUFFIXES = (".ply", ".obj", ".gltf", ".stl", ".off")
 POINT_SUFFIXES = (".ply", ".pcd", ".xyz", ".xyzn", ".xyzrgb", ".pts")
+POLYLINE_SUFFIXES = (".obj", ".ply")
 
 
 def read_mesh(path: str | os.PathLike):
@@ -69,6 +72,44 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
         os.replace(target, path)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
+    return path
+
+
+def write_polylines(path: str | os.PathLike, polylines) -> Path:
+    """Write curves atomically: OBJ (one ``l`` record per polyline) or ASCII PLY (vertices
+    and ``edge`` elements, which open3d reads as a LineSet).
+
+    Parameters
+    ----------
+    path : path-like
+        ``.obj`` or ``.ply``.
+    polylines : sequence of (k, 3) float64
+        Each with at least 2 points.
+    """
+    from procgen.validate import check_array
+
+    path = Path(path)
+    if path.suffix.lower() not in POLYLINE_SUFFIXES:
+        raise ValueError(f"path: expected a suffix in {POLYLINE_SUFFIXES}, got {path.suffix!r}")
+    lines = [check_array(p, f"polylines[{i}]", shape=(None, 3), min_rows=2)
+             for i, p in enumerate(polylines)]
+    pts = np.vstack(lines) if lines else np.empty((0, 3))
+    starts = np.cumsum([0] + [len(p) for p in lines])
+    with atomic_file(path) as tmp, open(tmp, "w") as fh:
+        if path.suffix.lower() == ".obj":
+            fh.write("# polylines written by scanamp\n")
+            np.savetxt(fh, pts, fmt="v %.9g %.9g %.9g")
+            for a, b in zip(starts[:-1], starts[1:], strict=True):
+                fh.write("l " + " ".join(str(i + 1) for i in range(a, b)) + "\n")
+        else:
+            edges = np.concatenate([np.stack([np.arange(a, b - 1), np.arange(a + 1, b)], -1)
+                                    for a, b in zip(starts[:-1], starts[1:], strict=True)]
+                                   ) if lines else np.empty((0, 2), np.int64)
+            fh.write(f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty double x\n"
+                     f"property double y\nproperty double z\nelement edge {len(edges)}\n"
+                     "property int vertex1\nproperty int vertex2\nend_header\n")
+            np.savetxt(fh, pts, fmt="%.9g %.9g %.9g")
+            np.savetxt(fh, edges, fmt="%d %d")
     return path
 
 

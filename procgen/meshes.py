@@ -58,13 +58,17 @@ def make_mesh(
     """
     o3d = _o3d()
     v = check_array(vertices, "vertices", shape=(None, 3))
-    f = check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
-    if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise ValueError(
-            f"triangles: expected indices in [0, {len(v)}), got [{f.min()}, {f.max()}]")
+    f = np.asarray(triangles)
+    # int32 (what open3d stores) passes through without a copy; other integers convert
+    f = check_array(f, "triangles", shape=(None, 3),
+                    dtype=np.int32 if f.dtype == np.int32 else np.int64)
+    if f.size:
+        lo, hi = int(f.min()), int(f.max())
+        if lo < 0 or hi >= len(v):
+            raise ValueError(f"triangles: expected indices in [0, {len(v)}), got [{lo}, {hi}]")
     mesh = o3d.geometry.TriangleMesh(
         o3d.utility.Vector3dVector(np.ascontiguousarray(v)),
-        o3d.utility.Vector3iVector(np.ascontiguousarray(f.astype(np.int32))),
+        o3d.utility.Vector3iVector(np.ascontiguousarray(f, dtype=np.int32)),
     )
     if vertex_normals is not None:
         n = check_array(vertex_normals, "vertex_normals", shape=(len(v), 3))

@@ -270,101 +270,134 @@ def revolve(profile: np.ndarray, *, segments: int = 64, angle: float = 2 * np.pi
 
 
 @numba.njit(cache=True)
-def _tubes(p0, p1, frames, r0, r1, parent, sides, caps):
-    m = len(p0)
+def _tube_layout(parent):
+    """Continuations, own start rings and output sizes of :func:`segment_tubes`."""
+    m = len(parent)
     cont = np.full(m, -1, np.int64)
     for i in range(m):
         if parent[i] >= 0:
             cont[parent[i]] = i  # the last child continues the tube (the main axis)
     own_start = np.empty(m, np.int64)
     n_own = 0
+    n_end_caps = 0
     for i in range(m):
         if parent[i] >= 0 and cont[parent[i]] == i:
             own_start[i] = -1
         else:
             own_start[i] = m + n_own
             n_own += 1
-    n_end_caps = 0
-    for i in range(m):
         if cont[i] < 0:
             n_end_caps += 1
+    return cont, own_start, n_own, n_end_caps
+
+
+@numba.njit(cache=True, fastmath=True)
+def _tube_fill(p0, p1, frames, r0, r1, parent, cont, own_start, sides, caps, nrings,
+               verts, tris):
+    """Write rings, caps and triangles into ``verts`` and ``tris`` (allocated by numpy,
+    which asks the kernel for huge pages: first-touch page faults were most of the cost)."""
+    m = len(p0)
+    V = verts.reshape(-1)
+    T = tris.reshape(-1)
+    cs = np.empty(sides)
+    sn = np.empty(sides)
+    for j in range(sides):
+        cs[j] = np.cos(2 * np.pi * j / sides)
+        sn[j] = np.sin(2 * np.pi * j / sides)
+    q_t = 0
+    cv = nrings * sides
+    for i in range(m):
+        hx, hy, hz = frames[i, 0, 0], frames[i, 0, 1], frames[i, 0, 2]
+        lx, ly, lz = frames[i, 1, 0], frames[i, 1, 1], frames[i, 1, 2]
+        # end ring of segment i: in the bisector plane with its continuation
+        dx, dy, dz = hx, hy, hz
+        c = cont[i]
+        if c >= 0:
+            dx += frames[c, 0, 0]
+            dy += frames[c, 0, 1]
+            dz += frames[c, 0, 2]
+            nd = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if nd < 1e-9:
+                dx, dy, dz = hx, hy, hz
+            else:
+                dx /= nd
+                dy /= nd
+                dz /= nd
+        dl = dx * lx + dy * ly + dz * lz
+        ax, ay, az = lx - dl * dx, ly - dl * dy, lz - dl * dz
+        na = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
+        ax *= na
+        ay *= na
+        az *= na
+        bx = dy * az - dz * ay
+        by = dz * ax - dx * az
+        bz = dx * ay - dy * ax
+        ex, ey, ez = p1[i, 0], p1[i, 1], p1[i, 2]
+        _ring(V, 3 * i * sides, ex, ey, ez, r1[i], ax, ay, az, bx, by, bz, cs, sn)
+        s_ring = own_start[i]
+        if s_ring >= 0:
+            _ring(V, 3 * s_ring * sides, p0[i, 0], p0[i, 1], p0[i, 2], r0[i], lx, ly, lz,
+                  frames[i, 2, 0], frames[i, 2, 1], frames[i, 2, 2], cs, sn)
+            sa = s_ring * sides
+        else:
+            sa = parent[i] * sides
+        eb = i * sides
+        for j in range(sides):
+            j1 = j + 1 if j + 1 < sides else 0
+            T[q_t] = sa + j
+            T[q_t + 1] = sa + j1
+            T[q_t + 2] = eb + j1
+            T[q_t + 3] = sa + j
+            T[q_t + 4] = eb + j1
+            T[q_t + 5] = eb + j
+            q_t += 6
+        if caps and s_ring >= 0:
+            q_t = _cap(V, T, q_t, cv, p0[i, 0], p0[i, 1], p0[i, 2], sa, sides, True)
+            cv += 1
+        if caps and c < 0:
+            q_t = _cap(V, T, q_t, cv, ex, ey, ez, eb, sides, False)
+            cv += 1
+
+
+@numba.njit(inline="always", cache=True)
+def _ring(V, q, x, y, z, r, ax, ay, az, bx, by, bz, cs, sn):
+    """Ring of ``len(cs)`` vertices at ``V[q:]``: centre (x, y, z), radius r, axes a and b."""
+    for j in range(len(cs)):
+        u = r * cs[j]
+        w = r * sn[j]
+        V[q] = x + u * ax + w * bx
+        V[q + 1] = y + u * ay + w * by
+        V[q + 2] = z + u * az + w * bz
+        q += 3
+
+
+@numba.njit(inline="always", cache=True)
+def _cap(V, T, q_t, cv, x, y, z, ring, sides, start):
+    """A fan closing ``ring`` around the centre vertex ``cv`` (facing back at a start)."""
+    V[3 * cv] = x
+    V[3 * cv + 1] = y
+    V[3 * cv + 2] = z
+    for j in range(sides):
+        j1 = j + 1 if j + 1 < sides else 0
+        T[q_t] = cv
+        T[q_t + 1] = ring + (j1 if start else j)
+        T[q_t + 2] = ring + (j if start else j1)
+        q_t += 3
+    return q_t
+
+
+def _tubes(p0, p1, frames, r0, r1, parent, sides, caps):
+    cont, own_start, n_own, n_end_caps = _tube_layout(parent)
+    m = len(p0)
     n_caps = (n_own + n_end_caps) if caps else 0
     nrings = m + n_own
     verts = np.empty((nrings * sides + n_caps, 3))
     tris = np.empty((m * 2 * sides + n_caps * sides, 3), np.int32)
-    cs = np.cos(2 * np.pi * np.arange(sides) / sides)
-    sn = np.sin(2 * np.pi * np.arange(sides) / sides)
-    a = np.empty(3)
-    b = np.empty(3)
-    d = np.empty(3)
-    for i in range(m):
-        # end ring of segment i: in the bisector plane with its continuation
-        for t in range(3):
-            d[t] = frames[i, 0, t]
-        c = cont[i]
-        if c >= 0:
-            for t in range(3):
-                d[t] += frames[c, 0, t]
-            nd = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
-            if nd < 1e-9:
-                for t in range(3):
-                    d[t] = frames[i, 0, t]
-            else:
-                for t in range(3):
-                    d[t] /= nd
-        dl = d[0] * frames[i, 1, 0] + d[1] * frames[i, 1, 1] + d[2] * frames[i, 1, 2]
-        for t in range(3):
-            a[t] = frames[i, 1, t] - dl * d[t]
-        na = np.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
-        for t in range(3):
-            a[t] /= na
-        b[0] = d[1] * a[2] - d[2] * a[1]
-        b[1] = d[2] * a[0] - d[0] * a[2]
-        b[2] = d[0] * a[1] - d[1] * a[0]
-        base = i * sides
-        for j in range(sides):
-            for t in range(3):
-                verts[base + j, t] = p1[i, t] + r1[i] * (cs[j] * a[t] + sn[j] * b[t])
-        s_ring = own_start[i]
-        if s_ring >= 0:
-            base = s_ring * sides
-            for j in range(sides):
-                for t in range(3):
-                    verts[base + j, t] = p0[i, t] + r0[i] * (
-                        cs[j] * frames[i, 1, t] + sn[j] * frames[i, 2, t])
-    k = 0
-    cv = nrings * sides
-    for i in range(m):
-        s_ring = own_start[i] if own_start[i] >= 0 else parent[i]
-        sa = s_ring * sides
-        eb = i * sides
-        for j in range(sides):
-            j1 = (j + 1) % sides
-            tris[k, 0] = sa + j
-            tris[k, 1] = sa + j1
-            tris[k, 2] = eb + j1
-            tris[k + 1, 0] = sa + j
-            tris[k + 1, 1] = eb + j1
-            tris[k + 1, 2] = eb + j
-            k += 2
-        if caps and own_start[i] >= 0:
-            for t in range(3):
-                verts[cv, t] = p0[i, t]
-            for j in range(sides):
-                tris[k, 0] = cv
-                tris[k, 1] = sa + (j + 1) % sides
-                tris[k, 2] = sa + j
-                k += 1
-            cv += 1
-        if caps and cont[i] < 0:
-            for t in range(3):
-                verts[cv, t] = p1[i, t]
-            for j in range(sides):
-                tris[k, 0] = cv
-                tris[k, 1] = eb + j
-                tris[k, 2] = eb + (j + 1) % sides
-                k += 1
-            cv += 1
+    if np.iinfo(np.int32).max < len(verts):
+        raise ValueError(f"starts: {m} segments need {len(verts):,} vertices, more than int32 "
+                         "triangle indices address; use fewer sides or segments")
+    _tube_fill(p0, p1, frames, r0, r1, parent, cont, own_start, sides, caps, nrings,
+               verts, tris)
     return verts, tris
 
 

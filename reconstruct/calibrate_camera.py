@@ -24,7 +24,8 @@ from acquire.camera import Camera
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CameraCalibration", "calibrate_camera", "detect_target", "board_pose"]
+__all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "detect_target",
+           "board_pose", "bootstrap_cameras"]
 
 _DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
 
@@ -47,6 +48,13 @@ class CameraCalibration:
         The board's pose in each used view.
     rejected_views : list of int
         Views where the target was not detected (too few corners).
+    std_intrinsics : (9,) float64
+        OpenCV's standard deviations of ``fx, fy, cx, cy, k1, k2, p1, p2, k3`` (from the
+        residuals and the Jacobian; 0 for fixed parameters).
+    object_points, image_points : list of (k, 3) / (k, 2) float64
+        The corners used, per used view (for :func:`bootstrap_cameras`).
+    flags : int
+        The ``cv2.calibrateCamera`` flags used.
     """
 
     camera: Camera
@@ -55,12 +63,20 @@ class CameraCalibration:
     used_views: list
     cam_from_target: list
     rejected_views: list = field(default_factory=list)
+    std_intrinsics: np.ndarray = None
+    object_points: list = None
+    image_points: list = None
+    flags: int = 0
 
     def to_dict(self) -> dict:
-        return {"camera": self.camera.to_dict(), "rms_px": float(self.rms),
-                "per_view_rms_px": [float(e) for e in self.per_view_errors],
-                "used_views": list(self.used_views),
-                "rejected_views": list(self.rejected_views)}
+        d = {"camera": self.camera.to_dict(), "rms_px": float(self.rms),
+             "per_view_rms_px": [float(e) for e in self.per_view_errors],
+             "used_views": list(self.used_views),
+             "rejected_views": list(self.rejected_views)}
+        if self.std_intrinsics is not None:
+            d["std_intrinsics"] = dict(zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2",
+                                            "k3"), map(float, self.std_intrinsics), strict=True))
+        return d
 
 
 def detect_target(image: np.ndarray, target) -> tuple[np.ndarray, np.ndarray] | None:
@@ -128,7 +144,6 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
     RuntimeError
         Too few views with a detected target.
     """
-    import cv2
 
     from procgen.validate import check_choice
 
@@ -154,6 +169,62 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
         bad = ", ".join(names[i] for i in rejected[:6]) + (" ..." if len(rejected) > 6 else "")
         raise RuntimeError(f"camera calibration: the target was detected in {len(used)} of "
                            f"{len(images)} views, need {min_views} (not detected: {bad})")
+    if rejected:
+        log.warning("camera calibration: target not detected in %s",
+                    ", ".join(names[i] for i in rejected))
+    cal = calibrate_camera_points(obj, img, (w, h), dist_model=dist_model, min_views=1)
+    cal.used_views, cal.rejected_views = used, rejected
+    return cal
+
+
+def calibrate_camera_points(object_points, image_points, image_size, *,
+                            dist_model: str = "k1k2p1p2", min_views: int = 3,
+                            name: str = "camera") -> CameraCalibration:
+    """Calibrate a camera (or a projector, as an inverse camera) from corner correspondences.
+
+    The point-level core of :func:`calibrate_camera`, for callers that found the
+    correspondences themselves (a stereo pair's board detections, a projector's decoded
+    coordinates at the board corners).
+
+    Parameters
+    ----------
+    object_points : list of (k_i, 3) float
+        Target corners in the target frame, per view.
+    image_points : list of (k_i, 2) float
+        Their pixels in this device, per view.
+    image_size : (int, int)
+        ``(width, height)`` of the device's images.
+    dist_model : {'k1k2', 'k1k2p1p2', 'full'}
+        As for :func:`calibrate_camera`.
+    min_views : int
+        Views needed, else ValueError.
+    name : str
+        Names the device in error messages.
+
+    Returns
+    -------
+    CameraCalibration
+        ``used_views`` are all the given views.
+
+    Raises
+    ------
+    ValueError
+        Fewer than ``min_views`` views, or mismatched lists.
+    """
+    import cv2
+
+    from procgen.validate import check_choice
+
+    check_choice(dist_model, "dist_model", _DIST_MODELS)
+    if len(object_points) != len(image_points):
+        raise ValueError(f"{name}: image_points: expected one array per view "
+                         f"({len(object_points)}), got {len(image_points)}")
+    if len(object_points) < max(int(min_views), 1):
+        raise ValueError(f"{name}: expected the target in at least {min_views} views, got "
+                         f"{len(object_points)}")
+    w, h = (int(v) for v in image_size)
+    obj = [np.asarray(o, np.float32).reshape(-1, 3) for o in object_points]
+    img = [np.asarray(p, np.float32).reshape(-1, 1, 2) for p in image_points]
     flags = cv2.CALIB_FIX_K3
     if dist_model == "k1k2":
         flags |= cv2.CALIB_ZERO_TANGENT_DIST
@@ -163,13 +234,60 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
     f0 = 0.5 * w / np.tan(np.radians(25))
     K0 = np.array([[f0, 0, (w - 1) / 2], [0, f0, (h - 1) / 2], [0, 0, 1]])
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    rms, K, dist, rvecs, tvecs, _, _, per_view = cv2.calibrateCameraExtended(
+    rms, K, dist, rvecs, tvecs, std_in, _, per_view = cv2.calibrateCameraExtended(
         obj, img, (w, h), K0, np.zeros(5), flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS,
         criteria=crit)
     cam = Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist.ravel()[:5])
     poses = [_rt_to_T(r, t) for r, t in zip(rvecs, tvecs, strict=True)]
-    if rejected:
-        log.warning("camera calibration: target not detected in %s",
-                    ", ".join(names[i] for i in rejected))
-    return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(), used, poses,
-                             rejected)
+    return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(),
+                             list(range(len(obj))), poses, [],
+                             np.asarray(std_in, float).ravel()[:9],
+                             [o.astype(np.float64) for o in obj],
+                             [i.reshape(-1, 2).astype(np.float64) for i in img], int(flags))
+
+
+def bootstrap_cameras(cal: CameraCalibration, rng: np.random.Generator, *,
+                      draws: int = 32) -> list[Camera]:
+    """Cameras recalibrated from the same corners plus fresh corner noise (a parametric
+    bootstrap of the calibration).
+
+    Each draw adds Gaussian noise of the calibration's own residual level (per-coordinate
+    sigma ``rms / sqrt(2)``, the noise OpenCV's ``stdDeviationsIntrinsics`` assumes) to the
+    detected corners and recalibrates. The spread of the returned cameras is the
+    intrinsics' uncertainty with all its correlations (principal point with tangential
+    distortion, focal length with k1), which per-parameter standard deviations lose.
+
+    Parameters
+    ----------
+    cal : CameraCalibration
+        From :func:`calibrate_camera`.
+    rng : numpy.random.Generator
+    draws : int
+        Number of recalibrations.
+
+    Returns
+    -------
+    list of Camera
+        ``draws`` cameras (identity pose).
+    """
+    import cv2
+
+    if cal.object_points is None or cal.image_points is None:
+        raise ValueError("cal: expected a calibration that kept its corners "
+                         "(from calibrate_camera)")
+    if isinstance(draws, bool) or int(draws) != draws or draws < 1:
+        raise ValueError(f"draws: expected a positive integer, got {draws!r}")
+    c = cal.camera
+    sigma = cal.rms / np.sqrt(2.0)
+    obj = [o.astype(np.float32) for o in cal.object_points]
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-10)
+    out = []
+    for _ in range(int(draws)):
+        img = [(p + rng.normal(0.0, sigma, p.shape)).astype(np.float32).reshape(-1, 1, 2)
+               for p in cal.image_points]
+        _, K, dist, *_ = cv2.calibrateCamera(
+            obj, img, (c.width, c.height), c.K.copy(), c.dist.copy(),
+            flags=cal.flags | cv2.CALIB_USE_INTRINSIC_GUESS, criteria=crit)
+        out.append(Camera(c.width, c.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2],
+                          dist.ravel()[:5]))
+    return out

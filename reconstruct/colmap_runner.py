@@ -28,6 +28,7 @@ import cv2  # noqa: F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imw
 import numpy as np
 
 from acquire.camera import Camera
+from procgen.progress import track
 from procgen.validate import check_choice
 
 __all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "colmap_params_from_camera",
@@ -155,6 +156,16 @@ def _write_position_priors(database: Path, priors: Mapping[str, Sequence[float]]
         db.close()
 
 
+def _num_pose_priors(database: Path) -> int:
+    import pycolmap
+
+    db = pycolmap.Database.open(str(database))
+    try:
+        return db.num_pose_priors()
+    finally:
+        db.close()
+
+
 def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str | Path, *,
                options: ColmapOptions | None = None,
                position_priors: Mapping[str, Sequence[float]] | None = None,
@@ -171,31 +182,35 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
         Existing folder; receives ``database.db`` and the mapper's ``sparse/`` models.
     options : ColmapOptions
     position_priors : mapping name -> (3,) float, optional
-        Camera-centre priors (GPS-like) used by the spatial matcher.
+        Camera-centre priors (GPS-like) for the spatial matcher, added to those COLMAP
+        reads from EXIF GPS tags.
     prior_sigma : float
         Standard deviation of the priors, in their units.
     verbose : bool
-        Let COLMAP log at INFO level (default: warnings only).
+        Let COLMAP log at INFO level (default: errors only).
 
     Returns
     -------
     ColmapResult
+
+    Raises
+    ------
+    ValueError
+        ``matcher='spatial'`` and no image has a position prior.
     """
     import pycolmap
 
     opt = options or ColmapOptions()
-    if opt.matcher == "spatial" and not position_priors:
-        raise ValueError("matcher: 'spatial' needs camera position priors (GPS or rig); "
-                         "use 'exhaustive' or 'sequential'")
     work_dir = Path(work_dir)
     database = work_dir / "database.db"
     database.unlink(missing_ok=True)
     sparse = work_dir / "sparse"
     sparse.mkdir(parents=True, exist_ok=True)
     pycolmap.set_random_seed(int(opt.seed))
-    timings = {}
-    with _quiet_colmap(0 if verbose else 1):
-        t = time.perf_counter()
+    seed = int(opt.seed)
+    cpu = pycolmap.Device.cpu
+
+    def extract():
         reader = pycolmap.ImageReaderOptions()
         reader.camera_model = opt.camera_model
         if opt.camera_params is not None:
@@ -205,20 +220,22 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
         extraction.sift.max_num_features = opt.max_features
         pycolmap.extract_features(str(database), str(image_dir), image_names=list(image_names),
                                   camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+                                  extraction_options=extraction, device=cpu)
         if position_priors:
             _write_position_priors(database, position_priors, prior_sigma)
-        timings["extract"] = time.perf_counter() - t
+        if opt.matcher == "spatial" and _num_pose_priors(database) == 0:
+            raise ValueError("matcher: 'spatial' needs camera position priors (EXIF GPS or a "
+                             "rig), and none of the images has one; use 'exhaustive' or "
+                             "'sequential'")
 
-        t = time.perf_counter()
+    def match():
         matching = pycolmap.FeatureMatchingOptions()
         matching.num_threads = opt.num_threads
         verification = pycolmap.TwoViewGeometryOptions()
-        verification.ransac.random_seed = int(opt.seed)
+        verification.ransac.random_seed = seed
         if opt.matcher == "exhaustive":
             pycolmap.match_exhaustive(str(database), matching_options=matching,
-                                      verification_options=verification,
-                                      device=pycolmap.Device.cpu)
+                                      verification_options=verification, device=cpu)
         elif opt.matcher == "sequential":
             pairing = pycolmap.SequentialPairingOptions()
             pairing.overlap = opt.sequential_overlap
@@ -226,7 +243,7 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
             pairing.num_threads = opt.num_threads
             pycolmap.match_sequential(str(database), matching_options=matching,
                                       pairing_options=pairing, verification_options=verification,
-                                      device=pycolmap.Device.cpu)
+                                      device=cpu)
         else:
             pairing = pycolmap.SpatialPairingOptions()
             pairing.ignore_z = False
@@ -235,31 +252,40 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
             pairing.num_threads = opt.num_threads
             pycolmap.match_spatial(str(database), matching_options=matching,
                                    pairing_options=pairing, verification_options=verification,
-                                   device=pycolmap.Device.cpu)
-        timings["match"] = time.perf_counter() - t
+                                   device=cpu)
 
-        t = time.perf_counter()
+    def mapping():
         if opt.mapper == "incremental":
             mopt = pycolmap.IncrementalPipelineOptions()
             mopt.num_threads = opt.num_threads
-            mopt.random_seed = int(opt.seed)
-            mopt.mapper.random_seed = int(opt.seed)
+            mopt.random_seed = seed
+            mopt.mapper.random_seed = seed
             mopt.mapper.num_threads = opt.num_threads
-            models = pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
-                                                  options=mopt)
-        else:
-            mopt = pycolmap.GlobalPipelineOptions()
-            mopt.num_threads = opt.num_threads
-            mopt.random_seed = int(opt.seed)
-            mopt.mapper.num_threads = opt.num_threads
-            mopt.mapper.random_seed = int(opt.seed)
-            mopt.mapper.rotation_averaging.random_seed = int(opt.seed)
-            mopt.mapper.global_positioning.random_seed = int(opt.seed)
-            mopt.mapper.global_positioning.use_gpu = False
-            mopt.mapper.bundle_adjustment.ceres.use_gpu = False
-            models = pycolmap.global_mapping(str(database), str(image_dir), str(sparse),
-                                             options=mopt)
-        timings["map"] = time.perf_counter() - t
+            return pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
+                                                options=mopt)
+        mopt = pycolmap.GlobalPipelineOptions()
+        mopt.num_threads = opt.num_threads
+        mopt.random_seed = seed
+        mopt.mapper.num_threads = opt.num_threads
+        mopt.mapper.random_seed = seed
+        mopt.mapper.rotation_averaging.random_seed = seed
+        mopt.mapper.global_positioning.random_seed = seed
+        mopt.mapper.global_positioning.use_gpu = False
+        mopt.mapper.bundle_adjustment.ceres.use_gpu = False
+        return pycolmap.global_mapping(str(database), str(image_dir), str(sparse), options=mopt)
+
+    timings, models = {}, {}
+    # glog: INFO when verbose, else errors only (its warnings, e.g. about SIFT threads
+    # and RAM, are advice for GPU boxes and would garble the CLI's one-line output)
+    with _quiet_colmap(0 if verbose else 2):
+        stages = (("extract", extract), ("match", match), ("map", mapping))
+        for name, fn in track(stages, "sparse SfM (pycolmap: extract, match, map)",
+                              total=len(stages)):
+            t = time.perf_counter()
+            out = fn()
+            timings[name] = time.perf_counter() - t
+            if name == "map":
+                models = out or {}
     best = None
     if models:
         best = max(models.values(), key=lambda r: (r.num_reg_images(), r.num_points3D()))

@@ -65,8 +65,11 @@ def disparity_metrics(disparity: np.ndarray, gt: np.ndarray, *, mask: np.ndarray
     Returns
     -------
     dict
-        ``"bad1.0"``, ``"bad2.0"`` (percent), ``"avgerr"`` (pixels), ``"invalid"``
-        (percent of evaluated pixels without an estimate), ``"n_pixels"``.
+        ``"bad1.0"``, ``"bad2.0"`` (percent, dense: a missing estimate is bad),
+        ``"avgerr"`` (pixels), ``"invalid"`` (percent of evaluated pixels without an
+        estimate) and ``"density"`` (100 - invalid), ``"bad1.0_sparse"``,
+        ``"bad2.0_sparse"`` (percent of the estimated pixels only, for reference),
+        ``"n_pixels"``.
 
     Raises
     ------
@@ -88,11 +91,14 @@ def disparity_metrics(disparity: np.ndarray, gt: np.ndarray, *, mask: np.ndarray
     filled = np.abs(_fill_scanlines(d) - g)
     filled = np.where(np.isfinite(filled), filled, np.abs(np.nanmedian(d) - g))
     out = {}
+    nv = max(int(valid.sum()), 1)
     for t in thresholds:
         bad = (~valid & sel) | (valid & (err > t))
         out[f"bad{float(t):.1f}"] = float(100.0 * bad[sel].sum() / n)
+        out[f"bad{float(t):.1f}_sparse"] = float(100.0 * (valid & (err > t)).sum() / nv)
     out["avgerr"] = float(np.where(valid, err, filled)[sel].mean())
     out["invalid"] = float(100.0 * (~valid & sel).sum() / n)
+    out["density"] = 100.0 - out["invalid"]
     out["n_pixels"] = n
     return out
 

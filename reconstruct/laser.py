@@ -28,7 +28,12 @@ from procgen.files import atomic_dir, write_json
 from procgen.progress import track
 from procgen.validate import InputError, check_choice
 from reconstruct.calibrate_camera import calibrate_camera
-from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
+from reconstruct.error_model import (
+    PeakErrorAccumulator,
+    closed_form_sigma_z,
+    depth_sigma,
+    estimate_peak_sigma,
+)
 from reconstruct.laser_calib import (
     calibrate_laser_plane,
     calibrate_stage,
@@ -58,23 +63,44 @@ class LaserReconConfig:
     dist_model : str          distortion estimated by the camera calibration
     meshing : MeshingOptions  Poisson depth, density trimming, outliers
     max_range : float         drop points farther than this from the axis (m; 0 = off)
+    speckle : float           the laser's speckle contrast as known on the bench (feeds
+                              the error model only)
+    max_camera_rms_px, max_plane_rms_m, max_axis_rms_px : float
+                              sanity limits of the calibrations: beyond them the
+                              reconstruction stops with a RuntimeError naming the views
+    min_stripe_fraction : float
+                              frames whose stripe has fewer points than this fraction of
+                              the median frame are named in the report's warnings
     evaluate : bool           score against the capture's ground truth when present
     tau : float               F-score threshold in metres
+    calibration_draws : int   Monte Carlo recalibrations propagating the camera
+                              intrinsics' uncertainty into depth (0 = off)
+    seed : int                seeds those draws (same seed -> same report)
     """
 
     detector: str = DEFAULT_DETECTOR
-    threshold: float = 20.0
-    min_contrast: float = 12.0
+    threshold: float = 8.0
+    min_contrast: float = 6.0
     max_width: float = 12.0
     dist_model: str = "k1k2"
     meshing: MeshingOptions = field(default_factory=lambda: MeshingOptions(
         depth=9, density_quantile=0.03, trim_distance=0.002))
     max_range: float = 0.0
+    speckle: float = 0.0
+    max_camera_rms_px: float = 1.0
+    max_plane_rms_m: float = 0.5e-3
+    max_axis_rms_px: float = 2.0
+    min_stripe_fraction: float = 0.2
     evaluate: bool = True
     tau: float = 0.0005
+    calibration_draws: int = 32
+    seed: int = 0
 
     def __post_init__(self):
         check_choice(self.detector, "detector", DETECTORS)
+        d = self.calibration_draws
+        if isinstance(d, bool) or int(d) != d or d < 0:
+            raise ValueError(f"calibration_draws: expected an integer >= 0, got {d!r}")
 
     def stripe_options(self, bit_depth: int = 8) -> StripeOptions:
         k = 1.0 if bit_depth == 8 else 257.0
@@ -151,6 +177,9 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     cam_cal = calibrate_camera([_read(cap.path(p)) for p in cc["images"]], target,
                                dist_model=cfg.dist_model, names=cc["images"])
     cam = cam_cal.camera
+    _check_calibration("camera calibration", cam_cal.rms, cfg.max_camera_rms_px, "px",
+                       cam_cal.per_view_errors, [cc["images"][i] for i in cam_cal.used_views],
+                       warnings)
     if cam_cal.rejected_views:
         warnings.append("camera calibration: target not detected in "
                         + ", ".join(cc["images"][i] for i in cam_cal.rejected_views))
@@ -170,6 +199,18 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     plane_cal = calibrate_laser_plane(cam, pairs, _target(lc, jpath, li), stripe=sopt,
                                       names=pnames)
     plane = plane_cal.plane
+    _check_calibration("laser-plane calibration", plane_cal.rms, cfg.max_plane_rms_m, "m",
+                       np.asarray(plane_cal.per_view_rms),
+                       [pnames[i] for i in plane_cal.used_views], warnings)
+    if plane_cal.rejected_views:
+        warnings.append("laser-plane calibration: board or stripe not found in "
+                        + ", ".join(pnames[i] for i in plane_cal.rejected_views))
+    angle = np.degrees(np.arcsin(min(abs(plane[2]), 1.0)))  # optical axis vs the plane
+    if angle < 3.0:
+        raise RuntimeError(f"laser-plane calibration: the fitted plane is {angle:.1f} deg from "
+                           "the camera's optical axis (it nearly contains the camera): no "
+                           "triangulation is possible; check the laser-plane captures "
+                           + ", ".join(pnames))
     timings["laser_calibration_s"] = time.perf_counter() - t
     # -- axis / stage -----------------------------------------------------------------------
     t = time.perf_counter()
@@ -183,12 +224,20 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
         axis_cal = calibrate_stage(cam, [_read(cap.path(p)) for p in ac["images"]],
                                    _readings(ac, "positions_m", jpath, ai),
                                    _target(ac, jpath, ai), names=ac["images"])
+    _check_calibration(f"{'axis' if motion == 'turntable' else 'stage'} calibration",
+                       axis_cal.rms_px, cfg.max_axis_rms_px, "px", None, None, warnings)
+    if axis_cal.rejected_views:
+        warnings.append(f"{'axis' if motion == 'turntable' else 'stage'} calibration: "
+                        "target not detected in "
+                        + ", ".join(ac["images"][i] for i in axis_cal.rejected_views))
     timings["axis_calibration_s"] = time.perf_counter() - t
     # -- stripes ----------------------------------------------------------------------------
     t = time.perf_counter()
     W, H = cam.width, cam.height
     cols = np.full((len(frames), H), np.nan)
     n_sat = np.zeros(len(frames), int)
+    peak_model = PeakErrorAccumulator(cap.data.get("sensor") or _DEFAULT_SENSOR, sopt,
+                                      speckle=cfg.speckle)
     for k, fr in enumerate(track(frames, "stripe extraction")):
         img = _read(cap.path(fr["image"]), channel)
         if img.shape[:2] != (H, W):
@@ -196,6 +245,7 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
                              f"images are {W}x{H}", path=jpath, field=f"frames[{k}].image")
         c, s = extract_frames([img], sopt)
         cols[k], n_sat[k] = c[0], s[0]
+        peak_model.add(img, cols[k])
     timings["stripe_extraction_s"] = time.perf_counter() - t
     per_frame = np.count_nonzero(np.isfinite(cols), axis=1)
     empty = [frames[k]["image"] for k in np.flatnonzero(per_frame == 0)]
@@ -205,6 +255,13 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     if empty:
         warnings.append(f"no stripe in {len(empty)} frames: " + ", ".join(empty[:20])
                         + (" ..." if len(empty) > 20 else ""))
+    med = float(np.median(per_frame))
+    sparse = [frames[k]["image"] for k in np.flatnonzero(
+        (per_frame > 0) & (per_frame < cfg.min_stripe_fraction * med))]
+    if sparse:
+        warnings.append(f"stripe covers fewer than {cfg.min_stripe_fraction:.0%} of the median "
+                        f"frame's {med:.0f} rows in {len(sparse)} frames: "
+                        + ", ".join(sparse[:20]) + (" ..." if len(sparse) > 20 else ""))
     saturated = [frames[k]["image"] for k in np.flatnonzero(n_sat > 0.5 * np.maximum(
         per_frame, 1)) if per_frame[k] > 0]
     if saturated:
@@ -214,10 +271,16 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     t = time.perf_counter()
     kk, rr = np.nonzero(np.isfinite(cols))
     uu = cols[kk, rr]
+    sig_total, sig_noise, sig_tex = peak_model.sigma_peak()
+    sp = sig_total[kk, rr]
     px = np.stack([uu, rr.astype(float)], axis=1)
     pc = intersect_rays_plane(pixel_rays(cam, px), plane)
     good = np.all(np.isfinite(pc), axis=1) & (pc[:, 2] > 0)
-    kk, rr, uu, px, pc = kk[good], rr[good], uu[good], px[good], pc[good]
+    if good.mean() < 0.5:
+        raise RuntimeError(f"triangulation: {np.count_nonzero(~good)} of {len(good)} stripe "
+                           "points fall behind the camera or parallel to the laser plane: the "
+                           "laser-plane calibration does not match the scan")
+    kk, rr, uu, px, pc, sp = kk[good], rr[good], uu[good], px[good], pc[good], sp[good]
     obj_from_cam = _object_frame(axis_cal, motion, cam)
     P = np.empty_like(pc)
     V = np.empty_like(pc)
@@ -234,16 +297,26 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
         V[sel] = T[:3, 3]  # the camera centre seen from the object at that reading
     if cfg.max_range > 0 and motion == "turntable":
         keep = np.linalg.norm(P[:, :2], axis=1) < cfg.max_range
-        P, V, kk, rr, uu, px, pc = (a[keep] for a in (P, V, kk, rr, uu, px, pc))
+        P, V, kk, rr, uu, px, pc, sp = (a[keep] for a in (P, V, kk, rr, uu, px, pc, sp))
     timings["triangulation_s"] = time.perf_counter() - t
     # -- meshing ----------------------------------------------------------------------------
     t = time.perf_counter()
     m = points_to_mesh(P, V, cfg.meshing)
     mesh = m["mesh"]
     timings["meshing_s"] = time.perf_counter() - t
-    sigma_peak = estimate_peak_sigma(cols)
-    sz = depth_sigma(cam, plane, px, sigma_peak)
+    sigma_peak_jitter = estimate_peak_sigma(cols)
+    sp = np.where(np.isfinite(sp), sp, np.nanmedian(sp) if np.isfinite(sp).any() else 0.0)
+    sigma_peak = float(np.sqrt(np.mean(sp ** 2))) if len(sp) else float("nan")
+    sz_peak = depth_sigma(cam, plane, px, sp)
+    sz_plane = _plane_depth_sigma(cam, plane_cal, px)
+    t = time.perf_counter()
+    sz_intr = _intrinsics_depth_sigma(cam_cal, plane_cal, px, cfg.calibration_draws,
+                                      np.random.default_rng(cfg.seed))
+    timings["calibration_propagation_s"] = time.perf_counter() - t
+    sz_cal = np.sqrt(sz_plane ** 2 + sz_intr ** 2)
+    sz = np.sqrt(sz_peak ** 2 + sz_cal ** 2)
     tri_angle = _triangulation_angle(plane, pc)
+    fin = np.isfinite(sig_noise)
     report = {
         "kind": "laser",
         "capture": str(cap.root),
@@ -256,6 +329,18 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
                         "object_from_camera": obj_from_cam.tolist()},
         "error_model": {
             "sigma_peak_px": sigma_peak,
+            "sigma_peak_noise_px": float(np.sqrt(np.mean(sig_noise[fin] ** 2)))
+            if fin.any() else None,
+            "sigma_peak_texture_px": float(np.sqrt(np.mean(sig_tex[fin] ** 2)))
+            if fin.any() else None,
+            "log_albedo_gradient_sigma_per_px": peak_model.sigma_g,
+            "sigma_peak_jitter_px": sigma_peak_jitter,
+            "sigma_z_peak_pred_rms_m": float(np.sqrt(np.mean(sz_peak ** 2))) if len(sz) else None,
+            "sigma_z_plane_pred_rms_m": _rms(sz_plane),
+            "sigma_z_intrinsics_pred_rms_m": _rms(sz_intr),
+            "calibration_draws": cfg.calibration_draws,
+            "sigma_z_calibration_pred_rms_m": float(np.sqrt(np.mean(sz_cal ** 2)))
+            if len(sz) else None,
             "sigma_z_pred_rms_m": float(np.sqrt(np.mean(sz ** 2))) if len(sz) else None,
             "sigma_z_closed_form_m": closed_form_sigma_z(
                 sigma_peak, float(np.median(pc[:, 2])), cam.fx, tri_angle)
@@ -277,13 +362,70 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
             t = time.perf_counter()
             report["evaluation"] = evaluate_laser(
                 cap, cam_cal, plane, axis_cal, obj_from_cam, mesh,
-                {"frame": kk, "row": rr, "col": uu, "points_cam": pc, "sigma_z": sz},
+                {"frame": kk, "row": rr, "col": uu, "points_cam": pc, "sigma_z": sz,
+                 "sigma_z_peak": sz_peak, "sigma_z_plane": sz_plane,
+                 "sigma_z_intrinsics": sz_intr},
                 tau=cfg.tau)
             report["timings"]["evaluation_s"] = time.perf_counter() - t
         for w in warnings:
             log.warning("%s", w)
         write_json(tmp / "report.json", report)
     return out_dir
+
+
+_DEFAULT_SENSOR = {"gain": 1.0, "full_well": 20000.0, "read_noise": 2.0, "bit_depth": 8,
+                   "shot_noise": True}
+
+
+def _check_calibration(what, rms, limit, unit, per_view, names, warnings):
+    """RuntimeError when a calibration's RMS residual exceeds ``limit``; a warning naming
+    the views whose own residual is over three times the median view's."""
+    if not np.isfinite(rms) or rms > limit:
+        raise RuntimeError(f"{what}: RMS residual {rms:.4g} {unit} exceeds the sanity limit "
+                           f"{limit:g} {unit}; the calibration captures do not fit one model "
+                           "(wrong target, moved rig, or a stripe off the target)")
+    if per_view is not None and len(per_view) >= 3:
+        pv = np.asarray(per_view, float)
+        bad = np.flatnonzero(pv > 3 * np.median(pv) + 1e-12)
+        if bad.size:
+            warnings.append(f"{what}: large residual in " + ", ".join(
+                f"{names[i]} ({pv[i]:.3g} {unit})" for i in bad))
+
+
+def _plane_depth_sigma(cam, plane_cal, px) -> np.ndarray:
+    """Jackknife standard deviation of each point's depth over the leave-one-pose-out
+    laser planes (the plane's calibration uncertainty); zeros with fewer than 3 poses."""
+    J = plane_cal.jackknife
+    if J is None or len(J) < 3 or len(px) == 0:
+        return np.zeros(len(px))
+    rays = pixel_rays(cam, px)
+    z = np.stack([intersect_rays_plane(rays, pl)[:, 2] for pl in J])
+    k = len(J)
+    return np.sqrt((k - 1) / k * np.sum((z - z.mean(axis=0)) ** 2, axis=0))
+
+
+def _rms(a: np.ndarray) -> float | None:
+    return float(np.sqrt(np.mean(a ** 2))) if len(a) else None
+
+
+def _intrinsics_depth_sigma(cam_cal, plane_cal, px, draws: int,
+                            rng: np.random.Generator) -> np.ndarray:
+    """Standard deviation of each point's depth ``(n,)`` over cameras recalibrated with
+    fresh corner noise (:func:`reconstruct.calibrate_camera.bootstrap_cameras`), each
+    with the laser plane refitted under it and the stripe pixels ``px (n, 2)``
+    re-triangulated: the camera intrinsics' uncertainty carried through the whole chain
+    (an offset principal point moves the board poses, hence the plane, and the rays
+    together). Zeros when ``draws`` is 0."""
+    from reconstruct.calibrate_camera import bootstrap_cameras
+    from reconstruct.laser_calib import refit_laser_plane
+
+    if draws == 0 or len(px) == 0 or not plane_cal.observations:
+        return np.zeros(len(px))
+    z = []
+    for c in bootstrap_cameras(cam_cal, rng, draws=draws):
+        z.append(intersect_rays_plane(pixel_rays(c, px), refit_laser_plane(c, plane_cal))[:, 2])
+    z = np.stack(z)
+    return np.nanstd(z, axis=0, ddof=1) if draws > 1 else np.zeros(len(px))
 
 
 def _target(entry, jpath, i):

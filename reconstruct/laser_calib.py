@@ -33,7 +33,8 @@ from reconstruct.stripe import StripeOptions, detect_peaks
 log = logging.getLogger(__name__)
 
 __all__ = ["fit_plane", "intersect_rays_plane", "pixel_rays", "LaserPlaneCalibration",
-           "calibrate_laser_plane", "AxisCalibration", "calibrate_turntable_axis",
+           "calibrate_laser_plane", "refit_laser_plane", "AxisCalibration",
+           "calibrate_turntable_axis",
            "calibrate_stage", "rotation_about_axis"]
 
 
@@ -87,6 +88,14 @@ class LaserPlaneCalibration:
     n_points : int                  inliers used
     used_views : list of int        poses whose board and stripe were both found
     rejected_views : list of int
+    per_view_rms : list of float    RMS distance (m) of each used pose's points to the plane
+    jackknife : (k, 4) float64      the plane refitted leaving out each used pose in turn
+                                    (its spread estimates the plane's uncertainty)
+    observations : list of tuple    per used pose: board corners ``(k, 3)``, their pixels
+                                    ``(k, 2)`` and the stripe pixels ``(m, 2)`` used, to
+                                    refit the plane under another camera
+                                    (:func:`refit_laser_plane`)
+    board_size : (2,) float64       the target's squares area (width, height), metres
     """
 
     plane: np.ndarray
@@ -94,10 +103,15 @@ class LaserPlaneCalibration:
     n_points: int
     used_views: list
     rejected_views: list
+    per_view_rms: list = None
+    jackknife: np.ndarray = None
+    observations: list = None
+    board_size: tuple = None
 
     def to_dict(self) -> dict:
         return {"plane": self.plane.tolist(), "rms_m": self.rms, "n_points": self.n_points,
-                "used_views": self.used_views, "rejected_views": self.rejected_views}
+                "used_views": self.used_views, "rejected_views": self.rejected_views,
+                "per_view_rms_m": self.per_view_rms}
 
 
 def _bright_around(off: np.ndarray, rows: np.ndarray, cols: np.ndarray, half: int = 3,
@@ -149,7 +163,7 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
     opt = stripe or StripeOptions()
     names = names or [f"pose {i}" for i in range(len(pairs))]
     cam = camera.with_pose(np.eye(4))
-    pts_all, used, rejected = [], [], []
+    pts_all, used, rejected, obs = [], [], [], []
     w_b, h_b = target.size_m()
     for i, (off, on) in enumerate(pairs):
         det = detect_target(off, target)
@@ -157,9 +171,6 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
             rejected.append(i)
             log.warning("laser-plane calibration: target not detected in %s", names[i])
             continue
-        T = board_pose(det[0], det[1], cam)
-        n_b = T[:3, 2]
-        plane_b = np.append(n_b, n_b @ T[:3, 3])
         cols, _ = detect_peaks(laser_ratio_image(off, on), options=opt)
         rows = np.flatnonzero(np.isfinite(cols))
         cols = cols[rows]
@@ -169,22 +180,61 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
             rejected.append(i)
             log.warning("laser-plane calibration: no stripe on the target in %s", names[i])
             continue
-        P = intersect_rays_plane(pixel_rays(cam, np.stack([cols, rows.astype(float)], 1)),
-                                 plane_b)
-        # keep points on the board (target frame: 0..w, 0..h)
-        q = (P - T[:3, 3]) @ T[:3, :3]
-        on_board = (q[:, 0] > 0) & (q[:, 0] < w_b) & (q[:, 1] > 0) & (q[:, 1] < h_b)
-        P = P[on_board & np.all(np.isfinite(P), axis=1)]
+        spx = np.stack([cols, rows.astype(float)], 1)
+        P, sel = _sheet_points(cam, det[0], det[1], spx, (w_b, h_b))
         if len(P) < min_points // 2:
             rejected.append(i)
             continue
         pts_all.append(P)
+        obs.append((det[0], det[1], spx[sel]))
         used.append(i)
     if len(used) < 2:
         raise RuntimeError(f"laser-plane calibration: the stripe and the target were found in "
                            f"{len(used)} poses, need 2 (failed: "
                            f"{', '.join(names[i] for i in rejected)})")
+    plane, inl = _robust_plane(np.concatenate(pts_all))
     P = np.concatenate(pts_all)
+    rms = float(np.sqrt(np.mean((P[inl] @ plane[:3] - plane[3]) ** 2)))
+    per_view = [float(np.sqrt(np.mean((Q @ plane[:3] - plane[3]) ** 2))) for Q in pts_all]
+    jack = []
+    if len(pts_all) >= 3:
+        for i in range(len(pts_all)):
+            pl, _ = _robust_plane(np.concatenate(pts_all[:i] + pts_all[i + 1:]))
+            jack.append(pl)
+    return LaserPlaneCalibration(plane, rms, int(inl.sum()), used, rejected, per_view,
+                                 np.asarray(jack).reshape(-1, 4), obs, (w_b, h_b))
+
+
+def _sheet_points(cam: Camera, obj: np.ndarray, px: np.ndarray, stripe_px: np.ndarray,
+                  board_size) -> tuple[np.ndarray, np.ndarray]:
+    """Stripe pixels ``(m, 2)`` lifted onto the board posed by PnP: the 3-D sheet points
+    on the board ``(k, 3)`` and the mask ``(m,)`` of the pixels that gave them."""
+    T = board_pose(obj, px, cam)
+    n_b = T[:3, 2]
+    plane_b = np.append(n_b, n_b @ T[:3, 3])
+    P = intersect_rays_plane(pixel_rays(cam, stripe_px), plane_b)
+    # keep points on the board (target frame: 0..w, 0..h)
+    q = (P - T[:3, 3]) @ T[:3, :3]
+    sel = ((q[:, 0] > 0) & (q[:, 0] < board_size[0]) & (q[:, 1] > 0)
+           & (q[:, 1] < board_size[1]) & np.all(np.isfinite(P), axis=1))
+    return P[sel], sel
+
+
+def refit_laser_plane(camera: Camera, cal: LaserPlaneCalibration) -> np.ndarray:
+    """The laser plane ``(4,)`` refitted from ``cal``'s observations (the same board
+    corners and stripe pixels) under another ``camera``'s intrinsics: how an intrinsics
+    error carries into the plane (board poses and stripe rays both move)."""
+    if not cal.observations:
+        raise ValueError("cal: expected a calibration that kept its observations "
+                         "(from calibrate_laser_plane)")
+    cam = camera.with_pose(np.eye(4))
+    P = np.concatenate([_sheet_points(cam, o, p, s, cal.board_size)[0]
+                        for o, p, s in cal.observations])
+    return _robust_plane(P)[0]
+
+
+def _robust_plane(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Plane ``(4,)`` (d >= 0) fitted with 3-sigma (MAD) rejection, and the inlier mask."""
     inl = np.ones(len(P), bool)
     for _ in range(3):
         n, d = fit_plane(P[inl])
@@ -194,8 +244,7 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
     n, d = fit_plane(P[inl])
     if d < 0:
         n, d = -n, -d
-    rms = float(np.sqrt(np.mean((P[inl] @ n - d) ** 2)))
-    return LaserPlaneCalibration(np.append(n, d), rms, int(inl.sum()), used, rejected)
+    return np.append(n, d), inl
 
 
 @dataclass

@@ -9,7 +9,10 @@ files. Nothing here feeds back into the reconstruction.
   central plane on that row (``gt/stripe.npy``);
 * depth errors: each triangulated point (estimated calibration) against the true point
   (true camera ray through the true crossing, met with the true plane), in the camera
-  frame, beside the error-propagation prediction for the same points;
+  frame, beside the error-propagation prediction for the same points: the peak-only part
+  (detected columns through the true calibration) against the peak-localisation
+  prediction, the total against the total prediction (peak localisation, laser plane by
+  jackknife, camera intrinsics by Monte Carlo recalibration);
 * F-score of the mesh against the ground-truth surface that the camera sees lit by the
   laser in at least one frame (ray casts per frame near the sheet).
 """
@@ -167,13 +170,20 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
         dzn = det_true[:, 2] - true_pts[:, 2]
         dzn = dzn[np.isfinite(dzn)]
         noise = float(np.sqrt(np.mean(dzn ** 2))) if dzn.size else None
+        pred_peak = float(np.sqrt(np.mean(meas.get("sigma_z_peak", meas["sigma_z"])[m] ** 2)))
         pred = float(np.sqrt(np.mean(meas["sigma_z"][m] ** 2)))
         rms = float(np.sqrt(np.mean(dz ** 2))) if dz.size else None
         out["depth_error"] = {"rms_m": rms, "bias_m": float(np.mean(dz)) if dz.size else None,
                               "std_m": float(np.std(dz)) if dz.size else None,
                               "peak_only_rms_m": noise,
-                              "predicted_rms_m": pred,
-                              "ratio_to_prediction": noise / pred if noise and pred else None,
+                              "predicted_rms_m": pred_peak,
+                              "predicted_total_rms_m": pred,
+                              "predicted_parts_rms_m": {
+                                  k: float(np.sqrt(np.mean(meas[f"sigma_z_{k}"][m] ** 2)))
+                                  for k in ("peak", "plane", "intrinsics")
+                                  if f"sigma_z_{k}" in meas},
+                              "ratio_to_prediction": noise / pred_peak
+                              if noise and pred_peak else None,
                               "total_ratio_to_prediction": rms / pred if rms and pred else None}
     # -- surface -------------------------------------------------------------------------
     ref = read_mesh(cap.path(gt["mesh"]))

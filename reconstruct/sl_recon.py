@@ -24,8 +24,15 @@ from procgen.files import atomic_dir, write_json
 from procgen.mesh_io import write_mesh, write_points
 from procgen.progress import track
 from procgen.validate import InputError
-from reconstruct.stereo_calib import calibrate_pair, calibrate_turntable_axis, world_from_cam_at
-from reconstruct.stereo_recon import _read, _reference_in_table, _score, detect_board
+from reconstruct.stereo_calib import calibrate_pair, world_from_cam_at
+from reconstruct.stereo_recon import (
+    _frame_name,
+    _read,
+    _reference_in_table,
+    _score,
+    calibrate_axis_entry,
+    detect_board,
+)
 from reconstruct.structured_light import (
     decode_gray_code,
     decode_phase,
@@ -113,19 +120,7 @@ def _calibrate(cap: Capture, opts: SLOptions):
                          field=f"calibration[{ci}].images")
     calib, rep = calibrate_pair(oc, ic, op, ip, common, size,
                                 image_size2=(int(info["width"]), int(info["height"])))
-    ai, ax = entries["axis"]
-    at = target_from_dict(ax["target"])
-    ao, ap, aa = [], [], []
-    for j, rel in enumerate(ax["images"]):
-        d = detect_board(at, _read(cap, rel, f"calibration[{ai}].images[{j}]"))
-        if d is not None:
-            ao.append(d[0])
-            ap.append(d[1])
-            aa.append(ax["stage_angles_deg"][j])
-    if len(ao) < 3:
-        raise InputError(f"board detected in only {len(ao)} axis views (need 3)", path=jpath,
-                         field=f"calibration[{ai}].images")
-    table_from_cam, arep = calibrate_turntable_axis(ao, ap, aa, calib.K1, calib.D1)
+    table_from_cam, arep = calibrate_axis_entry(cap, *entries["axis"], calib.K1, calib.D1)
     rep = {"pair": rep, "axis": arep, "undetected": missed}
     w, h = size
     cam = Camera(w, h, calib.K1[0, 0], calib.K1[1, 1], calib.K1[0, 2], calib.K1[1, 2], calib.D1)
@@ -176,20 +171,12 @@ def run_capture(capture_path, out_dir, options: SLOptions | None = None) -> Path
                               "table_from_cam": table_from_cam},
               "frames": len(depths), "voxel_size": voxel,
               "points": int(sum(len(p) for p in pts_all)), "mesh_vertices": len(mesh.vertices),
-              "frame": "turntable (object at stage angle 0)"}
+              "frame": _frame_name(cal_rep["axis"])}
     gt = cap.ground_truth
     if gt and gt.get("mesh"):
-        ref, visible, size = _reference_in_table(cap, table_from_cam)
-        ev = _score(mesh, ref, visible, size) if len(mesh.vertices) else {"fscore": 0.0}
-        if len(mesh.vertices):
-            from reconstruct.evaluate import evaluate
-
-            aligned = mesh.__class__(mesh)
-            aligned.transform(np.asarray(ev["coarse_alignment"]))
-            fine = evaluate(aligned, ref, tau=0.005 * size, reference_mask=visible, icp=True)
-            ev["fscore_at_0.5pct"] = fine.fscore
-            ev["precision_at_0.5pct"] = fine.precision
-            ev["recall_at_0.5pct"] = fine.recall
+        ref, visible, size = _reference_in_table(
+            cap, table_from_cam, mounted=cal_rep["axis"].get("method") == "mount")
+        ev = _score(mesh, ref, visible, size, taus=(0.01, 0.005))
         report["evaluation"] = ev
         true_p = Camera.from_dict(gt["cameras"]["right"])
         true_c = Camera.from_dict(gt["cameras"]["left"])

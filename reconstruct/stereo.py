@@ -17,6 +17,7 @@ frame is the left camera frame rotated by ``R1``; depth maps are z-depth in it.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 
@@ -220,10 +221,15 @@ class MatchOptions:
         Drop disparities where the left image's local std (DN, block-size window) is
         below this (no signal to match: dark background, textureless surface); 0 = off.
     pad : bool
-        Pad both images on the left by ``min + num`` disparities so that SGBM also
-        matches the left border it otherwise leaves empty.
+        Pad both images on the left (by ``num_disparities - min_disparity`` columns) so
+        that SGBM also matches the left border it otherwise leaves empty (see
+        :func:`match`).
     p1_scale, p2_scale : float
         SGBM smoothness penalties per channel and window pixel.
+    roi_min_intensity : float
+        Match only inside the bounding box (plus a margin) of the pixels whose 5 x 5
+        mean exceeds this (DN): a dark background carries no signal to match, and the
+        box around the lit object is typically half the image. 0 = the whole image.
     """
 
     min_disparity: int = 0
@@ -239,9 +245,10 @@ class MatchOptions:
     speckle_range: int = 2
     mode: str = "sgbm"
     pad: bool = True
-    min_texture: float = 1.5
-    p1_scale: float = 8.0
-    p2_scale: float = 32.0
+    min_texture: float = 0.5
+    p1_scale: float = 4.0
+    p2_scale: float = 64.0
+    roi_min_intensity: float = 8.0
 
 
 def _sgbm(opts: MatchOptions, channels: int):
@@ -286,6 +293,14 @@ def match(left_rect: np.ndarray, right_rect: np.ndarray, options: MatchOptions |
           ) -> np.ndarray:
     """Dense disparity of a rectified pair with StereoSGBM (+ WLS, + LR check).
 
+    SGBM leaves the ``min_disparity + num_disparities`` leftmost columns unmatched. The
+    right image is shifted right by ``min_disparity`` first (the search then starts at
+    0, so only ``num_disparities`` columns are lost) and, with ``pad``, both images are
+    padded on the left by ``num_disparities - min_disparity`` columns (when positive),
+    so that every pixel with a possible match (``x >= min_disparity``) gets one. The
+    right view's disparity (LR check, WLS) is the same matcher on the mirrored pair,
+    whose unmatched border is the original right border.
+
     Parameters
     ----------
     left_rect, right_rect : (H, W) or (H, W, 3) uint8
@@ -296,21 +311,14 @@ def match(left_rect: np.ndarray, right_rect: np.ndarray, options: MatchOptions |
     (H, W) float32
         Disparity in pixels (1/16 sub-pixel from SGBM), NaN where invalid.
     """
-
     opts = options or MatchOptions()
     if left_rect.shape != right_rect.shape:
         raise ValueError(f"right_rect: expected the left image's shape {left_rect.shape}, "
                          f"got {right_rect.shape}")
     channels = 1 if left_rect.ndim == 2 else left_rect.shape[2]
-    pad = int(opts.min_disparity + opts.num_disparities) if opts.pad else 0
-    if pad:  # SGBM leaves min+num columns on the left unmatched: match padded images
-        cfg = ((0, 0), (pad, 0)) + (((0, 0),) if left_rect.ndim == 3 else ())
-        left_rect = np.pad(left_rect, cfg, mode="edge")
-        right_rect = np.pad(right_rect, cfg, mode="edge")
     d = _match(left_rect, right_rect, opts, channels)
-    d = d[:, pad:] if pad else d
     if opts.min_texture > 0:
-        d[~texture_mask(left_rect[:, pad:], opts.min_texture, opts.block_size)] = np.nan
+        d[~texture_mask(left_rect, opts.min_texture, opts.block_size)] = np.nan
     return d
 
 
@@ -331,32 +339,88 @@ def texture_mask(image: np.ndarray, min_std: float, window: int = 5) -> np.ndarr
     return np.sqrt(np.maximum(v, 0)) >= min_std
 
 
-def _match(left_rect, right_rect, opts, channels):
+def _roi(image: np.ndarray, min_intensity: float, margin: int):
+    """``(y0, y1, x0, x1)``: bounding box (plus ``margin``) of the pixels whose 5 x 5 mean
+    exceeds ``min_intensity``; None when there is none."""
     import cv2
 
-    left_m = _sgbm(opts, channels)
-    raw = left_m.compute(left_rect, right_rect)
-    invalid_raw = (opts.min_disparity - 1) * 16
+    g = image if image.ndim == 2 else image.mean(axis=2)
+    m = cv2.blur(g.astype(np.float32), (5, 5)) > min_intensity
+    rows = np.flatnonzero(m.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(m.any(axis=0))
+    H, W = m.shape
+    return (max(rows[0] - margin, 0), min(rows[-1] + 1 + margin, H),
+            max(cols[0] - margin, 0), min(cols[-1] + 1 + margin, W))
+
+
+def _sgbm_raw(matcher, left, right, lo: int, num: int, pad: bool, roi_min: float = 0.0,
+              margin: int = 8) -> np.ndarray:
+    """SGBM's fixed-point disparity (x16, original units) of ``left`` against ``right``;
+    ``(lo - 1) * 16`` where invalid. See :func:`match` for the shift, the padding and
+    the region of interest."""
+    H, W = left.shape[:2]
+    out = np.full((H, W), (lo - 1) * 16, np.int32)
+    y0, y1, x0, x1 = 0, H, 0, W
+    if roi_min > 0:
+        box = _roi(left, roi_min, margin)
+        if box is None:
+            return out
+        y0, y1, x0, x1 = box
+    # after the shift SGBM loses the columns x < num; those with x < lo have no match at
+    # all (x - d < 0), so num - lo columns of padding recover every matchable pixel
+    p = max(num - lo, 0) if pad else 0
+    extra = ((0, 0),) if left.ndim == 3 else ()
+    # right'[x] = right[x - lo]: the search starts at 0; in padded columns c = x + p
+    rs = np.pad(right[y0:y1], ((0, 0), (lo + p, 0)) + extra, mode="edge")[:, :W + p]
+    ls = np.pad(left[y0:y1], ((0, 0), (p, 0)) + extra, mode="edge") if p else left[y0:y1]
+    ws = max(x0 + p - num, 0)  # SGBM needs num columns of context left of the first output
+    we = x1 + p
+    raw = matcher.compute(np.ascontiguousarray(ls[:, ws:we]), np.ascontiguousarray(rs[:, ws:we]))
+    c0 = max(ws, p)  # first padded column that is an image column
+    raw = raw[:, c0 - ws:]
+    sub = raw.astype(np.int32) + 16 * lo
+    sub[raw < 0] = (lo - 1) * 16
+    out[y0:y1, c0 - p:c0 - p + sub.shape[1]] = sub
+    return out
+
+
+def _match(left_rect, right_rect, opts, channels):
+    lo, num = int(opts.min_disparity), int(opts.num_disparities)
+    if lo < 0:
+        raise ValueError(f"min_disparity: expected >= 0, got {lo}")
+    m = _sgbm(dataclasses.replace(opts, min_disparity=0), channels)
+    roi = float(opts.roi_min_intensity)
+    raw = _sgbm_raw(m, left_rect, right_rect, lo, num, opts.pad, roi, opts.block_size + 4)
+    invalid_raw = (lo - 1) * 16
     if not (opts.wls or opts.lr_check):
         d = raw.astype(np.float32) / 16.0
         d[raw <= invalid_raw] = np.nan
         return d
-    right_m = cv2.ximgproc.createRightMatcher(left_m)
-    raw_r = right_m.compute(right_rect, left_rect)
+    # right view: mirror both images; a right pixel's match lies to its right
+    raw_r = _sgbm_raw(m, right_rect[:, ::-1], left_rect[:, ::-1], lo, num, opts.pad, roi,
+                      opts.block_size + 4)[:, ::-1]
+    dr = raw_r.astype(np.float32) / 16.0
+    dr[raw_r <= invalid_raw] = np.nan
     if opts.wls:
-        wls = cv2.ximgproc.createDisparityWLSFilter(left_m)
+        import cv2
+
+        wls = cv2.ximgproc.createDisparityWLSFilterGeneric(True)
+        wls.setDepthDiscontinuityRadius(max(int(np.ceil(0.33 * opts.block_size)), 1))
         wls.setLambda(float(opts.wls_lambda))
         wls.setSigmaColor(float(opts.wls_sigma))
-        filt = wls.filter(raw, left_rect, disparity_map_right=raw_r)
+        # ximgproc's convention: int16 x16, the right map negative, invalid below range
+        left16 = np.where(raw <= invalid_raw, -16, raw).astype(np.int16)
+        right16 = np.where(raw_r <= invalid_raw, 16, -raw_r).astype(np.int16)
+        filt = wls.filter(left16, left_rect, disparity_map_right=right16,
+                          right_view=right_rect)
         d = filt.astype(np.float32) / 16.0
-        d[filt <= invalid_raw] = np.nan
+        d[filt < lo * 16] = np.nan
     else:
         d = raw.astype(np.float32) / 16.0
         d[raw <= invalid_raw] = np.nan
     if opts.lr_check:
-        dr = -raw_r.astype(np.float32) / 16.0  # right matcher's disparities are negative
-        dr[raw_r >= -(opts.min_disparity - 1) * 16] = np.nan
-        dr[raw_r <= -(opts.min_disparity + opts.num_disparities) * 16] = np.nan
         base = raw.astype(np.float32) / 16.0
         base[raw <= invalid_raw] = np.nan
         ok = lr_consistency(base, dr, tol=opts.lr_tol)

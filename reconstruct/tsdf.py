@@ -60,7 +60,7 @@ class TSDFVolume:
     """
 
     def __init__(self, *, voxel_size: float, sdf_trunc: float | None = None,
-                 depth_max: float = 10.0, with_color: bool = False, block_count: int = 2000):
+                 depth_max: float = 10.0, with_color: bool = False, block_count: int = 256):
         import open3d as o3d
         import open3d.core as o3c
 
@@ -141,7 +141,7 @@ class TSDFVolume:
 def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
                     voxel_size: float, sdf_trunc: float | None = None,
                     depth_max: float = 10.0, colors: Sequence[np.ndarray] | None = None,
-                    weight_threshold: float = 0.5, block_count: int = 2000):
+                    weight_threshold: float = 0.5, block_count: int = 256):
     """Fuse depth maps into a truncated signed distance volume and extract its mesh.
 
     Parameters
@@ -162,8 +162,10 @@ def fuse_depth_maps(depths: Sequence[np.ndarray], cameras: Sequence[Camera], *,
     weight_threshold : float
         Minimum integration weight of a voxel to take part in the mesh.
     block_count : int
-        Initial hash-map capacity (blocks of 16^3 voxels, 80 kB each with colour);
-        the hash map grows as needed, a large value only costs memory and time.
+        Initial hash-map capacity (blocks of 16^3 voxels, 32 kB each, 80 kB with
+        colour); the hash map doubles as needed. A large value only costs memory and
+        time: allocating 2000 blocks took 210 ms, five times one 640x480 integration
+        (which touches ~260 blocks at a 1.3 mm voxel).
 
     Returns
     -------

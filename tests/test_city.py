@@ -59,3 +59,12 @@ def test_csg_volume():
     want = 1000 + 144 + np.pi * 4 * 2 - 4 * 1 * 2.5  # notch: x 4, y 1 (inside), z 2.5
     v, f = csg_mesh(solid, voxel=0.25)
     assert mesh_volume(v, f) == pytest.approx(want, rel=0.02)
+
+
+def test_roads_follow_the_population_global_goal(city):
+    # global goal: roads grow toward dense areas, so road nodes sit on denser ground than
+    # the land (not water, not park) at large
+    half = city.config.size / 2
+    p = np.random.default_rng(0).uniform(-half, half, (4000, 2))
+    land = p[~city.water(p) & ~city.park(p)]
+    assert city.density(city.nodes).mean() > 1.2 * city.density(land).mean()

@@ -43,3 +43,30 @@ def test_bad_grammars_exit_2(tmp_path, capsys, text, words):
 def test_missing_grammar_lists_examples(capsys):
     assert main(["grow", "no_such_plant", "--stats"]) == 2
     assert "abop_1_24a" in capsys.readouterr().err
+
+
+def test_lines_write_polylines(tmp_path, capsys):
+    import open3d as o3d
+
+    assert main(["grow", "dragon", "--lines", str(tmp_path / "d.ply"),
+                 "--lines", str(tmp_path / "d.obj")]) == 0  # the last --lines wins
+    text = (tmp_path / "d.obj").read_text().splitlines()
+    assert sum(t.startswith("v ") for t in text) == 1025   # one polyline of 1024 segments
+    assert sum(t.startswith("l ") for t in text) == 1
+    assert main(["grow", "koch_snowflake", "--lines", str(tmp_path / "k.ply")]) == 0
+    ls = o3d.io.read_line_set(str(tmp_path / "k.ply"))
+    assert len(ls.lines) == 3 * 4 ** 4
+    assert main(["grow", "dragon", "--lines", str(tmp_path / "d.svg")]) == 2
+    assert "--lines" in capsys.readouterr().err
+
+
+def test_gltf_output_is_readable_by_vtk(tmp_path):
+    import pyvista as pv
+
+    out = tmp_path / "plant.gltf"
+    assert main(["grow", "abop_1_24a", "-n", "2", "--out", str(out)]) == 0
+    from procgen.lsystem import derive, interpret, load_grammar, to_mesh
+
+    g = load_grammar("abop_1_24a")
+    want = to_mesh(interpret(derive(g, 2), g), sides=8)
+    assert pv.read(out).combine().n_cells == len(want.triangles)  # VTK reads every triangle

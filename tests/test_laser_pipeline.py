@@ -96,3 +96,14 @@ def test_no_stripe_is_a_clear_error(laser_scan, tmp_path, capsys):
         cv2.imwrite(str(p), (img // 20).astype(img.dtype))  # laser too weak
     assert cli(["reconstruct", "laser", str(dark), "--out", str(tmp_path / "o")]) == 1
     assert "no laser stripe found" in capsys.readouterr().err
+
+
+def test_prediction_includes_the_calibration(laser_scan):
+    _, _, rep = laser_scan
+    em, de = rep["error_model"], rep["evaluation"]["depth_error"]
+    parts = de["predicted_parts_rms_m"]
+    assert set(parts) == {"peak", "plane", "intrinsics"} and parts["intrinsics"] > 0
+    total = np.sqrt(sum(v ** 2 for v in parts.values()))
+    assert de["predicted_total_rms_m"] == pytest.approx(total, rel=1e-6)
+    assert em["sigma_z_intrinsics_pred_rms_m"] > 0
+    assert set(rep["calibration"]["camera"]["std_intrinsics"]) >= {"fx", "cx", "cy"}

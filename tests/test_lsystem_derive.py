@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from procgen.lsystem import (
     GrammarError,
@@ -149,3 +151,110 @@ def test_division_by_zero_names_the_line():
     g = parse_grammar("axiom: A(2)\nA(x) -> B(1 / (x - 1))\nB(y) -> A(y)\n", source="z.lsys")
     with pytest.raises(GrammarError, match=r"z.lsys: line 2, column 11: .*division by zero"):
         derive(g, 3)
+
+
+def test_acropetal_fig_1_31a_first_steps_by_hand():
+    # ABOP Fig. 1.31a derived by hand (ignore +-F; modules at the ends of the string or of a
+    # branch lack a context and are copied; '+' and '-' swap every step)
+    g = load_grammar("acropetal")
+    expected = ["F1F1F1", "F1F0F1", "F1F1F1F1", "F1F0F0F1", "F1F0F1[+F1F1]F1",
+                "F1F1F1F1[-F0F1]F1"]
+    for k, want in enumerate(expected):
+        assert derive(g, k).symbols == want
+        assert derive_reference(g, k).symbols == want
+
+
+def test_basipetal_signal_enters_from_any_sibling_branch():
+    g = load_grammar("basipetal")
+    want = ["Fa[+Fa][-Fa[+Fa][-Fb]Fa]Fa", "Fa[+Fa][-Fb[+Fa][-Fa]Fa]Fa",
+            "Fb[+Fa][-Fa[+Fa][-Fa]Fa]Fa", "Fa[+Fa][-Fa[+Fa][-Fa]Fa]Fa"]
+    for k, s in enumerate(want):
+        assert derive(g, k).symbols == s
+        assert derive(g, k, method="general").symbols == s
+        assert derive_reference(g, k).symbols == s
+
+
+@pytest.mark.parametrize("axiom, rule, rewritten", [
+    ("A[C][B]D", "A > [B] -> X", True),       # the second sibling branch matches
+    ("A[C][B]D", "A > [B]D -> X", True),      # then D after all the branches
+    ("A[C][B]D", "A > [D] -> X", False),      # D is not in a branch
+    ("A[C][B]", "A > [B][C] -> X", False),    # sibling branches are matched in order
+    ("A[B][C]", "A > [B][C] -> X", True),
+    ("A+[-C]+[+B]", "A > [B] -> X", True),    # ignored symbols between and inside branches
+    ("A[B[C]][B[D]]E", "A > [B[D]]E -> X", True),   # nested pattern: the first branch fails
+    ("A[B[C]][B[D]]E", "A > [B[E]] -> X", False),
+    ("AB[C]D", "A > B[C]D -> X", True),       # ABOP's G[H]M form
+    ("AB[C]D", "A > BD -> X", True),          # a branch not in the pattern is skipped
+])
+def test_right_context_across_branches(axiom, rule, rewritten):
+    g = parse_grammar(f"axiom: {axiom}\nignore: +-\nsymbols: ABCDEX\n{rule}\n")
+    want = ("X" + axiom[1:]) if rewritten else axiom
+    assert derive(g, 1).symbols == want
+    assert derive(g, 1, method="general").symbols == want
+    assert derive_reference(g, 1).symbols == want
+
+
+def test_right_context_binds_parameters_inside_branches():
+    g = parse_grammar("axiom: A(1)[B(5)][C(7)]\nsymbols: BC\nA(x) > [C(y)] -> A(x + y)\n")
+    assert derive(g, 1).text() == "A(8)[B(5)][C(7)]"
+    assert derive_reference(g, 1).text() == "A(8)[B(5)][C(7)]"
+
+
+@pytest.mark.parametrize("axiom, rule, want", [
+    ("F[A]F[B]FA", "A -> F%X", "F[F]F[B]FF"),   # cut to the end of the branch / string
+    ("[A[B]C]D", "A -> %", "[]D"),               # nested branches after % go too
+    ("A%[B]C[D]", "B -> BB", "A"),               # a % in the axiom cuts after step 1
+    ("FA", "A -> [%F]FA", "F[]FA"),
+])
+def test_cut_symbol(axiom, rule, want):
+    g = parse_grammar(f"axiom: {axiom}\nsymbols: ABCDX\n{rule}\n")
+    assert g.has_cut
+    assert derive(g, 1).symbols == want
+    assert derive(g, 1, method="general").symbols == want
+    assert derive_reference(g, 1).symbols == want
+
+
+def test_cut_prunes_growth_every_step():
+    # a branch apex that grows, then is cut when it gets old: the tree stays bounded
+    g = parse_grammar("axiom: A(0)\nA(t) : t < 3 -> F[+A(t + 1)]A(t + 1)\n"
+                      "A(t) : t >= 3 -> %\n")
+    for k in (4, 6):
+        s = derive(g, k)
+        assert s.text() == derive_reference(g, k).text()
+        assert "%" not in s.symbols and "A" not in s.symbols
+    assert derive(g, 6).symbols == derive(g, 4).symbols  # nothing grows after the cut
+    assert len(interpret(derive(g, 6), g)) == 7  # 1 + 2 + 4 internodes
+
+
+def _bracketed(draw_items):
+    """A balanced bracketed string from a list of (kind, symbol) draws."""
+    out, depth = [], 0
+    for kind, sym in draw_items:
+        if kind == 0:
+            out.append(sym)
+        elif kind == 1:
+            out.append("[")
+            depth += 1
+        elif depth:
+            out.append("]")
+            depth -= 1
+    return "".join(out) + "]" * depth
+
+
+@settings(max_examples=60, deadline=None)
+@given(axiom=st.lists(st.tuples(st.integers(0, 2), st.sampled_from("abc+")), min_size=1,
+                      max_size=30),
+       right=st.lists(st.tuples(st.integers(0, 2), st.sampled_from("abc")), min_size=1,
+                      max_size=5),
+       left=st.text(alphabet="abc", max_size=2),
+       ignore=st.sampled_from(["", "+", "+c"]))
+def test_context_matching_agrees_with_the_reference(axiom, right, left, ignore):
+    # random bracketed strings and random (bracketed) right contexts: the compiled matcher
+    # and the plain Python one rewrite exactly the same modules
+    ax = "a" + _bracketed(axiom)
+    rc = _bracketed(right).strip("]") or "a"
+    lhs = (f"{left} < " if left else "") + f"a > {rc}"
+    text = f"axiom: {ax}\nsymbols: abcX\n" + (f"ignore: {ignore}\n" if ignore else "") + \
+        f"{lhs} -> X\n"
+    g = parse_grammar(text)
+    assert derive(g, 1).symbols == derive_reference(g, 1).symbols

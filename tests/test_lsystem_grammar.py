@@ -169,3 +169,31 @@ def test_parser_agrees_with_reference_evaluator(tree, x, y):
         assert math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9)
     vec = evaluate_array(node, {"x": np.array([x, x]), "y": np.array([y, y])}, 2)
     assert math.isclose(vec[0], got, rel_tol=1e-9, abs_tol=1e-9)
+
+
+@pytest.mark.parametrize("text", [
+    "axiom: F(1)\nF(x) -> F(x * 1e100)\n",          # overflow in the general engine
+    "axiom: F(1)\nF(x) -> F(x + 1e308 * 10)\n",
+])
+def test_parameter_overflow_is_an_error_naming_the_line(text):
+    from procgen.lsystem import derive
+
+    g = parse_grammar(text)
+    with pytest.raises(GrammarError, match="line 2.*not a finite number"):
+        derive(g, 5)
+    assert evaluate(parse_expr("1e300 * 10"), {}) == pytest.approx(1e301)
+    with pytest.raises(ExprError, match="overflow"):
+        evaluate(parse_expr("1e300 * 1e300"), {})
+
+
+@pytest.mark.parametrize("name, classes", [
+    ("abop_1_24a", {"D0L", "bracketed"}),
+    ("dragon", {"D0L"}),
+    ("stochastic_bush", {"0L", "stochastic", "bracketed"}),
+    ("signal", {"1L"}),
+    ("acropetal", {"2L", "bracketed"}),
+    ("basipetal", {"1L", "bracketed"}),
+    ("parametric_tree", {"0L", "parametric", "bracketed"}),
+])
+def test_example_classes(name, classes):
+    assert set(load_grammar(name).classes) == classes

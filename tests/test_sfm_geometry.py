@@ -145,3 +145,17 @@ def test_colmap_camera_conversion_round_trip():
     ours, _ = cam.project(p)
     theirs = pc.img_from_cam(p)
     np.testing.assert_allclose(ours + 0.5, theirs, atol=1e-9)
+
+
+def test_matcher_choice_follows_image_count_and_capture_kind():
+    from reconstruct.sfm import SfmConfig, _choose_matcher, _Input
+
+    def pick(n, order="unknown", matcher="auto"):
+        return _choose_matcher(SfmConfig(matcher=matcher), _Input(None, [f"{i}.png" for i in
+                                                                       range(n)], order=order))
+
+    assert pick(24) == "exhaustive" and pick(100) == "exhaustive"  # every pair is affordable
+    assert pick(101) == "sequential"  # n^2 pairs: neighbours in file order instead
+    assert pick(41, order="walk") == "sequential" and pick(40, order="walk") == "exhaustive"
+    assert pick(41, order="orbit") == "exhaustive"
+    assert pick(500, matcher="spatial") == "spatial"  # an explicit choice always wins

@@ -1,6 +1,6 @@
-"""SfM end to end on a small rendered orbit (12 views of 'primitives' at 320x240), plain
-image folders, and bad input. The heaviest tests of the project: one capture and one
-dense reconstruction per session."""
+"""SfM end to end on a small rendered orbit (one ring of 12 views of 'primitives' at
+320x240), plain image folders, and bad input. The heaviest tests of the project: one
+capture and one dense reconstruction per session."""
 
 import json
 import shutil
@@ -24,7 +24,7 @@ def small_recon(small_capture, tmp_path_factory):
     from reconstruct.sfm import SfmConfig, run
 
     out = tmp_path_factory.mktemp("sfm_recon") / "rec"
-    res = run(SfmConfig(seed=0), small_capture, out)
+    res = run(SfmConfig(seed=0, num_threads=1), small_capture, out)
     return res
 
 
@@ -37,24 +37,28 @@ def test_capture_folder_holds_images_gt_and_transforms(small_capture):
     assert len(tf["frames"]) == 12 and tf["camera_model"] == "OPENCV"
 
 
-_FLAKY = ("flaky under CPU load with multi-threaded pycolmap: measured rotation 0.73 deg "
-          "(< 0.5 wanted) and mesh F 0.55 (> 0.7 wanted) at integration; the 640x480 "
-          "benchmark meets every target; needs its own issue")
+# The reconstruction runs single-threaded: pycolmap's RANSAC and bundle adjustment are then
+# bit-for-bit repeatable (test_sparse_stage_is_deterministic), so the figures below are
+# fixed numbers, not samples. Measured on this fixture: 12/12 registered, rotation error
+# mean 0.065 / max 0.12 deg, ATE 0.10 % of the scene, reprojection 0.18 px, mesh F 0.98
+# (the same with all threads, also under CPU load). The bounds leave room for another
+# pycolmap/Ceres build without letting a broken pipeline through: a wrong intrinsics
+# convention or a mirrored Sim(3) gives degrees and tens of percent.
 
 
-@pytest.mark.xfail(reason=_FLAKY, strict=False)
 def test_small_orbit_registers_every_view_accurately(small_recon):
     assert small_recon.ok, small_recon.message
     rep = small_recon.report
     assert rep["registered_fraction"] == 1.0
     poses = rep["metrics"]["poses"]
-    # 320x240 and 12 views is harder than the 640x480 benchmark; still well under a degree
-    assert poses["rotation_error_deg"]["max"] < 0.5
-    assert poses["ate_fraction_of_scene"] < 0.01
-    assert rep["sparse"]["mean_reprojection_error_px"] < 0.6
+    # 320x240, 12 views: ~2.5x the measured errors (the 640x480 benchmark asks <= 0.1 deg)
+    assert poses["rotation_error_deg"]["mean"] < 0.15
+    assert poses["rotation_error_deg"]["max"] < 0.3
+    assert poses["ate_fraction_of_scene"] < 0.004
+    # SIFT keypoints on rendered images are good to a fraction of a pixel
+    assert rep["sparse"]["mean_reprojection_error_px"] < 0.4
 
 
-@pytest.mark.xfail(reason=_FLAKY, strict=False)
 def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
     rep = small_recon.report
     out = small_recon.out_dir
@@ -62,9 +66,20 @@ def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
               "sparse/0/cameras.bin", "sparse/0/images.bin", "sparse/0/points3D.bin",
               "sparse/0/text/cameras.txt", "sparse/0/text/images.txt"):
         assert (out / f).is_file(), f
-    # tau = 1% of the scene size, on the surface the cameras saw
-    assert rep["metrics"]["mesh"]["fscore"] > 0.7
-    assert rep["metrics"]["mesh"]["precision"] > 0.7
+    # tau = 1% of the scene size, on the surface the cameras saw; measured 0.98 (the
+    # benchmark's target at 640x480 is 0.85)
+    mesh = rep["metrics"]["mesh"]
+    assert mesh["fscore"] > 0.9
+    assert mesh["precision"] > 0.9 and mesh["recall"] > 0.9
+
+
+def test_sparse_stage_is_deterministic(small_capture, small_recon, tmp_path):
+    from reconstruct.sfm import SfmConfig, run
+
+    res = run(SfmConfig(seed=0, num_threads=1, dense=False), small_capture, tmp_path / "again")
+    for f in ("images.bin", "points3D.bin", "cameras.bin"):
+        a = (small_recon.out_dir / "sparse" / "0" / f).read_bytes()
+        assert (res.out_dir / "sparse" / "0" / f).read_bytes() == a, f
 
 
 def _cli(capsys, *argv):
@@ -73,19 +88,73 @@ def _cli(capsys, *argv):
     return code, err
 
 
-def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, capsys):
-    folder = tmp_path / "photos"
+def _jpegs(small_capture, folder, n=12, focal_35mm=None):
+    """The capture's images as JPEGs in a plain folder, with an EXIF focal length or none."""
+    from PIL import Image
+
     folder.mkdir()
-    for p in sorted((small_capture / "images").glob("*.png")):
-        img = cv2.imread(str(p))
-        cv2.imwrite(str(folder / (p.stem + ".jpg")), img, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    for p in sorted((small_capture / "images").glob("*.png"))[:n]:
+        exif = Image.Exif()
+        if focal_35mm is not None:
+            exif.get_ifd(0x8769)[0xA405] = focal_35mm  # FocalLengthIn35mmFilm
+        Image.open(p).convert("RGB").save(folder / (p.stem + ".jpg"), quality=95, exif=exif)
+    return folder
+
+
+def _true_focal(small_capture):
+    data = json.loads((small_capture / "capture.json").read_text())
+    return next(iter(data["ground_truth"]["cameras"].values()))["fx"]
+
+
+def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, capsys):
+    folder = _jpegs(small_capture, tmp_path / "photos")
+    # one blank frame (lens cap on) among the photos: reported by name, the rest goes on
+    cv2.imwrite(str(folder / "9999_blank.jpg"), np.full((240, 320, 3), 90, np.uint8))
     code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "rec",
-                     "--no-dense")
+                     "--no-dense", "--threads", "1")
     assert code == 0, err
     rep = json.loads((tmp_path / "rec" / "report.json").read_text())
-    assert rep["registered"] >= 10
+    assert rep["registered"] == 12 and rep["num_images"] == 13
+    assert list(rep["failed_images"]) == ["9999_blank.jpg"]
+    assert rep["failed_images"]["9999_blank.jpg"].startswith("no texture")
     assert "metrics" not in rep  # no ground truth for a plain folder
-    assert rep["intrinsics_source"].startswith("COLMAP")
+    # no EXIF: COLMAP starts from 1.2 x 320 = 384 px; bundle adjustment finds the true
+    # 343 px to within 1 % (measured 0.1 %)
+    assert rep["intrinsics_source"].startswith("no EXIF focal length: COLMAP's guess 1.2 x 320")
+    f = rep["sparse"]["cameras"]["1"]["params"][0]
+    assert abs(f / _true_focal(small_capture) - 1) < 0.01
+
+
+def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_capture,
+                                                                          tmp_path, capsys):
+    # COLMAP's EXIF rule: f_px = f_35mm * diag(w, h) / diag(36 mm, 24 mm) = 37 * 400 / 43.27
+    folder = _jpegs(small_capture, tmp_path / "exif", n=6, focal_35mm=37)
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r1",
+                     "--no-dense", "--threads", "1")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "r1" / "report.json").read_text())
+    assert rep["intrinsics_source"].startswith("EXIF focal length (342.0 px)")
+    assert rep["registered"] == 6
+    assert rep["sparse"]["cameras"]["1"]["has_prior_focal_length"] is True
+    # --camera wins over EXIF, in COLMAP's pixel convention (centre of pixel 0 at 0.5)
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r2",
+                     "--no-dense", "--threads", "1", "--camera", "PINHOLE:343,343,160,120")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "r2" / "report.json").read_text())
+    assert rep["intrinsics_source"] == "--camera" and rep["registered"] == 6
+    assert rep["sparse"]["cameras"]["1"]["model"] == "PINHOLE"
+    # refined from there; 6 views over 150 degrees pin the focal length less tightly than
+    # the 12 of the full ring (measured 1.4 % off)
+    fx, fy = rep["sparse"]["cameras"]["1"]["params"][:2]
+    assert abs(fx / _true_focal(small_capture) - 1) < 0.03
+
+
+def test_spatial_matcher_without_position_priors_is_a_clear_error(small_capture, tmp_path,
+                                                                   capsys):
+    code, err = _cli(capsys, "reconstruct", "sfm", _jpegs(small_capture, tmp_path / "p", n=3),
+                     "--out", tmp_path / "o", "--matcher", "spatial", "--threads", "1")
+    assert code == 2 and len(err) == 1 and "position priors" in err[0]
+    assert not (tmp_path / "o").exists()
 
 
 def test_too_few_images_is_one_line_exit_2(small_capture, tmp_path, capsys):

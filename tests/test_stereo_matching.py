@@ -155,3 +155,39 @@ def test_rectify_pair_rejects_other_size():
     rect = rectify(_calib())
     with pytest.raises(ValueError, match="right: expected an image of 320x240"):
         rectify_pair(np.zeros((240, 320), np.uint8), np.zeros((200, 320), np.uint8), rect)
+
+
+@pytest.mark.parametrize("lr", [False, True])
+def test_shifted_search_and_padding_match_the_left_border(lr):
+    """The right image is shifted by min_disparity and the pair padded by num_disparities:
+    columns SGBM leaves unmatched (x < min + num) get their disparity too."""
+    d = 21.25
+    left, right = _shifted_pair(d)
+    opts = MatchOptions(min_disparity=16, num_disparities=16, lr_check=lr)
+    disp = match(left, right, opts)
+    # x < d has no match in the right image; beyond, everything (LR: but the right border)
+    core = disp[10:-10, 26:-30]
+    assert np.isfinite(core).mean() > 0.97
+    assert abs(np.nanmedian(core) - d) < 0.25
+    bare = match(left, right, MatchOptions(min_disparity=16, num_disparities=16, pad=False))
+    assert not np.isfinite(bare[:, :16]).any()  # SGBM's own unmatched border
+    if not lr:  # the padding only adds columns
+        ok = np.isfinite(bare[10:-10, 40:-10]) & np.isfinite(disp[10:-10, 40:-10])
+        assert np.median(np.abs(bare[10:-10, 40:-10] - disp[10:-10, 40:-10])[ok]) == 0.0
+
+
+def test_region_of_interest_matches_only_the_lit_part_identically():
+    """On a dark background, matching the bounding box of the lit pixels gives the same
+    disparities as matching the whole image."""
+    left, right = _shifted_pair(14.0, h=120, w=260)
+    left, right = left // 2 + 60, right // 2 + 60  # lit texture, 60..187 DN
+    dark = np.zeros((160, 300), np.uint8)
+    L, R = dark.copy(), dark.copy()
+    L[20:140, 20:280] = left
+    R[20:140, 20:280] = right
+    full = match(L, R, MatchOptions(min_disparity=8, num_disparities=16, roi_min_intensity=0))
+    roi = match(L, R, MatchOptions(min_disparity=8, num_disparities=16, roi_min_intensity=8))
+    core = (slice(30, 130), slice(50, 270))
+    assert np.isfinite(roi[core]).mean() > 0.97
+    np.testing.assert_allclose(roi[core], full[core], atol=0.0625, equal_nan=True)
+    assert abs(np.nanmedian(roi[core]) - 14.0) < 0.25

@@ -18,7 +18,7 @@ def stereo_capture(tmp_path_factory):
     from data_synth.fixtures_stereo import textured_scene
 
     rig = load_rig(None, width=320, height=240, projector_width=320, projector_height=240,
-                   calib_views=5, axis_views=3, stage_angles_deg=(0.0, 180.0), supersample=1)
+                   calib_views=9, axis_views=3, stage_angles_deg=(0.0, 180.0), supersample=1)
     out = tmp_path_factory.mktemp("stereo") / "cap"
     return capture(textured_scene(), rig, out, np.random.default_rng(0), object_name="sphere")
 
@@ -72,8 +72,13 @@ def test_reconstruction_report(stereo_recon):
     assert (stereo_recon / "mesh.ply").is_file() and (stereo_recon / "points.ply").is_file()
 
 
-def test_gt_disparity_matches_rectified_geometry(stereo_capture):
-    """GT disparity from the renderer's depth agrees with projecting GT points."""
+@pytest.mark.parametrize("perturb", [False, True])
+def test_gt_disparity_is_the_true_correspondence(stereo_capture, perturb):
+    """GT disparity = where the true surface point lands in the rectified right image,
+    even when the rectification comes from a wrong calibration (a 1 % baseline error,
+    a shifted principal point): checked through the inverse remap tables."""
+    import cv2
+
     from acquire.capture_io import load_capture
     from reconstruct.stereo import StereoCalibration, rectify
     from reconstruct.stereo_recon import gt_disparity
@@ -82,22 +87,30 @@ def test_gt_disparity_matches_rectified_geometry(stereo_capture):
     gt = cap.ground_truth
     left = Camera.from_dict(gt["cameras"]["left"])
     right = Camera.from_dict(gt["cameras"]["right"])
-    rect = rectify(StereoCalibration.from_cameras(left, right))
+    calib = StereoCalibration.from_cameras(left, right)
+    if perturb:
+        K2 = calib.K2.copy()
+        K2[1, 2] += 2.0
+        calib = StereoCalibration(calib.K1, calib.D1, K2, calib.D2, calib.R, calib.T * 1.01,
+                                  calib.image_size)
+    rect = rectify(calib)
     dl = np.load(cap.path(gt["frames"][0]["depth"][0]))
     dr = np.load(cap.path(gt["frames"][0]["depth"][1]))
-    disp, mask = gt_disparity(dl, dr, rect)
+    disp, mask, dy = gt_disparity(dl, dr, rect, left, right)
     assert mask.sum() > 2000
-    # rectified camera: back-project, reproject into the right rectified camera
-    cam = rect.left_camera(left.world_from_cam)
     v, u = np.nonzero(mask)
-    z = rect.focal * rect.baseline / disp[v, u]
-    pts = cam.unproject(np.stack([u, v], 1).astype(float), z)
-    # those points must lie on the true surface: depth in the raw left camera agrees
-    px, zz = left.project(pts)
-    iu, iv = np.round(px[:, 0]).astype(int), np.round(px[:, 1]).astype(int)
-    err = np.abs(dl[iv, iu] - zz)
-    # nearest-pixel lookup of the raw depth costs up to half a pixel of slope (~0.3 mm here)
-    assert np.median(err) < 5e-4
+    # the true point behind each rectified left pixel (nearest raw depth: < 0.5 px slope)
+    raw = np.stack([rect.maps[0][v, u], rect.maps[1][v, u]], 1).astype(float)
+    iu, iv = np.round(raw[:, 0]).astype(int), np.round(raw[:, 1]).astype(int)
+    pts = left.unproject(raw, dl[iv, iu].astype(float))
+    q, _ = right.project(pts)
+    # the rectified right pixel (u - d, v - dy) maps back to that raw right pixel
+    xr = (u - disp[v, u]).astype(np.float32)[None]
+    yr = (v - dy[v, u]).astype(np.float32)[None]
+    back = np.stack([cv2.remap(rect.maps[k], xr, yr, cv2.INTER_LINEAR)[0] for k in (2, 3)], 1)
+    assert np.median(np.linalg.norm(back - q, axis=1)) < 0.05
+    # a wrong calibration shows as a vertical residual, not in the disparity
+    assert (np.nanmedian(np.abs(dy[mask])) > 0.3) == perturb
 
 
 def _pair(stereo_capture, tmp_path):

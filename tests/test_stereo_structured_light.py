@@ -14,8 +14,10 @@ def sl_capture(tmp_path_factory):
     from acquire.stereo_rig import load_rig
     from data_synth.fixtures_stereo import textured_scene
 
-    rig = load_rig(None, width=240, height=180, projector_width=160, projector_height=120,
-                   calib_views=4, axis_views=3, stage_angles_deg=(0.0,), supersample=1,
+    # 320x240 and the full 3x3 grid of board views: at 240x180 the board corners are too
+    # small for a focal length better than ~5 %, which the unaligned score cannot hide
+    rig = load_rig(None, width=320, height=240, projector_width=160, projector_height=120,
+                   calib_views=9, axis_views=3, stage_angles_deg=(0.0,), supersample=1,
                    projector_intensity=0.2, period_px=8.0)
     out = tmp_path_factory.mktemp("sl") / "cap"
     return capture(textured_scene(), rig, out, np.random.default_rng(0), object_name="sphere")
@@ -50,8 +52,11 @@ def test_structured_light_reconstruction(sl_capture, tmp_path):
     out = run_capture(sl_capture, tmp_path / "rec")
     r = json.loads((out / "report.json").read_text())
     assert r["calibration"]["truth_errors"]["baseline_rel_err"] < 0.02
-    # small images, one view: loose bound (the benchmark measures the 0.5 % target)
-    assert r["evaluation"]["fscore"] > 0.8
+    # small images, one view, no alignment: loose bound (the benchmark measures the 0.5 %
+    # target); the rigid ICP diagnostic finds the calibrated frame within a few mm
+    ev = r["evaluation"]
+    assert ev["fscore"] > 0.85
+    assert ev["diagnostic_icp"]["translation_mm"] < 3.0
     assert (out / "mesh.ply").is_file()
 
 

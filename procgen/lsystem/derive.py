@@ -13,7 +13,10 @@ parameter table for parametric grammars. Three engines, chosen automatically:
   column-wise with :func:`procgen.lsystem.expr.evaluate_array`, contexts are matched
   bracket-aware in a compiled kernel.
 
-Growth is checked before each step allocates: :class:`GrowthLimitError` instead of a hang.
+The cut symbol ``%`` (:data:`procgen.lsystem.grammar.CUT`) is applied at the end of every
+step by :func:`_cut_keep`; grammars that can produce it skip the D0L engine (whose block
+copies would only cut at the end). Growth is checked before each step allocates:
+:class:`GrowthLimitError` instead of a hang.
 :func:`derive_reference` is a plain per-module Python engine kept as the tests' oracle.
 """
 
@@ -158,7 +161,7 @@ def derive(grammar: Grammar, n: int | None = None, *, rng: np.random.Generator |
     if n == 0:
         return s
     simple = not grammar.is_parametric and not grammar.is_context_sensitive
-    if method == "auto" and simple and not grammar.is_stochastic:
+    if method == "auto" and simple and not grammar.is_stochastic and not grammar.has_cut:
         return _derive_d0l(grammar, s, n, max_symbols, max_bytes)
     if method == "auto" and simple:
         return _derive_stochastic(grammar, s, n, rng, max_symbols, max_bytes)
@@ -280,12 +283,45 @@ def _stochastic_tables(grammar):
 def _derive_stochastic(grammar, s, n, rng, max_symbols, max_bytes) -> LString:
     first, count, cum, succ_len, succ_off, succ_flat = _stochastic_tables(grammar)
     codes = s.codes
+    cut = grammar.has_cut
+    if rng is None:  # a deterministic grammar with cuts: no draw decides anything
+        rng = np.random.default_rng(0)
     for step in range(1, n + 1):
         u = rng.random(len(codes))
         choice, total = _choose(codes, u, first, count, cum, succ_len)
         _limits(int(total), 0, step, n, max_symbols, max_bytes)
         codes = _fill(codes, choice, total, succ_off, succ_flat)
+        if cut:
+            codes = codes[_cut_keep(codes)]
     return LString(codes)
+
+
+# --------------------------------------------------------------------------- cut
+
+
+@numba.njit(cache=True)
+def _cut_keep(codes):
+    """Mask of the modules kept when every ``%`` cuts the rest of its branch: from the
+    ``%`` up to (not including) the ``]`` that closes its branch, or to the end."""
+    n = len(codes)
+    keep = np.ones(n, np.bool_)
+    i = 0
+    while i < n:
+        if codes[i] == 37:
+            depth = 0
+            while i < n:
+                c = codes[i]
+                if c == 91:
+                    depth += 1
+                elif c == 93:
+                    if depth == 0:
+                        break
+                    depth -= 1
+                keep[i] = False
+                i += 1
+        else:
+            i += 1
+    return keep
 
 
 # --------------------------------------------------------------------------- contexts
@@ -342,55 +378,97 @@ def _match_left(codes, link, ignore, positions, pattern):
     return ok, idx
 
 
-@numba.njit(cache=True)
-def _match_right(codes, link, ignore, positions, pattern, nsym):
+def _pattern_links(pattern: np.ndarray) -> np.ndarray:
+    """For each '[' of a context pattern the index of its ']' (``len`` when unclosed)."""
+    link = np.full(len(pattern), -1, np.int64)
+    stack = []
+    for j, c in enumerate(pattern.tolist()):
+        if c == _LB:
+            stack.append(j)
+        elif c == _RB and stack:
+            link[stack.pop()] = j
+    for j in stack:
+        link[j] = len(pattern)
+    return link
+
+
+@numba.njit  # no cache: numba's on-disk cache of a recursive function crashes on reload
+def _right_seq(codes, link, ignore, i, end, pattern, plink, ps, pe, idx_row, k0):
+    """Match ``pattern[ps:pe]`` from ``codes[i]`` inside one branch (``end`` is the index
+    of the branch's ']' or ``len(codes)``). Returns (position after the match or -1, number
+    of symbol positions recorded in ``idx_row``)."""
+    n = len(codes)
+    k = k0
+    j = ps
+    while j < pe:
+        pc = pattern[j]
+        if pc == 91:
+            # a bracketed sub-pattern matches the first of the sibling branches here whose
+            # content matches it (ABOP 1.8, extended across several branches: A > [B] also
+            # matches A[C][B])
+            jend = plink[j]
+            while i < end and ignore[codes[i]]:
+                i += 1
+            found = False
+            while i < end and codes[i] == 91:
+                bend = link[i] if codes[link[i]] == 93 else n
+                r, k2 = _right_seq(codes, link, ignore, i + 1, bend, pattern, plink, j + 1,
+                                   min(jend, pe), idx_row, k)
+                i = bend + 1
+                if r >= 0:
+                    k = k2
+                    found = True
+                    break
+                while i < end and ignore[codes[i]]:
+                    i += 1
+            if not found:
+                return -1, k0
+            j = jend + 1
+            continue
+        if pc == 93:
+            # an unmatched ']' in the pattern: leave the current branch
+            found = False
+            while i < n:
+                c = codes[i]
+                if c == 91:
+                    i = link[i] + 1
+                elif c == 93:
+                    i += 1
+                    found = True
+                    break
+                else:
+                    i += 1
+            if not found:
+                return -1, k0
+            j += 1
+            continue
+        while i < end:
+            c = codes[i]
+            if ignore[c]:
+                i += 1
+            elif c == 91:
+                i = link[i] + 1
+            else:
+                break
+        if i >= end or codes[i] != pc:
+            return -1, k0
+        idx_row[k] = i
+        k += 1
+        i += 1
+        j += 1
+    return i, k
+
+
+@numba.njit
+def _match_right(codes, link, ignore, positions, pattern, plink, nsym):
     n = len(codes)
     m = len(positions)
     ok = np.ones(m, np.bool_)
     idx = np.full((m, max(nsym, 1)), -1, np.int64)
     for q in range(m):
-        i = positions[q] + 1
-        k = 0
-        for j in range(len(pattern)):
-            pc = pattern[j]
-            if pc == 91:
-                while i < n and ignore[codes[i]]:
-                    i += 1
-                if i < n and codes[i] == 91:
-                    i += 1
-                else:
-                    ok[q] = False
-                    break
-            elif pc == 93:
-                found = False
-                while i < n:
-                    c = codes[i]
-                    if c == 91:
-                        i = link[i] + 1
-                    elif c == 93:
-                        i += 1
-                        found = True
-                        break
-                    else:
-                        i += 1
-                if not found:
-                    ok[q] = False
-                    break
-            else:
-                while i < n:
-                    c = codes[i]
-                    if ignore[c]:
-                        i += 1
-                    elif c == 91:
-                        i = link[i] + 1
-                    else:
-                        break
-                if i >= n or codes[i] != pc:
-                    ok[q] = False
-                    break
-                idx[q, k] = i
-                k += 1
-                i += 1
+        r, _k = _right_seq(codes, link, ignore, positions[q] + 1, n, pattern, plink, 0,
+                           len(pattern), idx[q], 0)
+        ok[q] = r >= 0
     return ok, idx
 
 
@@ -411,6 +489,7 @@ class _Group:
         self.left = _pattern_codes(p.left)
         right_syms = [c for c in p.right if c.symbol not in "[]"]
         self.right = _pattern_codes(p.right)
+        self.right_links = _pattern_links(self.right)
         self.right_syms = right_syms
         self.cum = np.cumsum([1.0 if q.probability is None else q.probability for q in prods])
         self.cum[-1] = np.inf
@@ -464,7 +543,7 @@ def _derive_general(grammar, s, n, rng, max_symbols, max_bytes) -> LString:
                     ok &= lok
                 if len(g.right):
                     rok, ridx = _match_right(codes, link, ignore, remaining, g.right,
-                                             len(g.right_syms))
+                                             g.right_links, len(g.right_syms))
                     ok &= rok
                 cand = np.flatnonzero(ok)
                 env = dict(grammar.defines)
@@ -533,6 +612,11 @@ def _derive_general(grammar, s, n, rng, max_symbols, max_bytes) -> LString:
         codes = new_codes
         if parametric:
             params, npar = new_params, new_npar
+        if grammar.has_cut:
+            keep = _cut_keep(codes)
+            codes = codes[keep]
+            if parametric:
+                params, npar = params[keep], npar[keep]
     return LString(codes, params, npar)
 
 
@@ -576,31 +660,77 @@ def _ref_skip_branch(mods, i):
     return i
 
 
-def _ref_right(mods, p, pattern, ignore):
-    i = p + 1
+def _ref_right_seq(mods, i, end, pattern, ignore):
+    """Match ``pattern`` (a string) from ``mods[i]`` inside a branch ending at ``end``;
+    return (position after, [indices of symbol matches]) or None."""
     found = []
-    for sym in pattern:
+    j = 0
+    while j < len(pattern):
+        sym = pattern[j]
         if sym == "[":
-            while i < len(mods) and mods[i][0] in ignore:
+            depth, jend = 0, len(pattern)
+            for t in range(j, len(pattern)):
+                depth += (pattern[t] == "[") - (pattern[t] == "]")
+                if depth == 0:
+                    jend = t
+                    break
+            while i < end and mods[i][0] in ignore:
                 i += 1
-            if i < len(mods) and mods[i][0] == "[":
-                i += 1
-                continue
-            return None
+            hit = None
+            while hit is None and i < end and mods[i][0] == "[":
+                after = _ref_skip_branch(mods, i)
+                close = after - 1 if mods[after - 1][0] == "]" else len(mods)
+                hit = _ref_right_seq(mods, i + 1, close, pattern[j + 1:jend], ignore)
+                i = close + 1
+                while hit is None and i < end and mods[i][0] in ignore:
+                    i += 1
+            if hit is None:
+                return None
+            found += hit[1]
+            j = jend + 1
+            continue
         if sym == "]":
             while i < len(mods) and mods[i][0] != "]":
                 i = _ref_skip_branch(mods, i) if mods[i][0] == "[" else i + 1
             if i >= len(mods):
                 return None
             i += 1
+            j += 1
             continue
-        while i < len(mods) and (mods[i][0] in ignore or mods[i][0] == "["):
+        while i < end and (mods[i][0] in ignore or mods[i][0] == "["):
             i = _ref_skip_branch(mods, i) if mods[i][0] == "[" else i + 1
-        if i >= len(mods) or mods[i][0] != sym:
+        if i >= end or mods[i][0] != sym:
             return None
         found.append(i)
         i += 1
-    return found
+        j += 1
+    return i, found
+
+
+def _ref_right(mods, p, pattern, ignore):
+    hit = _ref_right_seq(mods, p + 1, len(mods), "".join(pattern), ignore)
+    return None if hit is None else hit[1]
+
+
+def _ref_cut(mods):
+    out = []
+    depth = None  # inside a cut: bracket depth relative to the '%'
+    for m in mods:
+        if depth is None and m[0] == "%":
+            depth = 0
+        if depth is not None:
+            if m[0] == "[":
+                depth += 1
+            elif m[0] == "]":
+                if depth == 0:
+                    depth = None
+                else:
+                    depth -= 1
+                    continue
+            if depth is not None:
+                continue
+        out.append(m)
+    return out
 
 
 def derive_reference(grammar: Grammar, n: int | None = None, *,
@@ -657,7 +787,7 @@ def derive_reference(grammar: Grammar, n: int | None = None, *,
                 break
             if not done:
                 out.append((sym, vals))
-        mods = out
+        mods = _ref_cut(out)
     codes = np.frombuffer("".join(m[0] for m in mods).encode("ascii"), np.uint8).copy()
     if s.params is None:
         return LString(codes)

@@ -282,16 +282,14 @@ def evaluate(node: Node, env: dict) -> float:
     if op == "||":
         return float(a != 0.0 or evaluate(node.args[1], env) != 0.0)
     b = evaluate(node.args[1], env)
-    if op == "+":
-        return a + b
-    if op == "-":
-        return a - b
-    if op == "*":
-        return a * b
-    if op in ("/", "%"):
-        if b == 0.0:
+    if op in ("+", "-", "*", "/", "%"):
+        if op in ("/", "%") and b == 0.0:
             raise ExprError("division by zero", node.column)
-        return a / b if op == "/" else math.fmod(a, b)
+        r = (a + b if op == "+" else a - b if op == "-" else a * b if op == "*"
+             else a / b if op == "/" else math.fmod(a, b))
+        if not math.isfinite(r) and math.isfinite(a) and math.isfinite(b):
+            raise ExprError(f"{op}: result is not a finite number (overflow)", node.column)
+        return r
     if op == "^":
         try:
             r = a ** b
@@ -301,6 +299,9 @@ def evaluate(node: Node, env: dict) -> float:
             raise ExprError("power of a negative number to a fractional exponent", node.column)
         return float(r)
     return float(_CMP[op](a, b))
+
+
+_ARITH = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "%": np.fmod}
 
 
 def evaluate_array(node: Node, env: dict, n: int) -> np.ndarray:
@@ -344,16 +345,13 @@ def _eval_arr(node: Node, env: dict, n: int):
         return out
     a = _eval_arr(node.args[0], env, n)
     b = _eval_arr(node.args[1], env, n)
-    if op == "+":
-        return a + b
-    if op == "-":
-        return a - b
-    if op == "*":
-        return a * b
-    if op in ("/", "%"):
-        if np.any(np.asarray(b) == 0.0):
+    if op in ("+", "-", "*", "/", "%"):
+        if op in ("/", "%") and np.any(np.asarray(b) == 0.0):
             raise ExprError("division by zero", node.column)
-        return a / b if op == "/" else np.fmod(a, b)
+        with np.errstate(all="ignore"):
+            r = _ARITH[op](a, b)
+        _check_finite(r, (a, b), node)  # overflow to infinity: an error, not a silent inf
+        return r
     if op == "^":
         with np.errstate(all="ignore"):
             r = np.power(np.asarray(a, np.float64), b)

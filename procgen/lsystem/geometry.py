@@ -19,7 +19,7 @@ __all__ = ["tube_arrays", "polygon_arrays", "to_mesh"]
 
 def tube_arrays(result: TurtleResult, *, sides: int = 8, caps: bool = True,
                 min_radius: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Tube mesh arrays ``(vertices (k, 3) float64, triangles (t, 3) int64)``.
+    """Tube mesh arrays ``(vertices (k, 3) float64, triangles (t, 3) int32)``.
 
     ``min_radius`` keeps thin branches visible (radius = max(width / 2, min_radius)).
     """
@@ -33,7 +33,7 @@ def polygon_arrays(result: TurtleResult) -> tuple[np.ndarray, np.ndarray]:
     v = result.polygon_vertices
     ids = result.polygon_ids
     if len(v) == 0:
-        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+        return np.empty((0, 3)), np.empty((0, 3), np.int32)
     order = np.argsort(ids, kind="stable")
     v, ids = v[order], ids[order]
     # drop repeated vertices ('.' right after an f that already recorded the point)
@@ -44,7 +44,7 @@ def polygon_arrays(result: TurtleResult) -> tuple[np.ndarray, np.ndarray]:
     ntri = np.maximum(counts - 2, 0)
     first = np.repeat(starts, ntri)
     local = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-    tris = np.stack([first, first + local + 1, first + local + 2], -1).astype(np.int64)
+    tris = np.stack([first, first + local + 1, first + local + 2], -1).astype(np.int32)
     return v, tris
 
 
@@ -72,15 +72,17 @@ def to_mesh(result: TurtleResult, *, sides: int = 8, caps: bool = True, leaves: 
     """
     from procgen.meshes import make_mesh
 
-    vt, ft = tube_arrays(result, sides=sides, caps=caps, min_radius=min_radius)
-    parts_v, parts_f, parts_c = [vt], [ft], [np.tile([0.45, 0.3, 0.15], (len(vt), 1))]
-    if leaves:
+    v, f = tube_arrays(result, sides=sides, caps=caps, min_radius=min_radius)
+    n_tube = len(v)
+    if leaves and len(result.polygon_vertices):
         vp, fp = polygon_arrays(result)
-        parts_v.append(vp)
-        parts_f.append(fp + len(vt))
-        parts_c.append(np.tile([0.2, 0.6, 0.2], (len(vp), 1)))
-    v = np.vstack(parts_v)
-    f = np.vstack(parts_f)
+        v = np.vstack([v, vp])
+        f = np.vstack([f, fp + np.int32(n_tube)])
     if len(f) == 0:
         raise ValueError("result: nothing was drawn (no F segments and no polygons)")
-    return make_mesh(v, f, vertex_colors=np.vstack(parts_c) if colors else None)
+    rgb = None
+    if colors:  # brown tubes, green polygons
+        rgb = np.empty((len(v), 3))
+        rgb[:n_tube] = (0.45, 0.3, 0.15)
+        rgb[n_tube:] = (0.2, 0.6, 0.2)
+    return make_mesh(v, f, vertex_colors=rgb)

@@ -28,10 +28,14 @@ from procgen.lsystem.expr import ExprError, Node, evaluate, parse_expr
 from procgen.validate import InputError
 
 __all__ = ["GrammarError", "Module", "Pattern", "Production", "Grammar", "parse_grammar",
-           "load_grammar", "example_names", "TURTLE_SYMBOLS", "DIRECTIVES"]
+           "load_grammar", "example_names", "TURTLE_SYMBOLS", "CUT", "DIRECTIVES"]
 
 TURTLE_SYMBOLS = "FfG+-&^\\/|[]!'{}.$"
 """Symbols the turtle interprets (see :mod:`procgen.lsystem.turtle`)."""
+
+CUT = "%"
+"""The cut symbol: at the end of every derivation step, ``%`` and the rest of its branch
+(up to the ``]`` that closes it, or the end of the string) are removed (ABOP p. 73)."""
 
 _ONE_ARG = set("FfG+-&^\\/!'")
 _RESERVED = set("()<>,:;#")
@@ -146,6 +150,12 @@ class Grammar:
     @property
     def is_stochastic(self) -> bool:
         return any(p.probability is not None for p in self.productions)
+
+    @property
+    def has_cut(self) -> bool:
+        """Whether the cut symbol ``%`` can appear in a derived string."""
+        return any(m.symbol == CUT for m in self.axiom) or any(
+            m.symbol == CUT for p in self.productions for m in p.successor)
 
     @property
     def is_context_sensitive(self) -> bool:
@@ -490,7 +500,7 @@ def _validate(g: Grammar, path, axiom_line):
             except ExprError as exc:
                 raise ax_ctx.error(exc.message, exc.column) from None
     preds = {p.predecessor.symbol for p in g.productions}
-    known = set(TURTLE_SYMBOLS) | preds | set(g.draw) | set(g.move) | set(g.symbols)
+    known = set(TURTLE_SYMBOLS) | {CUT} | preds | set(g.draw) | set(g.move) | set(g.symbols)
     arity: dict[str, tuple[int, int]] = {}
     for p in g.productions:
         prev = arity.get(p.predecessor.symbol)

@@ -91,15 +91,19 @@ class TurtleResult:
 
 
 @numba.njit(cache=True)
-def _rotate(a, b, ang):
-    """Rotate the pair (a, b) in their plane: a -> cos a + sin b, b -> -sin a + cos b."""
-    c = np.cos(ang)
-    s = np.sin(ang)
+def _rotate_cs(a, b, c, s):
+    """Rotate the pair (a, b) in their plane: a -> c a + s b, b -> -s a + c b."""
     for t in range(3):
         x = a[t]
         y = b[t]
         a[t] = c * x + s * y
         b[t] = -s * x + c * y
+
+
+@numba.njit(cache=True)
+def _rotate(a, b, ang):
+    """Rotate the pair (a, b) in their plane by ``ang`` radians."""
+    _rotate_cs(a, b, np.cos(ang), np.sin(ang))
 
 
 @numba.njit(cache=True)
@@ -127,8 +131,10 @@ def _orthonormalize(H, L, U):
 
 @numba.njit(cache=True)
 def _run(codes, ops, params, npar, has_params, step, angle, width, width_factor, tropism,
-         use_tropism, n_seg, n_pv, depth):
+         use_tropism, depth, starts, ends, frames, widths, colors, parents, pv, pid):
     deg = np.pi / 180.0
+    ca = np.cos(angle * deg)  # the default turn, computed once
+    sa = np.sin(angle * deg)
     pos = np.zeros(3)
     H = np.array([0.0, 0.0, 1.0])
     L = np.array([-1.0, 0.0, 0.0])
@@ -139,18 +145,11 @@ def _run(codes, ops, params, npar, has_params, step, angle, width, width_factor,
     stack_f = np.empty((depth + 1, 13))
     stack_i = np.empty((depth + 1, 2), np.int64)
     top = 0
+    n_pv = len(pv)
     poly_stack = np.empty(depth + n_pv + 1, np.int64)
     ptop = 0
     cur_poly = -1
     n_poly = 0
-    starts = np.empty((n_seg, 3))
-    ends = np.empty((n_seg, 3))
-    frames = np.empty((n_seg, 3, 3))
-    widths = np.empty(n_seg)
-    colors = np.empty(n_seg, np.int32)
-    parents = np.empty(n_seg, np.int64)
-    pv = np.empty((n_pv, 3))
-    pid = np.empty(n_pv, np.int64)
     m = 0
     p = 0
     tmp = np.empty(3)
@@ -206,18 +205,27 @@ def _run(codes, ops, params, npar, has_params, step, angle, width, width_factor,
                     pid[p] = cur_poly
                     p += 1
         elif op == _TURN or op == _TURN_NEG:
-            a = (arg if has else angle) * deg
-            _rotate(H, L, a if op == _TURN else -a)
+            if has:
+                a = arg * deg
+                _rotate(H, L, a if op == _TURN else -a)
+            else:
+                _rotate_cs(H, L, ca, sa if op == _TURN else -sa)
             _orthonormalize(H, L, U)
         elif op == _PITCH or op == _PITCH_NEG:
             # R_L(+a): H -> cos H - sin U, U -> sin H + cos U
-            a = (arg if has else angle) * deg
-            _rotate(U, H, a if op == _PITCH else -a)
+            if has:
+                a = arg * deg
+                _rotate(U, H, a if op == _PITCH else -a)
+            else:
+                _rotate_cs(U, H, ca, sa if op == _PITCH else -sa)
             _orthonormalize(H, L, U)
         elif op == _ROLL or op == _ROLL_NEG:
             # R_H(+a): L -> cos L + sin U
-            a = (arg if has else angle) * deg
-            _rotate(L, U, a if op == _ROLL else -a)
+            if has:
+                a = arg * deg
+                _rotate(L, U, a if op == _ROLL else -a)
+            else:
+                _rotate_cs(L, U, ca, sa if op == _ROLL else -sa)
             _orthonormalize(H, L, U)
         elif op == _AROUND:
             _rotate(H, L, np.pi)
@@ -268,7 +276,25 @@ def _run(codes, ops, params, npar, has_params, step, angle, width, width_factor,
             if s > 1e-12:
                 L[:] = tmp / s
                 _cross(H, L, U)
-    return starts[:m], ends[:m], frames[:m], widths[:m], colors[:m], parents[:m], pv[:p], pid[:p]
+    return m, p
+
+
+@numba.njit(cache=True)
+def _sizes(codes, ops):
+    """Upper bounds for the turtle's outputs: segments, polygon vertices, stack depth."""
+    n_seg = 0
+    n_pv = 0
+    depth = 0
+    for i in range(len(codes)):
+        op = ops[codes[i]]
+        if op == _DRAW:
+            n_seg += 1
+            n_pv += 1
+        elif op == _MOVE or op == _VERTEX:
+            n_pv += 1
+        elif op == _PUSH:
+            depth += 1
+    return n_seg, n_pv, depth
 
 
 def op_table(grammar: Grammar | None = None) -> np.ndarray:
@@ -315,13 +341,16 @@ def interpret(string: LString, grammar: Grammar | None = None, *, step: float | 
         raise ValueError(f"tropism: expected 4 finite numbers (x, y, z, e), got {trop!r}")
     ops = op_table(g)
     codes = string.codes
-    kind = ops[codes]
-    n_seg = int(np.count_nonzero(kind == _DRAW))
-    n_pv = int(np.count_nonzero((kind == _DRAW) | (kind == _MOVE) | (kind == _VERTEX)))
-    depth = int(np.count_nonzero(kind == _PUSH))
+    n_seg, n_pv, depth = _sizes(codes, ops)
     has = string.params is not None
     params = string.params if has else np.zeros((1, 1))
     npar = string.nparams if has else np.zeros(1, np.uint8)
-    out = _run(codes, ops, params, npar, has, step, angle, width, width_factor, trop_arr,
-               use_trop, n_seg, n_pv, depth)
-    return TurtleResult(*out)
+    # outputs allocated by numpy (huge pages for big arrays: fewer first-touch page faults)
+    starts, ends = np.empty((n_seg, 3)), np.empty((n_seg, 3))
+    frames, widths = np.empty((n_seg, 3, 3)), np.empty(n_seg)
+    colors, parents = np.empty(n_seg, np.int32), np.empty(n_seg, np.int64)
+    pv, pid = np.empty((n_pv, 3)), np.empty(n_pv, np.int64)
+    m, p = _run(codes, ops, params, npar, has, step, angle, width, width_factor, trop_arr,
+                use_trop, depth, starts, ends, frames, widths, colors, parents, pv, pid)
+    return TurtleResult(starts[:m], ends[:m], frames[:m], widths[:m], colors[:m], parents[:m],
+                        pv[:p], pid[:p])

@@ -64,13 +64,12 @@ def render_preview(meshes, path: Path, *, size=(640, 480)) -> Path:
 
 
 def _matplotlib_preview(meshes, size):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure  # no pyplot: the caller's backend stays untouched
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    fig = plt.figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
+    fig = Figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
+    FigureCanvasAgg(fig)
     ax = fig.add_subplot(projection="3d")
     allv = []
     for mesh, color in meshes:
@@ -84,8 +83,6 @@ def _matplotlib_preview(meshes, size):
         ax.auto_scale_xyz(v[:, 0], v[:, 1], v[:, 2])
     ax.set_axis_off()
     fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    plt.close(fig)
-    return img
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
 

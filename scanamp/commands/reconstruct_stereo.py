@@ -29,7 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not also reconstruct and score the other mode")
     p.add_argument("--block-size", type=int, default=5, help="SGBM window (odd)")
     p.add_argument("--wls", action="store_true", help="WLS disparity filter (ximgproc)")
-    p.add_argument("--no-lr-check", action="store_true", help="skip left-right consistency")
+    p.add_argument("--lr-check", action="store_true",
+                   help="left-right consistency: drop disparities the right view disagrees with")
+    p.add_argument("--sgbm-mode", choices=("sgbm", "hh", "3way"), default="sgbm",
+                   help="SGBM paths: 5 (sgbm), 8 with full DP (hh, ~2.5x slower), 3way")
     p.add_argument("--num-disparities", type=int, default=None,
                    help="search range (multiple of 16); default from the rig's working range")
     p.add_argument("--min-disparity", type=int, default=None)
@@ -43,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from reconstruct.stereo_recon import StereoOptions, run_capture, run_pair
 
     opts = StereoOptions(mode=args.mode, compare=not args.no_compare, block_size=args.block_size,
-                         wls=args.wls, lr_check=not args.no_lr_check,
+                         wls=args.wls, lr_check=args.lr_check, sgbm_mode=args.sgbm_mode,
                          num_disparities=args.num_disparities,
                          min_disparity=args.min_disparity, voxel_size=args.voxel_size)
     pair = [args.left, args.right, args.calibration]

@@ -1,0 +1,242 @@
+"""Scatter: a varied forest of stochastic L-system plants grown from one grammar and
+planted on a surface by density, slope and altitude rules.
+
+Planting is a Poisson process: candidate points are drawn uniformly by area with mean
+``density * area`` and kept where the surface is gentle and the altitude in range, so the
+expected number of plants is ``density * eligible area``. Each plant is one of
+``variants`` plants derived from the same grammar with different seeds, scaled to a
+jittered height and turned by a random yaw.
+
+>>> import numpy as np
+>>> from procgen.terrain import heightfield_to_mesh
+>>> ground = heightfield_to_mesh(np.zeros((5, 5)), spacing=1.0)   # 4 m x 4 m
+>>> res = scatter_plants(ground, rng=np.random.default_rng(0), density=2.0, height=0.5)
+>>> len(res.positions) > 10, bool(np.all(res.positions[:, 2] == 0.0))
+(True, True)
+
+References
+----------
+P. Prusinkiewicz, A. Lindenmayer, *The Algorithmic Beauty of Plants*, Springer 1990
+(stochastic L-systems, §1.7). doi:10.1007/978-1-4613-8476-2
+O. Deussen et al., "Realistic modeling and rendering of plant ecosystems", SIGGRAPH 1998.
+doi:10.1145/280814.280898
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from procgen.amplify._surface import (
+    check_int,
+    check_rng,
+    face_normals,
+    mesh_input,
+    sample_surface,
+)
+from procgen.meshes import make_mesh, surface_area
+from procgen.validate import check_finite, check_positive, check_range
+
+__all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "upward_slope"]
+
+# A small 3-D stochastic tree: each apex branches in three, in two, or grows on.
+TREE_GRAMMAR = """\
+# 3-D stochastic tree (procgen.amplify.plants.TREE_GRAMMAR)
+angle: 30
+n: 5
+width: 0.3
+width_factor: 0.68
+axiom: !(0.3)F(1.5)A
+A -(0.45)-> !F[&+A][&/(120)+A][&/(240)+A]
+A -(0.35)-> !F[&+A]/(137)[&-A]
+A -(0.2)-> !F/(90)A
+"""
+
+
+def _grammar(grammar):
+    from procgen.lsystem import Grammar, load_grammar, parse_grammar
+
+    if grammar is None or (isinstance(grammar, str) and grammar == "tree"):
+        return parse_grammar(TREE_GRAMMAR, source="<tree>")
+    if isinstance(grammar, Grammar):
+        return grammar
+    return load_grammar(grammar)
+
+
+def grow_variants(grammar=None, *, rng: np.random.Generator, variants: int = 6,
+                  steps: int | None = None, sides: int = 6) -> list[tuple[np.ndarray,
+                                                                            np.ndarray]]:
+    """Derive ``variants`` plants from one grammar with independent seeds.
+
+    Each is returned as ``(vertices (k, 3), triangles (t, 3))`` normalised to stand on the
+    origin (lowest point at z = 0, trunk base at x = y = 0) with height 1.
+
+    Parameters
+    ----------
+    grammar : Grammar, str or None
+        None or ``'tree'``: :data:`TREE_GRAMMAR`; a shipped example name or a file path.
+    rng : numpy.random.Generator
+    variants : int
+    steps : int, optional
+        Derivation steps (default: the grammar's ``n``).
+    sides : int
+        Tube resolution.
+    """
+    from procgen.lsystem import derive, interpret, tube_arrays
+
+    rng = check_rng(rng)
+    g = _grammar(grammar)
+    variants = check_int(variants, "variants", 1, 1024)
+    sides = check_int(sides, "sides", 3, 64)
+    out = []
+    for seed in rng.integers(0, 2 ** 63 - 1, size=variants):
+        r = interpret(derive(g, steps, rng=np.random.default_rng(int(seed))), g)
+        if len(r) == 0:
+            raise ValueError("grammar: the derived plant draws no segment")
+        v, f = tube_arrays(r, sides=sides)
+        base = r.starts[0]
+        v = v - [base[0], base[1], v[:, 2].min()]
+        height = float(v[:, 2].max())
+        if height <= 0:
+            raise ValueError("grammar: the derived plant has no height (a flat drawing)")
+        out.append((v / height, np.asarray(f, np.int64)))
+    return out
+
+
+def upward_slope(normals: np.ndarray) -> np.ndarray:
+    """Slope in degrees of surfaces with unit ``normals (n, 3)``: 0 facing up, 90 vertical,
+    180 facing down (an overhang)."""
+    return np.degrees(np.arccos(np.clip(np.asarray(normals, np.float64)[:, 2], -1.0, 1.0)))
+
+
+@dataclass
+class ScatterResult:
+    """What :func:`scatter_plants` made.
+
+    Attributes
+    ----------
+    mesh : open3d.geometry.TriangleMesh or None
+        All plants in one mesh (None when nothing was planted).
+    positions : (k, 3) float64
+        Plant bases on the surface.
+    triangle : (k,) int64
+        Surface triangle under each plant.
+    heights : (k,) float64
+    variant : (k,) int64
+    candidates : int
+        Points drawn before the rules.
+    eligible_area : float
+        Area (m^2) of the surface where the slope rule holds (altitude not included).
+    truncated : bool
+        More plants qualified than ``max_plants``.
+    """
+
+    mesh: object
+    positions: np.ndarray
+    triangle: np.ndarray
+    heights: np.ndarray
+    variant: np.ndarray
+    candidates: int
+    eligible_area: float
+    truncated: bool
+
+
+def _rot_to(z_axis: np.ndarray) -> np.ndarray:
+    """A rotation (3, 3) taking +z to the unit vector ``z_axis``."""
+    z = z_axis / np.linalg.norm(z_axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1)
+
+
+def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: float = 4.0,
+                   height: float = 0.2, height_jitter: float = 0.3,
+                   slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
+                   variants: int = 6, steps: int | None = None, sides: int = 6,
+                   max_plants: int = 400, upright: bool = True,
+                   max_candidates: int = 2_000_000) -> ScatterResult:
+    """Plant a varied forest on ``mesh``.
+
+    Parameters
+    ----------
+    mesh : open3d.geometry.TriangleMesh
+    rng : numpy.random.Generator
+    grammar : Grammar, str or None
+        See :func:`grow_variants` (a stochastic grammar gives varied plants).
+    density : float
+        Plants per square metre of eligible surface (> 0).
+    height : float
+        Mean plant height in metres; each is scaled by ``1 + height_jitter * U(-1, 1)``.
+    height_jitter : float
+        In [0, 1).
+    slope_max_deg : float
+        Plant only where the surface's upward slope (:func:`upward_slope` of the face
+        normal) is at most this, 0 to 90; overhangs never qualify.
+    altitude_range : (2,) float
+        Plant only where ``(z - zmin) / (zmax - zmin)`` of the mesh lies in this range,
+        within [0, 1].
+    variants : int
+        Distinct plants derived (each plant is one of them, turned and scaled).
+    steps : int, optional
+        Derivation steps (default: the grammar's).
+    max_plants : int
+        Keep at most this many (the first drawn).
+    upright : bool
+        Grow along +z (True) or along the surface normal.
+    max_candidates : int
+        Refuse a density that needs more candidate points than this.
+
+    Returns
+    -------
+    ScatterResult
+    """
+    rng = check_rng(rng)
+    v, f = mesh_input(mesh)
+    dens = check_positive(density, "density")
+    h_mean = check_positive(height, "height")
+    jit = check_range(height_jitter, "height_jitter", 0.0, 1.0, hi_open=True)
+    smax = check_range(slope_max_deg, "slope_max_deg", 0.0, 90.0)
+    a_lo, a_hi = (check_finite(x, "altitude_range") for x in altitude_range)
+    if not 0.0 <= a_lo <= a_hi <= 1.0:
+        raise ValueError(f"altitude_range: expected 0 <= lo <= hi <= 1, got {list(altitude_range)}")
+    max_plants = check_int(max_plants, "max_plants", 0)
+    fn = face_normals(v, f)
+    area = surface_area(v, f)
+    slope_ok = upward_slope(fn) <= smax + 1e-9
+    eligible_area = float(area[slope_ok].sum())
+    lam = dens * float(area.sum())
+    if lam > max_candidates:
+        raise ValueError(f"density: {dens:g} plants/m^2 over {area.sum():.4g} m^2 needs "
+                         f"{lam:.3g} candidates > {max_candidates}; lower the density")
+    n_cand = int(rng.poisson(lam))
+    pts, tri = sample_surface(v, f, n_cand, rng)
+    z0, z1 = float(v[:, 2].min()), float(v[:, 2].max())
+    rel = (pts[:, 2] - z0) / (z1 - z0) if z1 > z0 else np.zeros(len(pts))
+    keep = slope_ok[tri] & (rel >= a_lo) & (rel <= a_hi)
+    pts, tri = pts[keep], tri[keep]
+    truncated = len(pts) > max_plants
+    pts, tri = pts[:max_plants], tri[:max_plants]
+    k = len(pts)
+    var_id = rng.integers(0, check_int(variants, "variants", 1, 1024), size=k)
+    yaw = rng.uniform(0.0, 2 * np.pi, size=k)
+    heights = h_mean * (1.0 + jit * rng.uniform(-1.0, 1.0, size=k))
+    if k == 0:
+        return ScatterResult(None, pts, tri, heights, var_id, n_cand, eligible_area, truncated)
+    shapes = grow_variants(grammar, rng=rng, variants=variants, steps=steps, sides=sides)
+    vs, fs, off = [], [], 0
+    for i in range(k):
+        pv, pf = shapes[var_id[i]]
+        c, s = np.cos(yaw[i]), np.sin(yaw[i])
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        if not upright:
+            R = _rot_to(fn[tri[i]]) @ R
+        # sink the base a little so trunks meet curved ground
+        local = pv * heights[i] - [0.0, 0.0, 0.02 * heights[i]]
+        vs.append(local @ R.T + pts[i])
+        fs.append(pf + off)
+        off += len(pv)
+    plants = make_mesh(np.vstack(vs), np.vstack(fs))
+    return ScatterResult(plants, pts, tri, heights, var_id, n_cand, eligible_area, truncated)

@@ -1,0 +1,229 @@
+"""The step executors of an amplification recipe (one function per step kind).
+
+Each takes the :class:`State`, the validated :class:`~scanamp.amplify.recipe.Step`, a
+generator, and returns a dict of facts for the report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from procgen.amplify._surface import bbox_diagonal, edge_lengths
+from procgen.meshes import mesh_arrays
+
+__all__ = ["State", "EXECUTORS"]
+
+
+@dataclass
+class State:
+    """The mesh being amplified: the surface and the parts planted on it.
+
+    Attributes
+    ----------
+    surface : open3d.geometry.TriangleMesh
+    parts : list of (name, mesh, rgb)
+        Added geometry (plants, vines), kept apart so renders can colour it; part of the
+        final mesh and of animation colliders.
+    parts_unmerged : list of (name, mesh, rgb)
+        Added geometry written to its own file only (``merge = false``).
+    """
+
+    surface: object
+    parts: list = field(default_factory=list)
+    parts_unmerged: list = field(default_factory=list)
+
+    def counts(self) -> dict:
+        out = {"vertices": len(self.surface.vertices), "triangles": len(self.surface.triangles)}
+        for _, m, _ in self.parts:
+            out["vertices"] += len(m.vertices)
+            out["triangles"] += len(m.triangles)
+        return out
+
+    def merged(self):
+        from procgen.meshes import merge_meshes
+
+        if not self.parts:
+            return self.surface
+        return merge_meshes([self.surface] + [m for _, m, _ in self.parts])
+
+    def add_part(self, base: str, mesh, color) -> str:
+        names = {n for n, _, _ in self.parts}
+        name, k = base, 2
+        while name in names:
+            name, k = f"{base}_{k}", k + 1
+        self.parts.append((name, mesh, tuple(color)))
+        return name
+
+
+def _displace(state: State, step, rng, **_):
+    from procgen.amplify import displace
+
+    p = step.params
+    v, f = mesh_arrays(state.surface)
+    mean_edge = float(edge_lengths(v, f).mean())
+    target = p["edge"] * mean_edge if p["edge"] > 0 else None
+    res = displace(state.surface, rng=rng, target_edge=target,
+                   noise=p["noise"], amplitude=p["amplitude"], scale=p["scale"],
+                   wavelength=p["wavelength"], octaves=p["octaves"], mask=p["mask"],
+                   mask_range=tuple(p["mask_range"]), invert_mask=p["invert_mask"],
+                   max_triangles=p["max_triangles"])
+    state.surface = res.mesh
+    return {"input_mean_edge": mean_edge, "target_edge": target,
+            "subdivision_levels": res.levels, "max_edge": res.max_edge,
+            "rms_offset_relative": res.rms_relative,
+            "masked_fraction": float(np.mean(res.mask < 1e-12))}
+
+
+def _refine_terrain(state: State, step, rng, **_):
+    from procgen.amplify import refine_terrain
+
+    p = step.params
+    res = refine_terrain(state.surface, rng=rng, control_size=p["control_size"],
+                         levels=p["levels"], hurst=p["hurst"], sigma=p["sigma"],
+                         trim=p["trim"])
+    state.surface = res.mesh
+    return {"control_shape": list(res.control.shape), "fine_shape": list(res.heights.shape),
+            "control_hit_fraction": float(res.valid.mean()), "fine_spacing": res.spacing}
+
+
+def _scatter(state: State, step, rng, *, recipe=None, **_):
+    from procgen.amplify import scatter_plants
+
+    p = step.params
+    v, _ = mesh_arrays(state.surface)
+    diag = bbox_diagonal(v)
+    grammar = p["grammar"] if recipe is None else recipe.resolve(p["grammar"])
+    res = scatter_plants(state.surface, rng=rng, grammar=grammar, density=p["density"],
+                         height=p["height"] * diag, height_jitter=p["height_jitter"],
+                         slope_max_deg=p["slope_max_deg"],
+                         altitude_range=tuple(p["altitude_range"]), variants=p["variants"],
+                         steps=p["steps"], sides=p["sides"], max_plants=p["max_plants"],
+                         upright=p["upright"])
+    name = None
+    if res.mesh is not None:
+        if p["merge"]:
+            name = state.add_part("plants", res.mesh, p["color"])
+        else:
+            state.parts_unmerged.append(("plants", res.mesh, tuple(p["color"])))
+    return {"plants": len(res.positions), "candidates": res.candidates,
+            "eligible_area": res.eligible_area, "truncated": res.truncated,
+            "plant_height_mean": float(res.heights.mean()) if len(res.heights) else 0.0,
+            "part": name}
+
+
+def _sweep(state: State, step, rng, **_):
+    from procgen.amplify import grow_vines
+
+    p = step.params
+    v, _ = mesh_arrays(state.surface)
+    diag = bbox_diagonal(v)
+    length, stp = p["length"] * diag, p["step"] * diag
+    res = grow_vines(state.surface, rng=rng, count=p["count"], length=length,
+                     step=min(stp, length), radius=p["radius"] * diag,
+                     wander_deg=p["wander_deg"], slope_max_deg=p["slope_max_deg"],
+                     sides=p["sides"], taper=p["taper"])
+    name = None
+    if p["merge"]:
+        name = state.add_part("vines", res.mesh, p["color"])
+    else:
+        state.parts_unmerged.append(("vines", res.mesh, tuple(p["color"])))
+    return {"vines": len(res.paths), "length": length, "radius": p["radius"] * diag,
+            "part": name}
+
+
+def _hypertexture(state: State, step, rng, **_):
+    from procgen.amplify import hypertexture_mesh
+
+    p = step.params
+    v, _ = mesh_arrays(state.surface)
+    diag = bbox_diagonal(v)
+    res = hypertexture_mesh(state.surface, rng=rng, noise=p["noise"],
+                            amplitude=p["amplitude"] * diag, frequency=p["frequency"] / diag,
+                            octaves=p["octaves"], resolution=p["resolution"], bias=p["bias"],
+                            gain=p["gain"])
+    state.surface = res.mesh
+    return {"voxel": res.voxel, "amplitude_m": p["amplitude"] * diag}
+
+
+def _fit(mesh, simulation: str, size: float):
+    """Move and scale ``mesh`` into a simulation recipe's frame; returns (mesh, 4x4)."""
+    import copy
+
+    v, _ = mesh_arrays(mesh)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    T = np.eye(4)
+    if simulation == "boids":   # centred on the origin, bounding half-diagonal = size
+        c = 0.5 * (lo + hi)
+        s = size / max(0.5 * float(np.linalg.norm(hi - lo)), 1e-12)
+    else:                       # standing on z = 0, centred in x, y, half-width = size
+        c = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2]])
+        s = size / max(0.5 * float(np.max(hi[:2] - lo[:2])), 1e-12)
+    T[:3, :3] *= s
+    T[:3, 3] = -s * c
+    out = copy.deepcopy(mesh)
+    out.transform(T)
+    return out, T
+
+
+def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
+    import dataclasses
+    import tempfile
+    from pathlib import Path
+
+    from procgen.files import read_json
+    from procgen.mesh_io import write_mesh
+
+    if out_dir is None:
+        raise ValueError("out_dir: an animate step needs an output folder")
+    p = step.params
+    sim = p["simulation"]
+    sub = p["recipe"] if recipe is None else recipe.resolve(p["recipe"])
+    out_dir = Path(out_dir)
+    name, k = "animation", 2
+    while (out_dir / name).exists():
+        name, k = f"animation_{k}", k + 1
+    seed = int(rng.integers(0, 2 ** 31 - 1))
+    mesh = state.merged()
+    if sim == "boids":
+        from scanamp.boids_run import run_boids
+        from simulate.boids import load_recipe as load_boids
+
+        r = load_boids(sub)
+        changes = {"seed": seed}
+        if p["frames"] is not None:
+            changes["steps"] = p["frames"]
+        if p["n"] is not None:
+            changes["n"] = p["n"]
+        r = dataclasses.replace(r, **changes)
+        size = p["size"] if p["size"] is not None else r.obstacle_size
+        collider, T = (_fit(mesh, sim, size) if p["fit"] else (mesh, np.eye(4)))
+        run_boids(r, out_dir / name, mesh=collider, render=p["render"], width=p["width"],
+                  height=p["height"])
+    else:
+        from scanamp.simulation_run import run_simulation
+
+        size = p["size"] if p["size"] is not None else 0.6
+        collider, T = (_fit(mesh, sim, size) if p["fit"] else (mesh, np.eye(4)))
+        with tempfile.TemporaryDirectory(prefix="scanamp-amplify-") as td:
+            mesh_path = write_mesh(Path(td) / "collider.ply", collider)
+            run_simulation(sim, sub, out_dir / name, mesh_path=mesh_path,
+                           frames=p["frames"], render=p["render"], width=p["width"],
+                           height=p["height"], seed=seed)
+    sub_report = read_json(out_dir / name / "report.json")
+    keys = ("status", "frames", "n", "steps", "particles_born", "particles_alive", "escapes",
+            "impacts", "final", "animation")
+    return {"animation": name, "simulation": sim, "sub_recipe": str(sub), "seed": seed,
+            "sim_from_mesh": T.tolist(),
+            "result": {key: sub_report[key] for key in keys if key in sub_report}}
+
+
+EXECUTORS = {
+    "displace": _displace,
+    "refine-terrain": _refine_terrain,
+    "scatter": _scatter,
+    "sweep": _sweep,
+    "hypertexture": _hypertexture,
+    "animate": _animate,
+}

@@ -1,0 +1,1 @@
+"""Shipped study specs (``scanamp study NAME``)."""

@@ -1,0 +1,23 @@
+"""Scanner studies: grid or random sweeps over capture and reconstruction parameters.
+
+>>> from scanamp.study import load_study, run_study      # doctest: +SKIP
+>>> study = load_study("laser-angle")                    # a shipped name or a TOML path
+>>> summary = run_study(study, "out/laser-angle", workers=2)
+>>> summary["table"]                                     # also out/.../results.csv
+
+See ``docs/study.md`` for the file format and the shipped studies.
+"""
+
+from scanamp.study.kinds import KINDS, get_metric, score_peaks
+from scanamp.study.results import results_table, write_results
+from scanamp.study.runner import connect, execute_run, load_records, run_study
+from scanamp.study.spec import Run, Study, load_study, run_id, shipped_studies, study_path
+
+__all__ = ["KINDS", "Run", "Study", "connect", "execute_run", "get_metric", "load_records",
+           "load_study", "public_kinds", "results_table", "run_id", "run_study", "score_peaks",
+           "shipped_studies", "study_path", "write_results"]
+
+
+def public_kinds() -> list[str]:
+    """The study kinds users name (``_test`` is the runner's own test kind)."""
+    return sorted(k for k in KINDS if not k.startswith("_"))

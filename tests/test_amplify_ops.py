@@ -1,0 +1,213 @@
+"""procgen.amplify operators: properties that catch wrong answers."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from procgen.amplify import (
+    displace,
+    grow_vines,
+    hypertexture_mesh,
+    refine_terrain,
+    scatter_plants,
+    subdivide_to_edge,
+)
+from procgen.amplify._surface import edge_lengths, local_edge_length
+from procgen.meshes import is_closed, make_mesh, mesh_arrays, surface_area
+from procgen.terrain import heightfield_to_mesh
+
+
+def _ball(res=8):
+    return o3d.geometry.TriangleMesh.create_sphere(1.0, res)
+
+
+def _rng(s=0):
+    return np.random.default_rng(s)
+
+
+def test_subdivision_reaches_the_target_edge_and_no_further():
+    v, f = mesh_arrays(_ball())
+    longest = edge_lengths(v, f).max()
+    for target in (longest * 0.9, longest / 3.0, 0.05):
+        nv, nf, _, levels = subdivide_to_edge(v, f, target)
+        got = edge_lengths(nv, nf).max()
+        assert got <= target
+        assert got * 2 > target        # one level fewer would not have reached it
+        assert len(nf) == len(f) * 4 ** levels
+        assert np.array_equal(nv[:len(v)], v)   # old vertices kept, in order
+        assert is_closed(nf)
+
+
+@pytest.mark.parametrize("noise", ["fbm", "turbulence", "ridged"])
+def test_displacement_is_along_normals_with_the_stated_rms(noise):
+    res = displace(_ball(), rng=_rng(1), target_edge=0.2, noise=noise, amplitude=0.3)
+    out, _ = mesh_arrays(res.mesh)
+    moved = out - res.base_vertices
+    # along the normal only: the move is offset * normal, nothing tangential
+    np.testing.assert_allclose(moved, res.offset[:, None] * res.normals, atol=1e-13)
+    np.testing.assert_allclose(np.linalg.norm(res.normals, axis=1), 1.0, atol=1e-12)
+    # the stated amplitude: RMS of offset / local scale
+    assert res.rms_relative == pytest.approx(0.3, rel=1e-12)
+    assert np.std(res.offset) > 0
+    assert res.max_edge <= 0.2
+
+
+def test_local_scale_is_the_input_edge_length_interpolated():
+    mesh = _ball()
+    v, f = mesh_arrays(mesh)
+    h0 = local_edge_length(v, f)
+    res = displace(mesh, rng=_rng(), target_edge=0.3, amplitude=0.1)
+    np.testing.assert_array_equal(res.scale[:len(v)], h0)
+    assert res.scale.min() >= h0.min() - 1e-12 and res.scale.max() <= h0.max() + 1e-12
+    glob = displace(mesh, rng=_rng(), amplitude=0.1, scale="global")
+    np.testing.assert_allclose(glob.scale, np.linalg.norm(v.max(0) - v.min(0)))
+
+
+def test_zero_mask_leaves_the_mesh_unchanged():
+    plane = heightfield_to_mesh(np.zeros((6, 6)), spacing=0.2)
+    v, f = mesh_arrays(plane)
+    # slope 0 everywhere, the mask ramps from 60 to 80 degrees: zero
+    res = displace(plane, rng=_rng(), mask="slope", mask_range=(60.0, 80.0), amplitude=2.0)
+    out, of = mesh_arrays(res.mesh)
+    assert np.array_equal(out, v) and np.array_equal(of, f)
+    res = displace(plane, rng=_rng(), target_edge=0.1, mask="curvature",
+                   mask_range=(0.5, 1.0), amplitude=2.0)
+    out, _ = mesh_arrays(res.mesh)
+    assert np.array_equal(out, res.base_vertices) and len(out) > len(v)
+    # inverted, the same mask is one: everything moves
+    res = displace(plane, rng=_rng(), mask="slope", mask_range=(60.0, 80.0), invert_mask=True)
+    assert np.all(res.mask == 1.0) and res.rms_relative == pytest.approx(0.25)
+
+
+def test_slope_mask_moves_only_steep_faces():
+    x = np.linspace(0, 4, 21)
+    z = np.tile(np.maximum(0.0, x - 2.0) * 2.0, (5, 1))      # flat, then a 63 degree ramp
+    mesh = heightfield_to_mesh(z, spacing=(0.2, 0.25))
+    res = displace(mesh, rng=_rng(), mask="slope", mask_range=(30.0, 45.0))
+    v, _ = mesh_arrays(mesh)
+    flat = v[:, 0] < 1.9
+    steep = v[:, 0] > 2.1
+    assert np.all(res.offset[flat] == 0.0)
+    assert np.all(res.mask[steep] == 1.0) and np.any(res.offset[steep] != 0.0)
+
+
+def test_constrained_diamond_square_keeps_every_control_sample():
+    rng = _rng(3)
+    coarse = rng.normal(size=(17, 17)) * 0.2
+    mesh = heightfield_to_mesh(coarse, spacing=0.25)
+    res = refine_terrain(mesh, rng=_rng(4), control_size=17, levels=3, hurst=0.7)
+    D = 2 ** 3
+    assert res.heights.shape == (16 * D + 1, 16 * D + 1)
+    assert np.array_equal(res.heights[::D, ::D], res.control)
+    # the control grid is aligned with the input vertices: it is their heights
+    np.testing.assert_allclose(res.control, coarse, atol=1e-5)
+    assert res.valid.all()
+    v, _ = mesh_arrays(res.mesh)
+    grid_z = v[:, 2].reshape(res.heights.shape)
+    assert np.array_equal(grid_z, res.heights)
+    assert np.std(res.heights - np.kron(res.control, np.ones((D, D)))[:129, :129]) > 0
+
+
+def test_refine_terrain_trims_to_the_footprint():
+    ball = _ball(12)
+    res = refine_terrain(ball, rng=_rng(), control_size=9, levels=1)
+    assert not res.valid.all() and res.valid.any()
+    v, _ = mesh_arrays(res.mesh)
+    assert np.all(np.linalg.norm(v[:, :2], axis=1) < 1.0 + 1e-9)
+
+
+def _ramp_mesh():
+    """4 m x 2 m: flat for x < 2, a 45 degree ramp beyond (area 4 + 4 sqrt 2)."""
+    x = np.linspace(0, 4, 41)
+    z = np.tile(np.maximum(0.0, x - 2.0), (21, 1))
+    return heightfield_to_mesh(z, spacing=(0.1, 0.1))
+
+
+def test_scatter_count_follows_density_times_area():
+    plane = heightfield_to_mesh(np.zeros((5, 5)), spacing=1.0)     # 16 m^2
+    counts = [len(scatter_plants(plane, rng=_rng(s), density=3.0, height=0.3,
+                                 variants=2).positions) for s in range(4)]
+    mean = 16 * 3.0
+    assert all(abs(c - mean) < 4 * np.sqrt(mean) for c in counts)
+    assert abs(np.mean(counts) - mean) < 4 * np.sqrt(mean / 4)
+
+
+def test_scatter_respects_slope_and_altitude_rules():
+    mesh = _ramp_mesh()
+    res = scatter_plants(mesh, rng=_rng(1), density=20.0, slope_max_deg=30.0, height=0.2)
+    assert len(res.positions) > 40
+    assert np.all(res.positions[:, 0] <= 2.0 + 1e-9)         # nothing on the 45 degree ramp
+    assert res.eligible_area == pytest.approx(4.0)
+    mean = 20.0 * 4.0
+    assert abs(len(res.positions) - mean) < 4 * np.sqrt(mean)
+    res = scatter_plants(mesh, rng=_rng(2), density=20.0, slope_max_deg=90.0,
+                         altitude_range=(0.5, 1.0), height=0.2)
+    z = res.positions[:, 2]
+    assert np.all(z >= 1.0 - 1e-9)                           # half of the 2 m altitude range
+    mean = 20.0 * 2.0 * np.sqrt(2.0)                         # the upper half of the ramp
+    assert abs(len(z) - mean) < 4 * np.sqrt(mean)
+    # plants stand on their points and reach about their height
+    pv, _ = mesh_arrays(res.mesh)
+    assert pv[:, 2].max() <= z.max() + 0.2 * 1.3 + 1e-9
+
+
+def test_scatter_grows_varied_plants_from_one_grammar():
+    plane = heightfield_to_mesh(np.zeros((3, 3)), spacing=1.0)
+    res = scatter_plants(plane, rng=_rng(5), density=10.0, variants=4, height=0.5)
+    assert len(np.unique(res.variant)) > 1
+    from procgen.amplify import grow_variants
+
+    shapes = grow_variants(rng=_rng(6), variants=4)
+    sizes = {len(v) for v, _ in shapes}
+    assert len(sizes) > 1                                    # the seeds give different plants
+    for v, _ in shapes:
+        assert v[:, 2].min() == pytest.approx(0.0) and v[:, 2].max() == pytest.approx(1.0)
+
+
+def test_vines_walk_on_the_surface():
+    ball = _ball(30)
+    res = grow_vines(ball, rng=_rng(2), count=4, length=1.5, step=0.05, radius=0.01)
+    for P in res.paths:
+        r = np.linalg.norm(P, axis=1)
+        assert np.all(np.abs(r - 1.0) < 0.01)               # on the faceted unit sphere
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        assert seg.max() <= 0.05 + 1e-6 and seg.sum() > 0.5 * 1.5
+    v, f = mesh_arrays(res.mesh)
+    assert len(f) and np.all(np.abs(np.linalg.norm(v, axis=1) - 1.0) < 0.03)
+
+
+def test_hypertexture_with_zero_amplitude_reproduces_the_surface():
+    from reconstruct.evaluate import evaluate
+
+    ball = _ball(20)
+    res = hypertexture_mesh(ball, rng=_rng(), amplitude=0.0, resolution=32)
+    ev = evaluate(res.mesh, ball, tau=res.voxel)
+    assert ev.accuracy_mean < 0.25 * res.voxel and ev.completeness_mean < 0.25 * res.voxel
+    v, _ = mesh_arrays(res.mesh)
+    r = np.linalg.norm(v, axis=1)
+    assert np.all(np.abs(r - 1.0) < res.voxel)
+    assert ev.fscore > 0.99
+    rough = hypertexture_mesh(ball, rng=_rng(), amplitude=0.1, resolution=32)
+    r2 = np.linalg.norm(mesh_arrays(rough.mesh)[0], axis=1)
+    assert r2.max() > 1.0 + 0.05                             # turbulence pushes outward
+
+
+def test_hypertexture_refuses_an_open_mesh():
+    plane = heightfield_to_mesh(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="closed"):
+        hypertexture_mesh(plane, rng=_rng())
+
+
+def test_bad_arguments_name_themselves():
+    ball = _ball()
+    with pytest.raises(ValueError, match="noise"):
+        displace(ball, rng=_rng(), noise="worley")
+    with pytest.raises(ValueError, match="rng"):
+        displace(ball, rng=0)
+    with pytest.raises(ValueError, match="target_edge"):
+        displace(ball, rng=_rng(), target_edge=1e-4, max_triangles=10_000)
+    with pytest.raises(ValueError, match="altitude_range"):
+        scatter_plants(ball, rng=_rng(), altitude_range=(0.8, 0.2))
+    with pytest.raises(ValueError, match="mesh"):
+        displace(make_mesh(np.zeros((3, 3)), np.zeros((0, 3), int)), rng=_rng())
+    assert surface_area(*mesh_arrays(ball)).sum() > 0

@@ -1,0 +1,144 @@
+"""scanamp.amplify: recipe validation, the runner's outputs, seeds, and the CLI."""
+
+import json
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from procgen.mesh_io import read_image, read_mesh, write_mesh
+from procgen.meshes import make_mesh, mesh_arrays
+from procgen.validate import InputError
+from scanamp.amplify import KINDS, load_recipe, recipe_names, run
+from scanamp.cli import main
+
+SHIPPED = {"displace", "terrain", "forest", "vines", "hypertexture", "snow", "drape", "flock"}
+
+
+@pytest.fixture(scope="module")
+def small_mesh(tmp_path_factory):
+    """A closed lumpy blob standing on z = 0 (a small scan stand-in, 162 vertices)."""
+    ball = o3d.geometry.TriangleMesh.create_icosahedron(0.5)
+    ball = ball.subdivide_loop(2)
+    v, f = mesh_arrays(ball)
+    v = v / np.linalg.norm(v, axis=1, keepdims=True) * 0.5
+    v *= 1.0 + 0.15 * np.sin(3 * v[:, [0]]) * np.cos(4 * v[:, [1]])
+    v[:, 2] -= v[:, 2].min()
+    path = tmp_path_factory.mktemp("mesh") / "blob.ply"
+    write_mesh(path, make_mesh(v, f))
+    return path
+
+
+def test_every_shipped_recipe_loads():
+    assert SHIPPED <= set(recipe_names())
+    for name in recipe_names():
+        rec = load_recipe(name)
+        assert rec.steps and all(s.kind in KINDS for s in rec.steps)
+
+
+def test_run_writes_mesh_renders_and_report(small_mesh, tmp_path):
+    recipe = {"step": [{"kind": "displace", "edge": 0.5, "amplitude": 0.2},
+                       {"kind": "scatter", "density": 40.0, "slope_max_deg": 40.0,
+                        "variants": 2, "height": 0.15},
+                       {"kind": "sweep", "count": 3, "length": 0.5, "step": 0.02}],
+              "render": {"width": 64, "height": 48}}
+    out = run(small_mesh, recipe, tmp_path / "out", seed=3)
+    rep = json.loads((out / "report.json").read_text())
+    assert [s["kind"] for s in rep["steps"]] == ["displace", "scatter", "sweep"]
+    assert rep["seed"] == 3 and rep["input"]["triangles"] == 320
+    assert rep["steps"][0]["after"]["triangles"] > rep["steps"][0]["before"]["triangles"]
+    assert rep["steps"][1]["plants"] > 0
+    final = read_mesh(out / "mesh.ply")
+    assert len(final.triangles) == rep["output"]["triangles"]
+    parts = sum(len(read_mesh(out / f"{n}.ply").triangles) for n in ("surface", "plants",
+                                                                      "vines"))
+    assert parts == len(final.triangles)
+    before, after = read_image(out / "before.png"), read_image(out / "after.png")
+    assert before.shape == after.shape == (48, 64, 3) and np.any(before != after)
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())   # atomic
+
+
+def test_same_seed_same_bytes(small_mesh, tmp_path):
+    recipe = {"step": [{"kind": "displace", "edge": 0.6, "noise": "ridged"},
+                       {"kind": "scatter", "density": 30.0, "variants": 2, "height": 0.1}],
+              "render": {"width": 32, "height": 24}}
+    a = run(small_mesh, recipe, tmp_path / "a", seed=7)
+    b = run(small_mesh, recipe, tmp_path / "b", seed=7)
+    c = run(small_mesh, recipe, tmp_path / "c", seed=8)
+    for name in ("mesh.ply", "surface.ply", "plants.ply", "after.png"):
+        assert (a / name).read_bytes() == (b / name).read_bytes()
+    assert (a / "mesh.ply").read_bytes() != (c / "mesh.ply").read_bytes()
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "r.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, field, words", [
+    ('[[step]]\nkind = "explode"\n', "step[0].kind", "displace, refine-terrain, scatter"),
+    ('[[step]]\nkind = "displace"\namplitude = 12.0\n', "step[0].amplitude", "[0, 10]"),
+    ('[[step]]\nkind = "displace"\n[[step]]\nkind = "animate"\nrecipe = "snow"\n',
+     "step[1].simulation", "missing"),
+    ('[[step]]\nkind = "displace"\nnoise = "worley"\n', "step[0].noise", "fbm, turbulence"),
+    ('[[step]]\nkind = "displace"\namplitud = 1.0\n', "step[0].amplitud", "unknown field"),
+    ('[[step]]\nkind = "refine-terrain"\ncontrol_size = 30\n', "step[0].control_size",
+     "2**k + 1"),
+    ('[[step]]\nkind = "animate"\nsimulation = "cloth"\nrecipe = "snow"\n',
+     "step[0].recipe", "particles recipe, not cloth"),
+    ('[[step]]\nkind = "scatter"\naltitude_range = [0.2]\n', "step[0].altitude_range",
+     "list of 2"),
+    ('description = "no steps"\n', "step", "missing"),
+])
+def test_bad_recipes_name_file_and_field(tmp_path, text, field, words):
+    p = _write(tmp_path, text)
+    with pytest.raises(InputError) as exc:
+        load_recipe(p)
+    msg = str(exc.value)
+    assert str(p) in msg and f"{field}:" in msg and words in msg
+
+
+def test_cli_bad_recipe_exits_2_with_one_error_line(small_mesh, tmp_path, capsys):
+    p = _write(tmp_path, '[[step]]\nkind = "displace"\noctaves = 40\n')
+    rc = main(["amplify", str(small_mesh), "--recipe", str(p), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert err[0].startswith("error:") and str(p) in err[0] and "step[0].octaves" in err[0]
+    assert not (tmp_path / "o").exists()
+    rc = main(["amplify", str(small_mesh), "--recipe", "nosuch", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and err[-1].startswith("error:") and "displace" in err[-1]
+    rc = main(["amplify", str(tmp_path / "missing.ply"), "--recipe", "displace", "--out",
+               str(tmp_path / "o")])
+    assert rc == 2
+
+
+def test_cli_end_to_end_with_hypertexture_and_animation(small_mesh, tmp_path):
+    p = _write(tmp_path, """
+description = "test"
+[render]
+width = 48
+height = 36
+[[step]]
+kind = "hypertexture"
+amplitude = 0.01
+resolution = 24
+[[step]]
+kind = "animate"
+simulation = "boids"
+recipe = "torus"
+n = 12
+frames = 4
+render = false
+""")
+    rc = main(["-q", "amplify", str(small_mesh), "--recipe", str(p), "--out",
+               str(tmp_path / "o"), "--seed", "2"])
+    assert rc == 0
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert [s["kind"] for s in rep["steps"]] == ["hypertexture", "animate"]
+    anim = rep["steps"][1]
+    assert anim["animation"] == "animation" and anim["result"]["n"] == 12
+    boids = json.loads((tmp_path / "o" / "animation" / "report.json").read_text())
+    assert boids["steps"] == 4 and boids["mesh"]["closed"]
+    assert (tmp_path / "o" / "mesh.ply").is_file()
