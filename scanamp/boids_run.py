@@ -179,17 +179,16 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
 def plot_metrics(csv_paths, out_png: str | os.PathLike, *, title: str = "",
                  labels=None) -> Path:
     """Plot polarization and milling over time from one or more ``metrics.csv`` files."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure  # no pyplot: the caller's backend stays untouched
 
     from procgen.files import atomic_file
 
     paths = [csv_paths] if isinstance(csv_paths, (str, os.PathLike)) else list(csv_paths)
     labels = labels or [Path(p).parent.name for p in paths]
-    fig, axes = plt.subplots(1, len(paths), figsize=(4.2 * len(paths), 3.2), squeeze=False,
-                             sharey=True)
+    fig = Figure(figsize=(4.2 * len(paths), 3.2))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(paths), squeeze=False, sharey=True)
     for ax, path, label in zip(axes[0], paths, labels, strict=True):
         data = np.genfromtxt(path, delimiter=",", names=True)
         ax.plot(data["time"], data["polarization"], label="polarization P")
@@ -202,5 +201,4 @@ def plot_metrics(csv_paths, out_png: str | os.PathLike, *, title: str = "",
     fig.tight_layout()
     with atomic_file(out_png) as tmp:
         fig.savefig(tmp, dpi=110)
-    plt.close(fig)
     return Path(out_png)
