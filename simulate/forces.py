@@ -265,8 +265,8 @@ def curl_potentials(p, x, y, z):
     return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
-def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
+def _accel_py(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
+    """Acceleration of one particle under the packed local forces (compiled twice below)."""
     ax = 0.0
     ay = 0.0
     az = 0.0
@@ -332,6 +332,12 @@ def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
             ay += s * params[k, 1]
             az += s * params[k, 2]
     return ax, ay, az
+
+
+# The kernel, compiled once as a function (the generic path) and inlined at the one call
+# site of the fused particle stepper (simulate.particles), where inlining is ~10 % faster.
+_accel = nb.njit(cache=True, fastmath=True)(_accel_py)
+_accel_inline = nb.njit(fastmath=True, inline="always")(_accel_py)
 
 
 @nb.njit(parallel=True, cache=True)

@@ -7,7 +7,7 @@ compiled kernel per step (:func:`advance_local`: every stage of the method in
 registers, parallel over particles); pairwise forces and springs go through the
 generic integrators of :mod:`simulate.integrators` over the whole state.
 
-Note on numba's cache: the fused kernel inlines :func:`simulate.forces._accel` when it
+Note on numba's cache: the fused kernel inlines the force kernel of :mod:`simulate.forces` when it
 is compiled, but numba keys its on-disk cache on this file only. After changing the
 force kernels, touch this file (or clear ``simulate/__pycache__``) so it recompiles.
 
@@ -29,7 +29,7 @@ import numpy as np
 from procgen.validate import check_choice, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.emitters import Emitter
-from simulate.forces import ForceSet, _accel
+from simulate.forces import ForceSet, _accel_inline
 from simulate.integrators import METHODS, check_step, integrate_adaptive
 from simulate.integrators import step as generic_step
 from simulate.neighbours import threads_for
@@ -65,58 +65,68 @@ _STAGES = {
 }
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=True)
+def _advance_one(i, alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v, inv_m,
+                 temp):
+    """Particle ``i``'s substeps; one call site of the force kernel, inlined into it.
+
+    Its own (non-parallel) function: numba's parallel passes over a loop body this large
+    would take far longer to compile than the kernel itself."""
+    px = x[i, 0]
+    py = x[i, 1]
+    pz = x[i, 2]
+    ux = v[i, 0]
+    uy = v[i, 1]
+    uz = v[i, 2]
+    im = inv_m[i]
+    tp = temp[i]
+    tt = t
+    for _ in range(nsub):
+        kx = ky = kz = 0.0  # the previous stage's velocity ...
+        ax = ay = az = 0.0  # ... and acceleration
+        sx = sy = sz = 0.0
+        svx = svy = svz = 0.0
+        for s in range(alpha.shape[0]):
+            c = alpha[s] * h
+            wx = ux + c * ax
+            wy = uy + c * ay
+            wz = uz + c * az
+            ax, ay, az = _accel_inline(codes, params, perms, tt + c, px + c * kx, py + c * ky,
+                                pz + c * kz, wx, wy, wz, im, tp)
+            kx = wx
+            ky = wy
+            kz = wz
+            sx += beta[s] * wx
+            sy += beta[s] * wy
+            sz += beta[s] * wz
+            svx += beta[s] * ax
+            svy += beta[s] * ay
+            svz += beta[s] * az
+        ux += h * svx
+        uy += h * svy
+        uz += h * svz
+        if symplectic:
+            px += h * ux
+            py += h * uy
+            pz += h * uz
+        else:
+            px += h * sx
+            py += h * sy
+            pz += h * sz
+        tt += h
+    x[i, 0] = px
+    x[i, 1] = py
+    x[i, 2] = pz
+    v[i, 0] = ux
+    v[i, 1] = uy
+    v[i, 2] = uz
+
+
+@nb.njit(parallel=True, cache=True)
 def _advance(alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v, inv_m, temp):
-    # one call site of the force kernel (inlined once): a loop over the stages
     for i in nb.prange(x.shape[0]):
-        px = x[i, 0]
-        py = x[i, 1]
-        pz = x[i, 2]
-        ux = v[i, 0]
-        uy = v[i, 1]
-        uz = v[i, 2]
-        im = inv_m[i]
-        tp = temp[i]
-        tt = t
-        for _ in range(nsub):
-            kx = ky = kz = 0.0  # the previous stage's velocity ...
-            ax = ay = az = 0.0  # ... and acceleration
-            sx = sy = sz = 0.0
-            svx = svy = svz = 0.0
-            for s in range(alpha.shape[0]):
-                c = alpha[s] * h
-                wx = ux + c * ax
-                wy = uy + c * ay
-                wz = uz + c * az
-                ax, ay, az = _accel(codes, params, perms, tt + c, px + c * kx, py + c * ky,
-                                    pz + c * kz, wx, wy, wz, im, tp)
-                kx = wx
-                ky = wy
-                kz = wz
-                sx += beta[s] * wx
-                sy += beta[s] * wy
-                sz += beta[s] * wz
-                svx += beta[s] * ax
-                svy += beta[s] * ay
-                svz += beta[s] * az
-            ux += h * svx
-            uy += h * svy
-            uz += h * svz
-            if symplectic:
-                px += h * ux
-                py += h * uy
-                pz += h * uz
-            else:
-                px += h * sx
-                py += h * sy
-                pz += h * sz
-            tt += h
-        x[i, 0] = px
-        x[i, 1] = py
-        x[i, 2] = pz
-        v[i, 0] = ux
-        v[i, 1] = uy
-        v[i, 2] = uz
+        _advance_one(i, alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v,
+                     inv_m, temp)
 
 
 def advance_local(forces: ForceSet, t: float, x: np.ndarray, v: np.ndarray, mass, h: float, *,
