@@ -127,9 +127,15 @@ def read_points(path: str | os.PathLike):
 
 
 def write_points(path: str | os.PathLike, points: np.ndarray, *, normals=None, colors=None):
-    """Write ``points (n, 3)`` (optionally normals and colours in [0, 1]) as a point cloud."""
+    """Write ``points (n, 3)`` (optionally normals and colours in [0, 1]) as a point cloud.
+
+    An empty cloud is written as a valid PLY with no vertices (open3d refuses to write
+    one); other formats need at least one point.
+    """
     import open3d as o3d
 
+    if len(points) == 0:
+        return _write_empty_ply(path, normals=normals is not None, colors=colors is not None)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
     if normals is not None:
         pcd.normals = o3d.utility.Vector3dVector(np.asarray(normals, np.float64))
@@ -138,6 +144,19 @@ def write_points(path: str | os.PathLike, points: np.ndarray, *, normals=None, c
     with atomic_file(path) as tmp:
         if not o3d.io.write_point_cloud(str(tmp), pcd, print_progress=False):
             raise RuntimeError(f"open3d failed to write {path}")
+    return Path(path)
+
+
+def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
+    if Path(path).suffix.lower() != ".ply":
+        raise ValueError(f"points: an empty cloud can only be written as .ply, got {path}")
+    props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals else [])
+    header = ["ply", "format binary_little_endian 1.0", "comment written by procgen.mesh_io",
+              "element vertex 0", *(f"property double {p}" for p in props),
+              *([f"property uchar {c}" for c in ("red", "green", "blue")] if colors else []),
+              "end_header"]
+    with atomic_file(path) as tmp:
+        tmp.write_bytes(("\n".join(header) + "\n").encode("ascii"))
     return Path(path)
 
 

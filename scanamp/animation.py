@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -27,50 +27,40 @@ from procgen.progress import track
 
 log = logging.getLogger(__name__)
 
-__all__ = ["render_animation", "mesh_background", "frame_camera"]
+__all__ = ["render_animation", "draw_splats", "mesh_background", "frame_camera"]
 
 
 def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0.12),
-                    light_dir=(0.4, -0.5, 1.0)) -> tuple[np.ndarray, np.ndarray]:
-    """A shaded image and z-depth of ``mesh`` seen by ``camera`` (ray cast, Lambert).
+                    light_dir=(0.4, -0.5, 1.0), ambient: float = 0.25,
+                    supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``mesh`` seen by ``camera``, rendered by :func:`acquire.render.render`.
 
-    TODO(lead): replace by ``acquire.render`` once it lands; this is a minimal
-    stand-in (one ray per pixel, headlight-free directional light, no shadows).
+    One constant grey material, a directional light shining from ``light_dir`` (towards
+    the light) with cast shadows, and an ambient term: the backdrop the particles and
+    boids are composited over.
 
     Returns
     -------
     image : (h, w, 3) float64 in [0, 1]
     depth : (h, w) float64
-        Z-depth, ``inf`` where the ray misses.
+        Z-depth, ``inf`` where nothing was hit (the splat renderer's occlusion input).
     """
     import open3d as o3d
 
-    from procgen.meshes import mesh_arrays
+    from acquire.lights import DirectionalLight
+    from acquire.materials import Material
+    from acquire.render import render
+    from acquire.scene import RenderScene, SceneObject
 
-    v, f = mesh_arrays(mesh)
-    tm = o3d.t.geometry.TriangleMesh()
-    tm.vertex.positions = o3d.core.Tensor(v.astype(np.float32))
-    tm.triangle.indices = o3d.core.Tensor(f.astype(np.int32))
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(tm)
-    pix = camera.pixel_grid()
-    o, d = camera.rays(pix)
-    ans = scene.cast_rays(o3d.core.Tensor(np.concatenate([o, d], 1).astype(np.float32)))
-    t = ans["t_hit"].numpy().astype(np.float64)
-    n = ans["primitive_normals"].numpy().astype(np.float64)
-    hit = np.isfinite(t)
-    light = np.asarray(light_dir, float)
-    light = light / np.linalg.norm(light)
-    # Two-sided Lambert with an ambient term: scans are often open surfaces.
-    view = -d / np.linalg.norm(d, axis=1, keepdims=True)
-    n = np.where((np.sum(n * view, axis=1) < 0)[:, None], -n, n)
-    shade = 0.25 + 0.75 * np.clip(n @ light, 0.0, 1.0)
-    img = np.empty((len(pix), 3))
-    img[:] = sky
-    img[hit] = shade[hit, None] * np.asarray(color, float)[None]
-    depth = np.where(hit, t, np.inf)
-    h, w = camera.height, camera.width
-    return img.reshape(h, w, 3), depth.reshape(h, w)
+    to_light = np.asarray(light_dir, float)
+    obj = SceneObject("mesh", o3d.geometry.TriangleMesh(mesh),  # a copy: normals added
+                      material=Material(albedo=np.asarray(color, float)))
+    scene = RenderScene([obj], lights=[DirectionalLight(-to_light, intensity=1.0 - ambient)],
+                        ambient=ambient, background=np.asarray(sky, float))
+    r = render(scene, camera, supersample=supersample)
+    img = np.clip(r.radiance.astype(np.float64), 0.0, 1.0)
+    depth = np.where(r.mask, r.depth.astype(np.float64), np.inf)
+    return img, depth
 
 
 def frame_camera(points: np.ndarray, *, width: int = 640, height: int = 480,
@@ -84,35 +74,52 @@ def frame_camera(points: np.ndarray, *, width: int = 640, height: int = 480,
     lo, hi = (p.min(0), p.max(0)) if len(p) else (-np.ones(3), np.ones(3))
     center = 0.5 * (lo + hi)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
-    dist = margin * radius / np.sin(np.radians(fov_deg) / 2 * min(1.0, height / width))
+    # the bounding sphere fits the narrower field of view (fov_deg is the horizontal one)
+    half_narrow = np.arctan(np.tan(np.radians(fov_deg) / 2) * min(1.0, height / width))
+    dist = margin * radius / np.sin(half_narrow)
     el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
     eye = center + dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
     return Camera.look_at(eye, center, width=width, height=height, fov_deg=fov_deg)
 
 
-def render_animation(frames: Iterable[dict], camera, out_path: str | os.PathLike, *,
+def draw_splats(frame: dict, camera, background, background_depth) -> np.ndarray:
+    """The default frame hook of :func:`render_animation`: a frame of points as splats.
+
+    ``frame`` holds ``points (n, 3)`` and optionally ``colors (n, 3)`` in [0, 1],
+    ``sizes (n,)`` world radii in metres (default 0.01 m) and ``alphas (n,)``.
+    """
+    return render_splats(frame["points"], camera, colors=frame.get("colors"),
+                         sizes=frame.get("sizes", 0.01), alphas=frame.get("alphas", 1.0),
+                         background=background, background_depth=background_depth)
+
+
+def render_animation(frames: Iterable, camera, out_path: str | os.PathLike, *,
                      background: np.ndarray | None = None,
                      background_depth: np.ndarray | None = None, fps: float = 24,
-                     quality: float = 7, total: int | None = None) -> Path:
-    """Render frames of points as splats and encode them as MP4 (H.264) or GIF.
+                     quality: float = 7, total: int | None = None,
+                     draw: Callable | None = None) -> Path:
+    """Render frames (points as splats, or anything ``draw`` renders) to MP4 or GIF.
 
     Parameters
     ----------
-    frames : iterable of dict
-        Each with ``points (n, 3)`` and optionally ``colors (n, 3)`` in [0, 1],
-        ``sizes (n,)`` world radii in metres (default 1 % of nothing: 0.01 m) and
-        ``alphas (n,)``; ``n`` may change from frame to frame.
+    frames : iterable
+        One item per frame, passed to ``draw``; for the default :func:`draw_splats` a
+        dict with ``points (n, 3)`` and optionally ``colors``, ``sizes``, ``alphas``
+        (``n`` may change from frame to frame).
     camera : acquire.camera.Camera
     out_path : path ending in ``.mp4`` or ``.gif``
     background : (h, w, 3) float64 in [0, 1], optional
         E.g. a rendered scan from :func:`mesh_background`; black when omitted.
     background_depth : (h, w) float64, optional
-        Occludes particles behind the background surface.
+        Occludes what lies behind the background surface.
     fps : float
     quality : float
         imageio-ffmpeg quality, 0-10 (MP4 only).
     total : int, optional
         Number of frames, for the progress bar.
+    draw : callable, optional
+        ``draw(frame, camera, background, background_depth) -> (h, w, 3)`` float image
+        in [0, 1]; :func:`draw_splats` by default (boids pass oriented glyphs).
 
     Returns
     -------
@@ -127,6 +134,7 @@ def render_animation(frames: Iterable[dict], camera, out_path: str | os.PathLike
         raise ValueError(f"out_path: expected a .mp4 or .gif file, got {out_path.name!r}")
     if not fps > 0:
         raise ValueError(f"fps: expected a positive number, got {fps!r}")
+    draw = draw_splats if draw is None else draw
     with atomic_file(out_path) as tmp:
         if suffix == ".mp4":
             writer = iio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264",
@@ -137,9 +145,7 @@ def render_animation(frames: Iterable[dict], camera, out_path: str | os.PathLike
         try:
             count = 0
             for fr in track(frames, "rendering", total=total):
-                img = render_splats(fr["points"], camera, colors=fr.get("colors"),
-                                    sizes=fr.get("sizes", 0.01), alphas=fr.get("alphas", 1.0),
-                                    background=background, background_depth=background_depth)
+                img = draw(fr, camera, background, background_depth)
                 u8 = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
                 if suffix == ".mp4" and (u8.shape[0] % 2 or u8.shape[1] % 2):
                     u8 = np.pad(u8, ((0, u8.shape[0] % 2), (0, u8.shape[1] % 2), (0, 0)),

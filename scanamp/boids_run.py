@@ -144,12 +144,9 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
                  height: int = 480, fps: float = 24, size: float = 0.3) -> Path:
     """Render ``frames`` (a list of ``(positions (n, 3), headings (n, 3))``) as oriented
     glyphs over the shaded mesh, to MP4 or GIF."""
-    import imageio.v2 as iio
-
     from acquire.glyphs import render_glyphs
-    from procgen.files import atomic_file
     from procgen.meshes import mesh_arrays
-    from scanamp.animation import frame_camera, mesh_background
+    from scanamp.animation import frame_camera, mesh_background, render_animation
 
     out_path = Path(out_path)
     suffix = out_path.suffix.lower()
@@ -169,40 +166,29 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
         bg, depth = mesh_background(mesh, cam)
     else:
         bg, depth = np.zeros((height, width, 3)) + [0.08, 0.09, 0.12], None
-    with atomic_file(out_path) as tmp:
-        if suffix == ".mp4":
-            writer = iio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264",
-                                    quality=7, macro_block_size=1, pixelformat="yuv420p",
-                                    output_params=["-threads", "1"])
-        else:
-            writer = iio.get_writer(tmp, format="GIF", mode="I", duration=1000.0 / fps, loop=0)
-        try:
-            for x, h in track(frames, "rendering", total=len(frames)):
-                img = render_glyphs(x, h, cam, size=size, background=bg, background_depth=depth)
-                u8 = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
-                if suffix == ".mp4" and (u8.shape[0] % 2 or u8.shape[1] % 2):
-                    u8 = np.pad(u8, ((0, u8.shape[0] % 2), (0, u8.shape[1] % 2), (0, 0)),
-                                mode="edge")
-                writer.append_data(u8)
-        finally:
-            writer.close()
-    return out_path
+
+    def glyphs(frame, camera, background, background_depth):
+        x, heading = frame
+        return render_glyphs(x, heading, camera, size=size, background=background,
+                             background_depth=background_depth)
+
+    return render_animation(frames, cam, out_path, background=bg, background_depth=depth,
+                            fps=fps, total=len(frames), draw=glyphs)
 
 
 def plot_metrics(csv_paths, out_png: str | os.PathLike, *, title: str = "",
                  labels=None) -> Path:
     """Plot polarization and milling over time from one or more ``metrics.csv`` files."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure  # no pyplot: the caller's backend stays untouched
 
     from procgen.files import atomic_file
 
     paths = [csv_paths] if isinstance(csv_paths, (str, os.PathLike)) else list(csv_paths)
     labels = labels or [Path(p).parent.name for p in paths]
-    fig, axes = plt.subplots(1, len(paths), figsize=(4.2 * len(paths), 3.2), squeeze=False,
-                             sharey=True)
+    fig = Figure(figsize=(4.2 * len(paths), 3.2))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(paths), squeeze=False, sharey=True)
     for ax, path, label in zip(axes[0], paths, labels, strict=True):
         data = np.genfromtxt(path, delimiter=",", names=True)
         ax.plot(data["time"], data["polarization"], label="polarization P")
@@ -215,5 +201,4 @@ def plot_metrics(csv_paths, out_png: str | os.PathLike, *, title: str = "",
     fig.tight_layout()
     with atomic_file(out_png) as tmp:
         fig.savefig(tmp, dpi=110)
-    plt.close(fig)
     return Path(out_png)

@@ -28,22 +28,19 @@ log = logging.getLogger(__name__)
 __all__ = ["run_simulation"]
 
 
-def _write_ply_points(path: Path, points: np.ndarray, colors: np.ndarray) -> None:
-    if len(points):
-        write_points(path, points, colors=colors)
-    else:  # open3d refuses to write an empty cloud; an empty frame is still a frame
-        path.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty double x\n"
-                        "property double y\nproperty double z\nend_header\n")
-
-
 def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathLike, *,
                    mesh_path: str | os.PathLike | None = None, frames: int | None = None,
                    render: bool = True, width: int = 480, height: int = 360,
-                   seed: int | None = None) -> dict:
+                   seed: int | None = None, animation: str = "animation.mp4") -> dict:
     """Simulate ``recipe`` (name or TOML) of ``kind`` (``particles``/``cloth``) into ``out_dir``.
 
-    Returns the report (also written as ``report.json``).
+    ``mesh_path`` is the collider and emitter mesh (default: a procedural scan); a mesh
+    without faces is a warning and the run goes on without collisions. ``animation``
+    names the video (``.mp4`` or ``.gif``). Returns the report (also ``report.json``).
     """
+    if Path(animation).suffix.lower() not in (".mp4", ".gif") or Path(animation).name != animation:
+        raise ValueError(f"animation: expected a file name ending in .mp4 or .gif, got "
+                         f"{animation!r}")
     table, path = load_recipe(recipe)
     if table["kind"] != kind:
         raise ValueError(f"recipe: {path} is a {table['kind']} recipe, not {kind}; use "
@@ -51,7 +48,12 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
     if seed is not None:
         table["seed"] = int(seed)
     mesh = read_mesh(mesh_path) if mesh_path is not None else procedural_scan()
-    collider = MeshCollider(mesh)
+    if len(mesh.triangles):
+        collider = MeshCollider(mesh)
+    else:
+        collider = None
+        log.warning("%s: the collider mesh has no faces; simulating without collisions",
+                    mesh_path)
     n_frames = int(frames or table.get("frames", 96))
     fps = float(table.get("fps", 24))
     status, error = "ok", None
@@ -62,7 +64,8 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
     with atomic_dir(out_dir) as tmp:
         writer = SeriesWriter(tmp)
         (tmp / "ply").mkdir()
-        write_mesh(tmp / "collider.ply", mesh)
+        if collider is not None:
+            write_mesh(tmp / "collider.ply", mesh)
         if kind == "particles":
             system = build_particles(table, path, mesh=mesh, collider=collider)
             for k in track(range(n_frames), "simulating", total=n_frames):
@@ -76,8 +79,8 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
                     "id": fr["ids"], "velocity": fr["velocity"], "age": fr["age"],
                     "temperature": fr["temperature"], "color": fr["colors"],
                     "size": fr["sizes"], "emitter": fr["emitter"]})
-                _write_ply_points(tmp / "ply" / f"frame_{k:05d}.ply", fr["points"],
-                                  fr["colors"])
+                write_points(tmp / "ply" / f"frame_{k:05d}.ply", fr["points"],
+                             colors=fr["colors"])
                 per_frame.append({"frame": st.frame, "time": st.time, "alive": st.alive,
                                   "born": st.born, "died": st.died, "impacts": st.impacts,
                                   "escapes": st.escapes, "kinetic": st.kinetic,
@@ -105,7 +108,8 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
 
                 write_mesh(tmp / "ply" / f"frame_{k:05d}.ply", make_mesh(cloth.x,
                                                                           cloth.triangles))
-                sd = collider.signed_distance(cloth.x) if collider.closed else None
+                sd = (collider.signed_distance(cloth.x)
+                      if collider is not None and collider.closed else None)
                 per_frame.append({"frame": k + 1, "time": cloth.t, "impacts": st.impacts,
                                   "escapes": int(np.count_nonzero(sd < -1e-4))
                                   if sd is not None else 0,
@@ -129,13 +133,14 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
             cam = frame_camera(np.stack([lo, hi]), width=width, height=height,
                                elevation_deg=float(cam_t.get("elevation_deg", 20.0)),
                                azimuth_deg=float(cam_t.get("azimuth_deg", -90.0)))
-            bg, depth = mesh_background(mesh, cam)
-            render_animation(render_frames, cam, tmp / "animation.mp4", background=bg,
+            bg, depth = mesh_background(mesh, cam) if collider is not None else (None, None)
+            render_animation(render_frames, cam, tmp / animation, background=bg,
                              background_depth=depth, fps=fps, total=len(render_frames))
         report = {"kind": kind, "recipe": str(path), "mesh": str(mesh_path) if mesh_path
                   else "procedural_scan", "seed": table.get("seed", 0), "status": status,
                   "error": error, "frames": len(per_frame), "fps": fps,
-                  "collider_closed": collider.closed, **totals,
+                  "collider_closed": None if collider is None else collider.closed,
+                  "animation": animation if render and render_frames else None, **totals,
                   "energy_first": per_frame[0] if per_frame else None,
                   "energy_last": per_frame[-1] if per_frame else None,
                   "simulation_seconds": sim_seconds, "per_frame": per_frame}

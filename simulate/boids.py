@@ -302,6 +302,13 @@ def _steer_to(dx, dy, dz, vx, vy, vz, vmax, fmax):
 
 
 @nb.njit(cache=True, inline="always")
+def _steer_add(ax, ay, az, weight, dx, dy, dz, vx, vy, vz, vmax, fmax):
+    """``a + weight * steer_to(d)``: one weighted behaviour added to the steering."""
+    sx, sy, sz = _steer_to(dx, dy, dz, vx, vy, vz, vmax, fmax)
+    return ax + weight * sx, ay + weight * sy, az + weight * sz
+
+
+@nb.njit(cache=True, inline="always")
 def _bounds_push(x, y, z, P):
     """Inward push, growing linearly from 0 at ``margin`` inside a wall to 1 at it."""
     bx = by = bz = 0.0
@@ -332,36 +339,21 @@ def _reynolds_finish(i, k, xs, vs, ws, x, v, P, sep, ali, coh, nsep, nali, ncoh,
     fmax = P[_FMAX]
     ax = ay = az = 0.0
     if nsep > 0:
-        sx, sy, sz = _steer_to(sep[0], sep[1], sep[2], vx, vy, vz, vmax, fmax)
-        ax += P[_WS] * sx
-        ay += P[_WS] * sy
-        az += P[_WS] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WS], sep[0], sep[1], sep[2], vx, vy, vz, vmax, fmax)
     if nali > 0:
-        sx, sy, sz = _steer_to(ali[0] / nali, ali[1] / nali, ali[2] / nali, vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WA] * sx
-        ay += P[_WA] * sy
-        az += P[_WA] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WA], ali[0] / nali, ali[1] / nali, ali[2] / nali,
+                                vx, vy, vz, vmax, fmax)
     if ncoh > 0:
-        sx, sy, sz = _steer_to(coh[0] / ncoh, coh[1] / ncoh, coh[2] / ncoh, vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WC] * sx
-        ay += P[_WC] * sy
-        az += P[_WC] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WC], coh[0] / ncoh, coh[1] / ncoh, coh[2] / ncoh,
+                                vx, vy, vz, vmax, fmax)
     if P[_WW] > 0:
-        sx, sy, sz = _steer_to(ws[k, 0], ws[k, 1], ws[k, 2], vx, vy, vz,
-                               vmax, fmax)
-        ax += P[_WW] * sx
-        ay += P[_WW] * sy
-        az += P[_WW] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WW], ws[k, 0], ws[k, 1], ws[k, 2],
+                                vx, vy, vz, vmax, fmax)
     nlead = np.int64(P[_NLEAD])
     if i < nlead or nlead == 0:
         if P[_WG] > 0:
-            sx, sy, sz = _steer_to(P[_GX] - px, P[_GY] - py, P[_GZ] - pz, vx, vy, vz,
-                                   vmax, fmax)
-            ax += P[_WG] * sx
-            ay += P[_WG] * sy
-            az += P[_WG] * sz
+            ax, ay, az = _steer_add(ax, ay, az, P[_WG], P[_GX] - px, P[_GY] - py, P[_GZ] - pz,
+                                    vx, vy, vz, vmax, fmax)
     elif P[_WL] > 0:
         best = -1
         bd = np.inf
@@ -380,10 +372,8 @@ def _reynolds_finish(i, k, xs, vs, ws, x, v, P, sep, ali, coh, nsep, nali, ncoh,
             tx -= lvx / ls * P[_LDIST]
             ty -= lvy / ls * P[_LDIST]
             tz -= lvz / ls * P[_LDIST]
-        sx, sy, sz = _steer_to(tx - px, ty - py, tz - pz, vx, vy, vz, vmax, fmax)
-        ax += P[_WL] * sx
-        ay += P[_WL] * sy
-        az += P[_WL] * sz
+        ax, ay, az = _steer_add(ax, ay, az, P[_WL], tx - px, ty - py, tz - pz,
+                                vx, vy, vz, vmax, fmax)
     bx, by, bz = _bounds_push(px, py, pz, P)
     out[k, 0] = ax + P[_WB] * fmax * bx
     out[k, 1] = ay + P[_WB] * fmax * by
@@ -602,6 +592,16 @@ def _sums_reference(x, v, P, couzin, block=512):
     return sums, counts
 
 
+
+@nb.njit(inline="always", cache=True)
+def _reflect(p, v, lo, hi):
+    """Mirror a coordinate that left ``[lo, hi]`` back inside; its velocity points in."""
+    if p < lo:
+        return min(2 * lo - p, hi), abs(v)
+    if p > hi:
+        return max(2 * hi - p, lo), -abs(v)
+    return p, v
+
 @nb.njit(parallel=True, cache=True, error_model="numpy")
 def _integrate(x, v, steer, noise, P, couzin, xn, vn):
     """Advance every boid one step: truncate steering (Reynolds) or turn (Couzin), move,
@@ -678,24 +678,9 @@ def _integrate(x, v, steer, noise, P, couzin, xn, vn):
         py = x[i, 1] + vy * dt
         pz = x[i, 2] + vz * dt
         if P[_BOUNDED] > 0:
-            if px < P[_LOX]:
-                px = min(2 * P[_LOX] - px, P[_HIX])
-                vx = abs(vx)
-            elif px > P[_HIX]:
-                px = max(2 * P[_HIX] - px, P[_LOX])
-                vx = -abs(vx)
-            if py < P[_LOY]:
-                py = min(2 * P[_LOY] - py, P[_HIY])
-                vy = abs(vy)
-            elif py > P[_HIY]:
-                py = max(2 * P[_HIY] - py, P[_LOY])
-                vy = -abs(vy)
-            if pz < P[_LOZ]:
-                pz = min(2 * P[_LOZ] - pz, P[_HIZ])
-                vz = abs(vz)
-            elif pz > P[_HIZ]:
-                pz = max(2 * P[_HIZ] - pz, P[_LOZ])
-                vz = -abs(vz)
+            px, vx = _reflect(px, vx, P[_LOX], P[_HIX])
+            py, vy = _reflect(py, vy, P[_LOY], P[_HIY])
+            pz, vz = _reflect(pz, vz, P[_LOZ], P[_HIZ])
         xn[i, 0], xn[i, 1], xn[i, 2] = px, py, pz
         vn[i, 0], vn[i, 1], vn[i, 2] = vx, vy, vz
 

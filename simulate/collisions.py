@@ -159,18 +159,13 @@ def _clamp_to_triangles(p, v, f, tri):
 
 
 @nb.njit(parallel=True, cache=True)
-def _prepare(x0, v0, x1, v1, h, cast_skin):
-    """Path accelerations, velocity corrections and float32 chord rays, in one pass."""
+def _chord_rays(x0, x1, cast_skin):
+    """Float32 rays along each step's chord, reaching a few ulps past both ends."""
     n = x0.shape[0]
-    acc = np.empty((n, 3))
-    dv = np.empty((n, 3))
     rays = np.zeros((n, 6), np.float32)
     for i in nb.prange(n):
         cl = 0.0
         for k in range(3):
-            a = 2.0 * (x1[i, k] - x0[i, k] - v0[i, k] * h) / (h * h)
-            acc[i, k] = a
-            dv[i, k] = v1[i, k] - (v0[i, k] + a * h)
             cl += (x1[i, k] - x0[i, k]) ** 2
         cl = np.sqrt(cl)
         if cl == 0.0:
@@ -179,8 +174,8 @@ def _prepare(x0, v0, x1, v1, h, cast_skin):
         for k in range(3):
             d = x1[i, k] - x0[i, k]
             rays[i, k] = x0[i, k] - back * d
-            rays[i, 3 + k] = (1.0 + 2.0 * back) * d  # a few ulps past both ends
-    return acc, dv, rays
+            rays[i, 3 + k] = (1.0 + 2.0 * back) * d
+    return rays
 
 
 def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.ndarray,
@@ -218,21 +213,27 @@ def collide(collider, x0: np.ndarray, v0: np.ndarray, x1: np.ndarray, v1: np.nda
     x0 = np.asarray(x0, np.float64)
     v0 = np.asarray(v0, np.float64)
     scale = float(np.linalg.norm(collider.bounds[1] - collider.bounds[0])) or 1.0
-    tol_s = 1e-12 * max(scale, float(np.abs(x0).max(initial=0.0)))
+    x_max = max(float(x0.max(initial=0.0)), -float(x0.min(initial=0.0)))
+    tol_s = 1e-12 * max(scale, x_max)
     skin = params.skin * scale
     # float32 (Embree) resolution around the particles, times a safety factor
-    cast_skin = 16.0 * np.finfo(np.float32).eps * (scale + float(np.abs(x0).max(initial=0.0)))
+    cast_skin = 16.0 * np.finfo(np.float32).eps * (scale + x_max)
     e, mu = float(params.restitution), float(params.friction)
-    acc, dv_fix, rays = _prepare(x0, v0, x, v, float(h), cast_skin)
-    # One cast of every chord; only particles whose chord meets the mesh go on (the
-    # others keep the integrator's state exactly).
-    t_first, _ = collider.cast_rays32(rays)
+    # One any-hit test of every chord; only particles whose chord meets the mesh go on
+    # (the others keep the integrator's state exactly).
+    idx = np.nonzero(collider.segments_hit(_chord_rays(x0, x, cast_skin)))[0]
     stats.casts += n
-    idx = np.nonzero(t_first <= 1.0)[0]
-    side = np.zeros(n) if inside is None else np.where(np.asarray(inside, bool), -1.0, 1.0)
-    o = x0[idx].copy()
-    vel = v0[idx].copy()
-    a = acc[idx].copy()
+    hh = float(h)
+    o = x0[idx]
+    vel = v0[idx]
+    # the constant acceleration of each path that reproduces the integrator's end point,
+    # and the velocity correction that makes it reproduce its end velocity too
+    a = 2.0 * (x[idx] - o - vel * hh) / (hh * hh)
+    dv_fix = np.zeros_like(x)
+    dv_fix[idx] = v[idx] - (vel + a * hh)
+    side = np.zeros(n)
+    if inside is not None:
+        side[idx] = np.where(np.asarray(inside, bool)[idx], -1.0, 1.0)
     rem = np.full(len(idx), float(h))
     bounces = np.zeros(len(idx), np.int64)
     tri_v = collider.vertices

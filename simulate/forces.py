@@ -9,7 +9,8 @@ fused particle stepper of :mod:`simulate.particles`):
 * :class:`Damping` ``a = -rate v``
 * :class:`Turbulence` Perlin vector noise ``a = A (n1, n2, n3)(x / s)`` or curl noise
   ``a = A grad n1 x grad n2`` — the curl of ``n1 grad n2``, divergence-free exactly
-  (analytic gradients of Perlin's improved noise, no finite differences)
+  (analytic gradients of improved noise, no finite differences; both potentials come
+  from one lattice walk, :func:`curl_potentials`)
 * :class:`Attractor` softened inverse square toward (or, negative, away from) a point
 * :class:`Vortex` swirl about an axis, ``a = S axis x r_perp / (|r_perp|^2 + R^2)``
 * :class:`Buoyancy` ``a = beta T up`` with a per-particle temperature ``T``
@@ -30,13 +31,23 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.noise import noise3_grad
-from procgen.noise.perlin import noise3, perm_table
+from procgen.noise.perlin import (
+    _GX,
+    _GY,
+    _GZ,
+    _cell,
+    _corner_values,
+    _hashes,
+    _trilerp,
+    noise3,
+    perm_table,
+)
 from procgen.validate import check_array, check_choice, check_positive
+from simulate.neighbours import neighbour_lists, threads_for
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
            "Pairwise", "Springs", "ForceSet", "local_accel", "pairwise_accel",
-           "pairwise_accel_reference", "spring_forces", "noise3_grad", "NPARAM"]
+           "pairwise_accel_reference", "spring_forces", "curl_potentials", "NPARAM"]
 
 NPARAM = 10
 _GRAVITY, _WIND, _DAMPING, _TURB_PERLIN, _TURB_CURL, _ATTRACTOR, _VORTEX, _BUOYANCY = range(8)
@@ -195,15 +206,67 @@ class Springs:
         return np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), k, r, d
 
 
-# -- Perlin gradient -------------------------------------------------------------------
+# -- curl noise: two potentials in one lattice walk --------------------------------------
 
-# Offsets decorrelating the noise components (irrational, far from lattice points).
+# Offsets decorrelating the Perlin-vector components (irrational, far from lattice points).
 _O1 = (31.416, 47.853, 12.734)
 _O2 = (-19.271, 8.917, 53.129)
 
 
-@nb.njit(cache=True, fastmath=True)
-def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
+@nb.njit(inline="always", cache=True)
+def _gradient(h, c, x, y, z, u, v, w, du, dv, dw):
+    """Gradient of improved noise in a cell from the corner hashes ``h`` and the corner
+    values ``c`` (corners ordered as :func:`procgen.noise.perlin._hashes`): the
+    interpolated corner gradients plus the fade derivatives times the value differences."""
+    gx = _trilerp(u, v, w, (_GX[h[0] & 15], _GX[h[1] & 15], _GX[h[2] & 15], _GX[h[3] & 15],
+                            _GX[h[4] & 15], _GX[h[5] & 15], _GX[h[6] & 15], _GX[h[7] & 15]))
+    gy = _trilerp(u, v, w, (_GY[h[0] & 15], _GY[h[1] & 15], _GY[h[2] & 15], _GY[h[3] & 15],
+                            _GY[h[4] & 15], _GY[h[5] & 15], _GY[h[6] & 15], _GY[h[7] & 15]))
+    gz = _trilerp(u, v, w, (_GZ[h[0] & 15], _GZ[h[1] & 15], _GZ[h[2] & 15], _GZ[h[3] & 15],
+                            _GZ[h[4] & 15], _GZ[h[5] & 15], _GZ[h[6] & 15], _GZ[h[7] & 15]))
+    # x: differences b-a, d-c, f-e, h-g bilinear in (v, w); y and z alike
+    gx += du * _bilerp(v, w, c[1] - c[0], c[3] - c[2], c[5] - c[4], c[7] - c[6])
+    gy += dv * _bilerp(u, w, c[2] - c[0], c[3] - c[1], c[6] - c[4], c[7] - c[5])
+    gz += dw * _bilerp(u, v, c[4] - c[0], c[5] - c[1], c[6] - c[2], c[7] - c[3])
+    return _trilerp(u, v, w, c), gx, gy, gz
+
+
+@nb.njit(inline="always", cache=True)
+def _bilerp(s, t, a, b, c, d):
+    ab = a + s * (b - a)
+    cd = c + s * (d - c)
+    return ab + t * (cd - ab)
+
+
+@nb.njit(inline="always", cache=True)
+def curl_potentials(p, x, y, z):
+    """Two decorrelated improved noises and their gradients from one lattice walk.
+
+    The corner hashes are Perlin's (``p`` a :func:`perm_table`); the first noise takes its
+    gradient index from the low four bits of each hash — it is :func:`noise3` exactly —
+    and the second from the high four bits. Over a permutation of 0..255 the two nibbles
+    are uniform and independent, so the second noise is another improved noise on the
+    same lattice, for the price of eight more dot products instead of a second walk.
+
+    Returns ``(n1, dn1/dx, dn1/dy, dn1/dz, n2, dn2/dx, dn2/dy, dn2/dz)``.
+    """
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
+    du = 30.0 * x * x * (x * (x - 2.0) + 1.0)
+    dv = 30.0 * y * y * (y * (y - 2.0) + 1.0)
+    dw = 30.0 * z * z * (z * (z - 2.0) + 1.0)
+    X = ix & 255
+    Y = iy & 255
+    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
+    g = (h[0] >> 4, h[1] >> 4, h[2] >> 4, h[3] >> 4, h[4] >> 4, h[5] >> 4, h[6] >> 4, h[7] >> 4)
+    n1, g1x, g1y, g1z = _gradient(h, _corner_values(h, x, y, z), x, y, z, u, v, w, du, dv, dw)
+    n2, g2x, g2y, g2z = _gradient(g, _corner_values(g, x, y, z), x, y, z, u, v, w, du, dv, dw)
+    return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
+
+
+def _accel_py(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
+    """Acceleration of one particle under the packed local forces (compiled twice below)."""
     ax = 0.0
     ay = 0.0
     az = 0.0
@@ -235,8 +298,7 @@ def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
                 ay += amp * noise3(p, qx + _O1[0], qy + _O1[1], qz + _O1[2])
                 az += amp * noise3(p, qx + _O2[0], qy + _O2[1], qz + _O2[2])
             else:
-                _, ux, uy, uz = noise3_grad(p, qx, qy, qz)
-                _, wx, wy, wz = noise3_grad(p, qx + _O1[0], qy + _O1[1], qz + _O1[2])
+                _, ux, uy, uz, _, wx, wy, wz = curl_potentials(p, qx, qy, qz)
                 ax += amp * (uy * wz - uz * wy)
                 ay += amp * (uz * wx - ux * wz)
                 az += amp * (ux * wy - uy * wx)
@@ -272,6 +334,12 @@ def _accel(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):
     return ax, ay, az
 
 
+# The kernel, compiled once as a function (the generic path) and inlined at the one call
+# site of the fused particle stepper (simulate.particles), where inlining is ~10 % faster.
+_accel = nb.njit(cache=True, fastmath=True)(_accel_py)
+_accel_inline = nb.njit(fastmath=True, inline="always")(_accel_py)
+
+
 @nb.njit(parallel=True, cache=True)
 def _accel_all(codes, params, perms, t, x, v, inv_m, temp, out):
     for i in nb.prange(x.shape[0]):
@@ -291,9 +359,10 @@ def local_accel(forces, t: float, x: np.ndarray, v: np.ndarray, mass, *,
     temp = np.broadcast_to(np.asarray(0.0 if temperature is None else temperature,
                                       np.float64), (n,))
     out = np.empty((n, 3))
-    _accel_all(codes, params, perms, float(t), np.ascontiguousarray(x, np.float64),
-               np.ascontiguousarray(v, np.float64), np.ascontiguousarray(inv_m),
-               np.ascontiguousarray(temp), out)
+    with threads_for(n):
+        _accel_all(codes, params, perms, float(t), np.ascontiguousarray(x, np.float64),
+                   np.ascontiguousarray(v, np.float64), np.ascontiguousarray(inv_m),
+                   np.ascontiguousarray(temp), out)
     return out
 
 
@@ -313,46 +382,24 @@ def _pack(forces):
 # -- pairwise forces through a neighbour grid ---------------------------------------
 
 @nb.njit(parallel=True, cache=True)
-def _pairwise_grid(x, inv_m, sorted_keys, order, cell, lo, dims, radius, att, rep, out):
-    n = x.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    for i in nb.prange(n):
+def _pairwise_sum(x, inv_m, offsets, indices, radius, att, rep, out):
+    for i in nb.prange(x.shape[0]):
         ax = 0.0
         ay = 0.0
         az = 0.0
-        cx = int(np.floor((x[i, 0] - lo[0]) / cell))
-        cy = int(np.floor((x[i, 1] - lo[1]) / cell))
-        cz = int(np.floor((x[i, 2] - lo[2]) / cell))
-        for oz in range(-1, 2):
-            kz = cz + oz
-            if kz < 0 or kz >= nz:
+        for k in range(offsets[i], offsets[i + 1]):
+            j = indices[k]
+            dx = x[j, 0] - x[i, 0]
+            dy = x[j, 1] - x[i, 1]
+            dz = x[j, 2] - x[i, 2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if r == 0.0:
                 continue
-            for oy in range(-1, 2):
-                ky = cy + oy
-                if ky < 0 or ky >= ny:
-                    continue
-                for ox in range(-1, 2):
-                    kx = cx + ox
-                    if kx < 0 or kx >= nx:
-                        continue
-                    key = kx + nx * (ky + ny * kz)
-                    a = np.searchsorted(sorted_keys, key)
-                    while a < n and sorted_keys[a] == key:
-                        j = order[a]
-                        a += 1
-                        if j == i:
-                            continue
-                        dx = x[j, 0] - x[i, 0]
-                        dy = x[j, 1] - x[i, 1]
-                        dz = x[j, 2] - x[i, 2]
-                        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-                        if r >= radius or r == 0.0:
-                            continue
-                        w = 1.0 - r / radius
-                        s = (att * w - rep * w * w) / r * inv_m[i]
-                        ax += s * dx
-                        ay += s * dy
-                        az += s * dz
+            w = 1.0 - r / radius
+            s = (att * w - rep * w * w) / r * inv_m[i]
+            ax += s * dx
+            ay += s * dy
+            az += s * dz
         out[i, 0] = ax
         out[i, 1] = ay
         out[i, 2] = az
@@ -361,8 +408,10 @@ def _pairwise_grid(x, inv_m, sorted_keys, order, cell, lo, dims, radius, att, re
 def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     """Accelerations ``(n, 3)`` from :class:`Pairwise` forces, through a uniform grid.
 
-    Cells are ``radius`` wide, so each particle visits the 27 cells around its own;
-    cost O(n k) for k neighbours (a sort of the cell keys plus binary searches).
+    Neighbours come from :func:`simulate.neighbours.neighbour_lists` (a uniform grid,
+    points counting-sorted by cell, the 27 cells around each particle): cost O(n k)
+    for k neighbours, summed in neighbour-index order. A non-finite position gives NaN accelerations
+    (the caller detects and reports the blow-up).
     """
     x = np.ascontiguousarray(check_array(x, "x", shape=(None, 3), finite=False))
     n = len(x)
@@ -370,21 +419,12 @@ def pairwise_accel(x: np.ndarray, mass, force: Pairwise) -> np.ndarray:
     out = np.zeros((n, 3))
     if n < 2:
         return out
-    if not np.all(np.isfinite(x)):  # let the caller detect and report the blow-up
+    if not np.all(np.isfinite(x.max(axis=0) - x.min(axis=0))):  # also an overflowing extent
         return np.full((n, 3), np.nan)
-    cell = float(force.radius)
-    lo = x.min(axis=0)
-    span = (x.max(axis=0) - lo) / cell
-    if not np.all(np.isfinite(span)):  # blown-up states overflow: report, do not raise
-        return np.full((n, 3), np.nan)
-    dims = np.floor(span).astype(np.int64) + 1
-    if float(np.prod(dims.astype(np.float64))) > 2.0**62:
-        raise ValueError(f"radius: {cell} m is too small for a grid over the particles' extent")
-    c = np.floor((x - lo) / cell).astype(np.int64)
-    keys = c[:, 0] + dims[0] * (c[:, 1] + dims[1] * c[:, 2])
-    order = np.argsort(keys, kind="stable")
-    _pairwise_grid(x, inv_m, keys[order], order.astype(np.int64), cell, lo, dims, cell,
-                   float(force.attraction), float(force.repulsion), out)
+    offsets, indices = neighbour_lists(x, force.radius)
+    with threads_for(n):
+        _pairwise_sum(x, inv_m, offsets, indices, float(force.radius),
+                      float(force.attraction), float(force.repulsion), out)
     return out
 
 
@@ -474,9 +514,10 @@ class ForceSet:
         temp = np.ascontiguousarray(np.broadcast_to(
             np.asarray(0.0 if temperature is None else temperature, np.float64), (n,)))
         out = np.empty((n, 3))
-        _accel_all(self.codes, self.params, self.perms, float(t),
-                   np.ascontiguousarray(x, np.float64), np.ascontiguousarray(v, np.float64),
-                   1.0 / m, temp, out)
+        with threads_for(n):
+            _accel_all(self.codes, self.params, self.perms, float(t),
+                       np.ascontiguousarray(x, np.float64), np.ascontiguousarray(v, np.float64),
+                       1.0 / m, temp, out)
         for p in self.pairwise:
             out += pairwise_accel(x, m, p)
         if self.springs:

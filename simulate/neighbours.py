@@ -129,12 +129,15 @@ def build_grid(points: np.ndarray, radius: float, *, lo: np.ndarray | None = Non
     hi = pts.max(axis=0) if (hi is None and n) else (lo + h if hi is None else
                                                       np.asarray(hi, float))
     extent = np.maximum(np.asarray(hi, float) - lo, 0.0)
+    if not np.all(np.isfinite(extent)):
+        raise ValueError(f"points: expected a finite extent, got {extent.tolist()}")
     limit = max(_CELLS_PER_POINT * n, _MIN_CELLS)
-    while True:
-        dims = np.floor(extent / h).astype(np.int64) + 1
-        if int(np.prod(dims)) <= limit:
+    while True:  # counted in floats: a huge extent must not overflow int64
+        dims_f = np.floor(extent / h) + 1.0
+        if float(np.prod(dims_f)) <= limit:
             break
         h *= 1.25
+    dims = dims_f.astype(np.int64)
     cell = np.empty(n, np.int64)
     _cell_index(pts, np.asarray(lo, float), h, dims, cell)
     ncells = int(np.prod(dims))
@@ -159,14 +162,16 @@ def cell_range(c, dims, axis):
 
 
 @nb.njit(parallel=True, cache=True)
-def _count(points, r2, dims, cell, order, start, counts):
+def _walk(points, r2, dims, cell, order, start, fill, offsets, indices, counts):
+    """Count (``fill`` False: into ``counts``) or list (into ``indices`` at ``offsets``)
+    each point's neighbours, visiting the 27 cells around its own."""
     nx, ny = dims[0], dims[1]
     for i in nb.prange(points.shape[0]):
         c = cell[i]
         x0, x1 = cell_range(c, dims, 0)
         y0, y1 = cell_range(c, dims, 1)
         z0, z1 = cell_range(c, dims, 2)
-        m = 0
+        m = offsets[i] if fill else 0
         for cz in range(z0, z1 + 1):
             for cy in range(y0, y1 + 1):
                 for cx in range(x0, x1 + 1):
@@ -179,34 +184,13 @@ def _count(points, r2, dims, cell, order, start, counts):
                         dy = points[j, 1] - points[i, 1]
                         dz = points[j, 2] - points[i, 2]
                         if dx * dx + dy * dy + dz * dz < r2:
+                            if fill:
+                                indices[m] = j
                             m += 1
-        counts[i] = m
-
-
-@nb.njit(parallel=True, cache=True)
-def _fill(points, r2, dims, cell, order, start, offsets, indices):
-    nx, ny = dims[0], dims[1]
-    for i in nb.prange(points.shape[0]):
-        c = cell[i]
-        x0, x1 = cell_range(c, dims, 0)
-        y0, y1 = cell_range(c, dims, 1)
-        z0, z1 = cell_range(c, dims, 2)
-        m = offsets[i]
-        for cz in range(z0, z1 + 1):
-            for cy in range(y0, y1 + 1):
-                for cx in range(x0, x1 + 1):
-                    cc = cx + nx * (cy + ny * cz)
-                    for k in range(start[cc], start[cc + 1]):
-                        j = order[k]
-                        if j == i:
-                            continue
-                        dx = points[j, 0] - points[i, 0]
-                        dy = points[j, 1] - points[i, 1]
-                        dz = points[j, 2] - points[i, 2]
-                        if dx * dx + dy * dy + dz * dz < r2:
-                            indices[m] = j
-                            m += 1
-        indices[offsets[i]:m].sort()
+        if fill:
+            indices[offsets[i]:m].sort()
+        else:
+            counts[i] = m
 
 
 def neighbour_lists(points: np.ndarray, radius: float, *,
@@ -235,13 +219,13 @@ def neighbour_lists(points: np.ndarray, radius: float, *,
         raise ValueError(f"grid: expected a grid of these {len(pts)} points with cells >= {r}, "
                          f"got {len(grid.cell)} points and cells of {grid.cell_size}")
     counts = np.empty(len(pts), np.int64)
+    offsets = np.zeros(len(pts) + 1, np.int64)
     args = (pts, r * r, grid.dims, grid.cell, grid.order, grid.start)
     with threads_for(len(pts)):
-        _count(*args, counts)
-        offsets = np.zeros(len(pts) + 1, np.int64)
+        _walk(*args, False, offsets, np.empty(0, np.int64), counts)
         np.cumsum(counts, out=offsets[1:])
         indices = np.empty(int(offsets[-1]), np.int64)
-        _fill(*args, offsets, indices)
+        _walk(*args, True, offsets, indices, counts)
     return offsets, indices
 
 

@@ -7,6 +7,10 @@ compiled kernel per step (:func:`advance_local`: every stage of the method in
 registers, parallel over particles); pairwise forces and springs go through the
 generic integrators of :mod:`simulate.integrators` over the whole state.
 
+Note on numba's cache: the fused kernel inlines the force kernel of :mod:`simulate.forces` when it
+is compiled, but numba keys its on-disk cache on this file only. After changing the
+force kernels, touch this file (or clear ``simulate/__pycache__``) so it recompiles.
+
 Attributes (colour, size, opacity, mass) are :class:`Ramp` functions of age, life
 fraction or temperature; temperature relaxes to ``ambient`` with time constant
 ``cooling_time``. Particles die at the end of their lifetime, inside a
@@ -25,16 +29,16 @@ import numpy as np
 from procgen.validate import check_choice, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.emitters import Emitter
-from simulate.forces import ForceSet, _accel
+from simulate.forces import ForceSet, _accel_inline
 from simulate.integrators import METHODS, check_step, integrate_adaptive
 from simulate.integrators import step as generic_step
+from simulate.neighbours import threads_for
 
 log = logging.getLogger(__name__)
 
 __all__ = ["ParticleSystem", "Ramp", "Look", "Sink", "KillPlane", "NonFiniteStateError",
            "advance_local", "FrameStats"]
 
-_FUSED = {"euler": 0, "symplectic_euler": 1, "midpoint": 2, "heun": 3, "rk4": 4}
 
 
 class NonFiniteStateError(RuntimeError):
@@ -48,91 +52,81 @@ class NonFiniteStateError(RuntimeError):
                          "forces)")
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
-def _advance(method, codes, params, perms, t, h, nsub, x, v, inv_m, temp):
+# The fused methods as explicit Runge-Kutta stages whose Butcher matrix has one entry a
+# row, on the sub-diagonal: stage s starts from y + h alpha_s k_(s-1) at t + alpha_s h,
+# and y advances by h sum_s b_s k_s. Symplectic Euler is Euler's stage with the
+# position advanced by the new velocity.
+_STAGES = {
+    "euler": ((0.0,), (1.0,)),
+    "symplectic_euler": ((0.0,), (1.0,)),
+    "midpoint": ((0.0, 0.5), (0.0, 1.0)),
+    "heun": ((0.0, 1.0), (0.5, 0.5)),
+    "rk4": ((0.0, 0.5, 0.5, 1.0), (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)),
+}
+
+
+@nb.njit(cache=True, fastmath=True)
+def _advance_one(i, alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v, inv_m,
+                 temp):
+    """Particle ``i``'s substeps; one call site of the force kernel, inlined into it.
+
+    Its own (non-parallel) function: numba's parallel passes over a loop body this large
+    would take far longer to compile than the kernel itself."""
+    px = x[i, 0]
+    py = x[i, 1]
+    pz = x[i, 2]
+    ux = v[i, 0]
+    uy = v[i, 1]
+    uz = v[i, 2]
+    im = inv_m[i]
+    tp = temp[i]
+    tt = t
+    for _ in range(nsub):
+        kx = ky = kz = 0.0  # the previous stage's velocity ...
+        ax = ay = az = 0.0  # ... and acceleration
+        sx = sy = sz = 0.0
+        svx = svy = svz = 0.0
+        for s in range(alpha.shape[0]):
+            c = alpha[s] * h
+            wx = ux + c * ax
+            wy = uy + c * ay
+            wz = uz + c * az
+            ax, ay, az = _accel_inline(codes, params, perms, tt + c, px + c * kx, py + c * ky,
+                                pz + c * kz, wx, wy, wz, im, tp)
+            kx = wx
+            ky = wy
+            kz = wz
+            sx += beta[s] * wx
+            sy += beta[s] * wy
+            sz += beta[s] * wz
+            svx += beta[s] * ax
+            svy += beta[s] * ay
+            svz += beta[s] * az
+        ux += h * svx
+        uy += h * svy
+        uz += h * svz
+        if symplectic:
+            px += h * ux
+            py += h * uy
+            pz += h * uz
+        else:
+            px += h * sx
+            py += h * sy
+            pz += h * sz
+        tt += h
+    x[i, 0] = px
+    x[i, 1] = py
+    x[i, 2] = pz
+    v[i, 0] = ux
+    v[i, 1] = uy
+    v[i, 2] = uz
+
+
+@nb.njit(parallel=True, cache=True)
+def _advance(alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v, inv_m, temp):
     for i in nb.prange(x.shape[0]):
-        px = x[i, 0]
-        py = x[i, 1]
-        pz = x[i, 2]
-        ux = v[i, 0]
-        uy = v[i, 1]
-        uz = v[i, 2]
-        im = inv_m[i]
-        tp = temp[i]
-        tt = t
-        for _ in range(nsub):
-            if method == 0 or method == 1:
-                ax, ay, az = _accel(codes, params, perms, tt, px, py, pz, ux, uy, uz, im, tp)
-                if method == 0:
-                    px += h * ux
-                    py += h * uy
-                    pz += h * uz
-                    ux += h * ax
-                    uy += h * ay
-                    uz += h * az
-                else:
-                    ux += h * ax
-                    uy += h * ay
-                    uz += h * az
-                    px += h * ux
-                    py += h * uy
-                    pz += h * uz
-            elif method == 2 or method == 3:
-                ax, ay, az = _accel(codes, params, perms, tt, px, py, pz, ux, uy, uz, im, tp)
-                c = 0.5 * h if method == 2 else h
-                qx = px + c * ux
-                qy = py + c * uy
-                qz = pz + c * uz
-                wx = ux + c * ax
-                wy = uy + c * ay
-                wz = uz + c * az
-                bx, by, bz = _accel(codes, params, perms, tt + c, qx, qy, qz, wx, wy, wz, im, tp)
-                if method == 2:
-                    px += h * wx
-                    py += h * wy
-                    pz += h * wz
-                    ux += h * bx
-                    uy += h * by
-                    uz += h * bz
-                else:
-                    px += 0.5 * h * (ux + wx)
-                    py += 0.5 * h * (uy + wy)
-                    pz += 0.5 * h * (uz + wz)
-                    ux += 0.5 * h * (ax + bx)
-                    uy += 0.5 * h * (ay + by)
-                    uz += 0.5 * h * (az + bz)
-            else:
-                hh = 0.5 * h
-                a1x, a1y, a1z = _accel(codes, params, perms, tt, px, py, pz, ux, uy, uz, im, tp)
-                v2x = ux + hh * a1x
-                v2y = uy + hh * a1y
-                v2z = uz + hh * a1z
-                a2x, a2y, a2z = _accel(codes, params, perms, tt + hh, px + hh * ux,
-                                       py + hh * uy, pz + hh * uz, v2x, v2y, v2z, im, tp)
-                v3x = ux + hh * a2x
-                v3y = uy + hh * a2y
-                v3z = uz + hh * a2z
-                a3x, a3y, a3z = _accel(codes, params, perms, tt + hh, px + hh * v2x,
-                                       py + hh * v2y, pz + hh * v2z, v3x, v3y, v3z, im, tp)
-                v4x = ux + h * a3x
-                v4y = uy + h * a3y
-                v4z = uz + h * a3z
-                a4x, a4y, a4z = _accel(codes, params, perms, tt + h, px + h * v3x,
-                                       py + h * v3y, pz + h * v3z, v4x, v4y, v4z, im, tp)
-                s = h / 6.0
-                px += s * (ux + 2.0 * v2x + 2.0 * v3x + v4x)
-                py += s * (uy + 2.0 * v2y + 2.0 * v3y + v4y)
-                pz += s * (uz + 2.0 * v2z + 2.0 * v3z + v4z)
-                ux += s * (a1x + 2.0 * a2x + 2.0 * a3x + a4x)
-                uy += s * (a1y + 2.0 * a2y + 2.0 * a3y + a4y)
-                uz += s * (a1z + 2.0 * a2z + 2.0 * a3z + a4z)
-            tt += h
-        x[i, 0] = px
-        x[i, 1] = py
-        x[i, 2] = pz
-        v[i, 0] = ux
-        v[i, 1] = uy
-        v[i, 2] = uz
+        _advance_one(i, alpha, beta, symplectic, codes, params, perms, t, h, nsub, x, v,
+                     inv_m, temp)
 
 
 def advance_local(forces: ForceSet, t: float, x: np.ndarray, v: np.ndarray, mass, h: float, *,
@@ -142,7 +136,7 @@ def advance_local(forces: ForceSet, t: float, x: np.ndarray, v: np.ndarray, mass
     The fused equivalent of :func:`simulate.integrators.step` on ``y = [x, v]`` with
     ``f = [v, forces.accel(t, x, v)]`` (same arithmetic, one pass over memory).
     """
-    check_choice(method, "method", tuple(_FUSED))
+    check_choice(method, "method", tuple(_STAGES))
     if not forces.is_local:
         raise ValueError("forces: advance_local needs local forces only (no pairwise, springs)")
     n = len(x)
@@ -152,8 +146,11 @@ def advance_local(forces: ForceSet, t: float, x: np.ndarray, v: np.ndarray, mass
     if x.dtype != np.float64 or not x.flags.c_contiguous or v.dtype != np.float64 \
             or not v.flags.c_contiguous:
         raise ValueError("x, v: expected C-contiguous float64 arrays (updated in place)")
-    _advance(_FUSED[method], forces.codes, forces.params, forces.perms, float(t), float(h),
-             int(substeps), x, v, inv_m, temp)
+    alpha, beta = _STAGES[method]
+    with threads_for(n):
+        _advance(np.array(alpha), np.array(beta), method == "symplectic_euler", forces.codes,
+                 forces.params, forces.perms, float(t), float(h), int(substeps), x, v, inv_m,
+                 temp)
 
 
 @dataclass(frozen=True)
@@ -363,7 +360,7 @@ class ParticleSystem:
     def _integrate(self, h):
         s = self.state
         x0, v0 = s["x"].copy(), s["v"].copy()
-        if self.forces.is_local and self.method in _FUSED:
+        if self.forces.is_local and self.method in _STAGES:
             x, v = s["x"].copy(), s["v"].copy()
             advance_local(self.forces, self.t, x, v, s["mass"], h, method=self.method,
                           temperature=s["temperature"])
@@ -412,7 +409,7 @@ class ParticleSystem:
         self._update_attributes()
         h = self.dt / self.substeps
         cstats = CollisionStats()
-        fused_all = (self.collider is None and self.forces.is_local and self.method in _FUSED
+        fused_all = (self.collider is None and self.forces.is_local and self.method in _STAGES
                      and not np.isfinite(self.cooling_time))
         if fused_all and self.count:  # no per-step work in between: all substeps at once
             s = self.state

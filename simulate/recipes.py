@@ -112,19 +112,13 @@ def _ramp(t, path, prefix):
 
 
 def procedural_scan(*, seed: int = 0, radius: float = 0.5, resolution: int = 48):
-    """A closed, lumpy stand-in for a scanned object: a noise-displaced sphere on z = 0."""
-    import open3d as o3d
-
+    """A closed, lumpy stand-in for a scanned object resting on z = 0: the
+    :func:`simulate.stand_ins.lumpy_sphere` blob, squashed to 80 % of its height."""
     from procgen.meshes import make_mesh, mesh_arrays
-    from procgen.noise.perlin import perlin
+    from simulate.stand_ins import lumpy_sphere
 
-    s = o3d.geometry.TriangleMesh.create_sphere(radius, resolution)
-    v, f = mesh_arrays(s)
-    n = v / np.linalg.norm(v, axis=1, keepdims=True)
-    q = v / radius * 1.6
-    bump = 0.18 * perlin(q[:, 0], q[:, 1], q[:, 2], seed=seed) + \
-        0.07 * perlin(3 * q[:, 0], 3 * q[:, 1], 3 * q[:, 2], seed=seed + 1)
-    v = v + radius * bump[:, None] * n
+    v, f = mesh_arrays(lumpy_sphere(radius, resolution=resolution, amplitude=0.25, seed=seed))
+    v = v.copy()
     v[:, 2] *= 0.8
     v[:, 2] -= v[:, 2].min()
     return make_mesh(v, f)

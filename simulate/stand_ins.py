@@ -12,7 +12,7 @@ from procgen.meshes import make_mesh, mesh_arrays
 from procgen.noise import perlin
 from procgen.validate import check_choice, check_positive
 
-__all__ = ["stand_in_mesh", "STAND_INS"]
+__all__ = ["stand_in_mesh", "lumpy_sphere", "STAND_INS"]
 
 STAND_INS = ("sphere", "torus", "scan")
 
@@ -37,18 +37,25 @@ def stand_in_mesh(kind: str, size: float = 5.0, *, centre=(0.0, 0.0, 0.0)):
                                                       radial_resolution=60,
                                                       tubular_resolution=30)
     else:
-        mesh = o3d.geometry.TriangleMesh.create_sphere(radius=1.0, resolution=60)
-        v, f = mesh_arrays(mesh)
-        u = v / np.linalg.norm(v, axis=1, keepdims=True)
-        bump = np.zeros(len(u))
-        for octave in range(3):
-            freq = 1.2 * 2 ** octave
-            bump += 0.5 ** octave * perlin(*(freq * u + 10.0).T, seed=3)
-        v = u * (r * (1.0 + 0.3 * bump))[:, None]
-        mesh = make_mesh(v, f)
-        return _moved(mesh, centre)
+        return _moved(lumpy_sphere(r), centre)
     mesh.compute_vertex_normals()
     return _moved(mesh, centre)
+
+
+def lumpy_sphere(radius: float, *, resolution: int = 60, amplitude: float = 0.3,
+                 seed: int = 3):
+    """A closed, scan-like blob: a sphere of ``radius`` (m) displaced along its normals
+    by three octaves of Perlin fBm, ``r (1 + amplitude * fbm(unit normal))``."""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh.create_sphere(radius=1.0, resolution=int(resolution))
+    v, f = mesh_arrays(mesh)
+    u = v / np.linalg.norm(v, axis=1, keepdims=True)
+    bump = np.zeros(len(u))
+    for octave in range(3):
+        freq = 1.2 * 2 ** octave
+        bump += 0.5 ** octave * perlin(*(freq * u + 10.0).T, seed=seed)
+    return make_mesh(u * (radius * (1.0 + amplitude * bump))[:, None], f)
 
 
 def _moved(mesh, centre):

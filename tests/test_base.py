@@ -77,3 +77,48 @@ def test_is_closed():
     flipped = f.copy()
     flipped[0] = flipped[0, ::-1]
     assert not is_closed(flipped)  # inconsistent orientation
+
+
+def test_atomic_outputs_get_the_usual_permissions(tmp_path):
+    import os
+    import stat
+
+    from procgen.files import atomic_file, write_json
+
+    old = os.umask(0o022)
+    try:
+        write_json(tmp_path / "r.json", {"a": 1})
+        with atomic_file(tmp_path / "b.bin") as t:
+            t.write_bytes(b"x")
+        with atomic_dir(tmp_path / "d") as d:
+            (d / "f.txt").write_text("x")
+        os.umask(0o027)
+        with atomic_file(tmp_path / "c.bin") as t:
+            t.write_bytes(b"x")
+    finally:
+        os.umask(old)
+    mode = lambda p: stat.S_IMODE((tmp_path / p).stat().st_mode)  # noqa: E731
+    assert mode("r.json") == 0o644 and mode("b.bin") == 0o644
+    assert mode("d") == 0o755
+    assert mode("c.bin") == 0o640  # follows the umask, like open()
+
+
+def test_write_points_empty_cloud_is_a_valid_ply(tmp_path):
+    import numpy as np
+    import open3d as o3d
+    import pytest
+
+    from procgen.mesh_io import write_points
+
+    write_points(tmp_path / "e.ply", np.zeros((0, 3)), colors=np.zeros((0, 3)))
+    assert len(o3d.io.read_point_cloud(str(tmp_path / "e.ply")).points) == 0
+    head = (tmp_path / "e.ply").read_bytes().decode("ascii")
+    assert "element vertex 0" in head and "property uchar red" in head
+    assert head.endswith("end_header\n")
+    # the same header as a non-empty cloud written by open3d
+    write_points(tmp_path / "one.ply", np.zeros((1, 3)), colors=np.zeros((1, 3)))
+    props = [ln for ln in (tmp_path / "one.ply").read_bytes().split(b"end_header")[0]
+             .decode().splitlines() if ln.startswith("property")]
+    assert props == [ln for ln in head.splitlines() if ln.startswith("property")]
+    with pytest.raises(ValueError, match="ply"):
+        write_points(tmp_path / "e.xyz", np.zeros((0, 3)))

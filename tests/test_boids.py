@@ -187,3 +187,20 @@ def test_goal_seeking_and_leader_following():
     assert np.linalg.norm(leader - [20, 0, 0]) < 2.0  # circles the goal within a turn radius
     d = np.linalg.norm(s.positions[1:] - leader, axis=1)
     assert np.median(d) < 3.0
+
+
+@pytest.mark.parametrize("fov", [180.0, 360.0])
+def test_field_of_view_cone_hides_boids_behind(fov):
+    # A at the origin and B 1 m behind it, both flying +x; cohesion only. With a 180 deg
+    # cone A cannot see B (straight behind) while B sees A ahead; all round both steer.
+    p = BoidParams(fov_deg=fov, separation_weight=0.0, alignment_weight=0.0,
+                   cohesion_weight=1.0, cohesion_radius=3.0, min_speed=0.0, max_speed=5.0,
+                   max_force=10.0, bounds=None)
+    s = FlockState(np.array([[0.0, 0, 0], [-1.0, 0, 0]]), np.array([[1.0, 0, 0], [1.0, 0, 0]]),
+                   np.zeros((2, 3)))
+    step(s, p, rng=np.random.default_rng(0))
+    assert s.velocities[1, 0] > 1.0 + 1e-3  # B speeds up toward A
+    if fov == 180.0:
+        assert s.velocities[0, 0] == 1.0  # A saw nothing
+    else:
+        assert s.velocities[0, 0] < 1.0 - 1e-3  # A turns back toward B

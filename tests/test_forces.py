@@ -4,6 +4,7 @@ import numba as nb
 import numpy as np
 import pytest
 
+from procgen.noise import noise3_grad
 from procgen.noise.perlin import noise3, perm_table
 from simulate.forces import (
     Attractor,
@@ -15,7 +16,7 @@ from simulate.forces import (
     Turbulence,
     Vortex,
     Wind,
-    noise3_grad,
+    curl_potentials,
     pairwise_accel,
     pairwise_accel_reference,
 )
@@ -44,6 +45,34 @@ def test_noise_gradient_matches_value_and_finite_differences(rng):
         d[k] = e
         fd = (_grad_many(p, pts + d)[:, 4] - _grad_many(p, pts - d)[:, 4]) / (2 * e)
         np.testing.assert_allclose(o[:, 1 + k], fd, atol=1e-7)
+
+
+@nb.njit(cache=True)
+def _potentials_many(p, pts):
+    out = np.empty((len(pts), 8))
+    for i in range(len(pts)):
+        r = curl_potentials(p, pts[i, 0], pts[i, 1], pts[i, 2])
+        for k in range(8):
+            out[i, k] = r[k]
+    return out
+
+
+def test_curl_potentials_one_walk_gives_perlin_and_a_second_noise(rng):
+    p = perm_table(3)
+    pts = rng.uniform(-5, 5, (400, 3))
+    o = _potentials_many(p, pts)
+    # the first potential is Perlin's noise and gradient exactly
+    ref = _grad_many(p, pts)
+    np.testing.assert_allclose(o[:, :4], ref[:, :4], atol=1e-14)
+    # the second is a different noise whose gradient matches its finite differences
+    assert np.corrcoef(o[:, 0], o[:, 4])[0, 1] < 0.3
+    assert np.std(o[:, 4]) > 0.5 * np.std(o[:, 0])
+    e = 1e-6
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = e
+        fd = (_potentials_many(p, pts + d)[:, 4] - _potentials_many(p, pts - d)[:, 4]) / (2 * e)
+        np.testing.assert_allclose(o[:, 5 + k], fd, atol=1e-7)
 
 
 def _divergence(fs, x, e=1e-5):
@@ -129,3 +158,18 @@ def test_bad_force_parameters():
         ForceSet([Vortex(axis=(0, 0, 0))])
     with pytest.raises(ValueError, match="radius"):
         Pairwise(radius=0)
+
+
+def test_attractor_vortex_damping_closed_forms():
+    x = np.array([[2.0, 0, 0], [0, 3.0, 1.0]])
+    v = np.array([[0.0, 1.0, 0], [1.0, 0, 0]])
+    att = ForceSet([Attractor((0, 0, 0), strength=2.0, softening=1e-9)]).accel(0, x, v, 1.0)
+    r = np.linalg.norm(x, axis=1)
+    np.testing.assert_allclose(att, -2.0 * x / r[:, None] ** 3, rtol=1e-12)  # inverse square
+    vor = ForceSet([Vortex((0, 0, 5.0), (0, 0, 2.0), strength=3.0, radius=0.5)]).accel(0, x, v,
+                                                                                      1.0)
+    # counter-clockwise about +z: at (2, 0) along +y, at (0, 3) along -x; 3 / (r^2 + 0.25)
+    np.testing.assert_allclose(vor[0], [0, 3.0 * 2 / (4 + 0.25), 0], atol=1e-12)
+    np.testing.assert_allclose(vor[1], [-3.0 * 3 / (9 + 0.25), 0, 0], atol=1e-12)
+    damp = ForceSet([Damping(0.7)]).accel(0, x, v, 2.0)
+    np.testing.assert_allclose(damp, -0.7 * v, atol=0)

@@ -35,6 +35,16 @@ def test_far_outlier_grows_cells_and_stays_exact(rng):
     _same(neighbour_lists(pts, 0.1, grid=g), neighbour_lists_reference(pts, 0.1))
 
 
+def test_huge_spread_does_not_overflow_the_cell_count(rng):
+    # (1e12 / 1e-3)^3 cells would overflow int64: the count is taken in floats
+    pts = np.vstack([rng.uniform(0, 1e-2, (50, 3)), [[1e12, 1e12, 1e12]]])
+    g = build_grid(pts, 1e-3)
+    assert 0 < int(np.prod(g.dims)) <= 1 << 15
+    _same(neighbour_lists(pts, 1e-3, grid=g), neighbour_lists_reference(pts, 1e-3))
+    with pytest.raises(ValueError, match="extent"):
+        build_grid(np.array([[-1e308, 0, 0], [1e308, 0, 0]]), 1.0)
+
+
 def test_grid_is_sorted_by_cell_and_stable(rng):
     pts = rng.uniform(0, 3, (400, 3))
     g = build_grid(pts, 0.5)

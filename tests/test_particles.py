@@ -125,3 +125,36 @@ def test_step_size_warning(caplog):
     with caplog.at_level(logging.WARNING):
         _system(0, forces=ForceSet([Wind(drag=100.0)]), method="euler", substeps=1)
     assert "stability limit" in caplog.text
+
+
+def test_package_names_its_public_api():
+    import simulate
+    from simulate.boids import step
+
+    assert all(getattr(simulate, name) is not None for name in simulate.__all__)
+    assert simulate.step_flock is step and simulate.ParticleSystem is ParticleSystem
+    with pytest.raises(AttributeError):
+        simulate.no_such_name  # noqa: B018
+
+
+def test_attributes_follow_age_and_temperature():
+    # temperature cools exponentially to ambient; colour is a ramp of temperature,
+    # mass a ramp of age: every particle's attributes are the closed forms of its own age
+    em = Emitter(shape=DiscShape(radius=0.1), rate=20, velocity=VelocityDist(speed=0.0),
+                 lifetime=10.0, mass=2.0, temperature=1000.0, name="hot")
+    look = Look(color=Ramp((300.0, 1000.0), ((0.2, 0.2, 0.2), (1.0, 0.5, 0.0)), by="temperature"),
+                mass=Ramp((0.0, 1.0), (1.0, 0.5), by="age"))
+    ps = ParticleSystem([em], forces=ForceSet([]), dt=0.1, substeps=1, looks={"hot": look},
+                        cooling_time=0.5, ambient=300.0, rng=np.random.default_rng(0))
+    for _ in range(8):
+        ps.step_frame()
+    fr = ps.frame()
+    age = fr["age"]
+    assert len(np.unique(np.round(age, 9))) > 3
+    temp = 300.0 + 700.0 * np.exp(-age / 0.5)
+    np.testing.assert_allclose(fr["temperature"], temp, rtol=1e-12)
+    f = (temp - 300.0) / 700.0
+    np.testing.assert_allclose(fr["colors"][:, 0], 0.2 + 0.8 * f, atol=1e-12)
+    np.testing.assert_allclose(fr["colors"][:, 1], 0.2 + 0.3 * f, atol=1e-12)
+    np.testing.assert_allclose(ps.state["mass"], 2.0 * np.interp(age, [0, 1], [1.0, 0.5]),
+                               rtol=1e-12)

@@ -69,3 +69,20 @@ def test_missing_mesh(tmp_path, mesh, capsys):
     assert main(["simulate", "particles", "snow", "--mesh", str(tmp_path / mesh), "--out",
                  str(tmp_path / "o")]) == 2
     assert "missing.ply" in capsys.readouterr().err
+
+
+def test_gif_and_a_mesh_without_faces_is_a_warning(tmp_path, caplog):
+    import logging
+
+    from procgen.mesh_io import write_points
+
+    pts = write_points(tmp_path / "cloud.ply", np.random.default_rng(0).uniform(0, 1, (50, 3)))
+    out = tmp_path / "gif"
+    with caplog.at_level(logging.WARNING):
+        assert main(["-q", "simulate", "particles", "fountain", "--mesh", str(pts), "--out",
+                     str(out), "--frames", "3", "--size", "32x24", "--gif"]) == 0
+    assert "no faces" in caplog.text
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["status"] == "ok" and rep["collider_closed"] is None
+    assert (out / "animation.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+    assert not (out / "animation.mp4").exists()

@@ -1,40 +1,15 @@
-"""``scanamp simulate cloth RECIPE [--mesh M.ply] --out DIR``."""
+"""``scanamp simulate cloth RECIPE [--mesh M.ply] --out DIR`` (options as for particles)."""
 
 from __future__ import annotations
 
-import sys
+from scanamp.commands.simulate_particles import add_arguments, run_kind
 
 GROUP = "simulate"
 NAME = "cloth"
-HELP = "run a cloth recipe (shipped name or TOML) and write VTP/.pvd, PLY, MP4 and report.json"
+HELP = "run a cloth recipe (e.g. drape over a scan) and write VTP/.pvd, PLY, MP4 and report.json"
 
-
-def add_arguments(p):
-    from simulate.recipes import RECIPES
-
-    p.add_argument("recipe", help="a shipped recipe (%s) or a TOML file" % ", ".join(RECIPES))
-    p.add_argument("--mesh", help="collider / emitter mesh (e.g. a scan); default: a "
-                   "procedural stand-in")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--frames", type=int, help="override the recipe's frame count")
-    p.add_argument("--seed", type=int, help="override the recipe's seed")
-    p.add_argument("--no-render", action="store_true", help="skip animation.mp4")
-    p.add_argument("--size", default="480x360", help="video size WxH (default 480x360)")
+__all__ = ["add_arguments", "run"]
 
 
 def run(args) -> int:
-    from scanamp.simulation_run import run_simulation
-
-    try:
-        w, h = (int(s) for s in args.size.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size: expected WxH like 480x360, got {args.size!r}") from None
-    if args.frames is not None and args.frames < 1:
-        raise ValueError(f"--frames: expected an integer >= 1, got {args.frames}")
-    report = run_simulation("cloth", args.recipe, args.out, mesh_path=args.mesh,
-                            frames=args.frames, render=not args.no_render, width=w, height=h,
-                            seed=args.seed)
-    if report["status"] != "ok":
-        sys.stderr.write(f"error: {report['error']} (frames so far in {args.out})\n")
-        return 1
-    return 0
+    return run_kind("cloth", args)
