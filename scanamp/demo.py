@@ -345,10 +345,15 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     run_capture(m.capture_dir, m.recon_dir, StereoOptions(mode="active", compare=False))
     m.seconds["reconstruct"] = time.perf_counter() - t
     rep = read_json(m.recon_dir / "report.json")
-    table_from_left = np.asarray(rep["calibration"]["table_from_left"])
-    left, _ = rig.stereo_cameras()
-    world_from_table = left.world_from_cam @ np.linalg.inv(table_from_left)
-    m.mesh = transform_mesh(read_mesh(m.recon_dir / "mesh.ply"), world_from_table)
+    mesh = read_mesh(m.recon_dir / "mesh.ply")
+    if rep["calibration"]["axis"].get("method") == "mount":
+        # the axis board sits in a known jig on the platter: the calibrated turntable frame
+        # *is* the world frame, and the mesh is scored as the rig delivers it
+        m.mesh = mesh
+    else:  # axis only: tie the frame to the world through the true camera pose
+        table_from_left = np.asarray(rep["calibration"]["table_from_left"])
+        left, _ = rig.stereo_cameras()
+        m.mesh = transform_mesh(mesh, left.world_from_cam @ np.linalg.inv(table_from_left))
     m.points = int(rep["points"])
     m.notes = (f"{len(st.stereo_angles_deg)} turntable stops, {w}x{h}, SGBM + TSDF "
                f"(voxel {1000 * rep['voxel_size']:.2g} mm)")

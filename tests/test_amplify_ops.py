@@ -151,6 +151,27 @@ def test_scatter_respects_slope_and_altitude_rules():
     assert pv[:, 2].max() <= z.max() + 0.2 * 1.3 + 1e-9
 
 
+def test_scatter_altitude_ignores_stray_fragments_and_floor_plants():
+    from procgen.meshes import merge_meshes
+
+    ground = heightfield_to_mesh(np.zeros((11, 11)), spacing=0.1)          # 1 m^2 at z = 0
+    # a stray 1 cm^2 fragment 10 m below (a reconstruction artefact): it must not make
+    # the whole ground "high" for the altitude rule
+    stray = heightfield_to_mesh(np.zeros((2, 2)), spacing=0.1).translate((0, 0, -10.0))
+    mesh = merge_meshes([ground, stray])
+    res = scatter_plants(mesh, rng=_rng(3), density=50.0, altitude_range=(0.0, 0.25),
+                         height=0.05, variants=1)
+    assert len(res.positions) > 20 and np.all(res.positions[:, 2] == 0.0)
+    # the floor: a density expecting ~0.05 plants still plants min_plants on eligible ground
+    res = scatter_plants(ground, rng=_rng(4), density=0.05, min_plants=3, height=0.05,
+                         variants=1)
+    assert len(res.positions) == 3 and res.candidates > 0
+    # ... but never on ground the rules exclude
+    res = scatter_plants(_ramp_mesh(), rng=_rng(5), density=0.01, min_plants=3,
+                         slope_max_deg=10.0, altitude_range=(0.6, 1.0), height=0.05)
+    assert len(res.positions) == 0
+
+
 def test_scatter_grows_varied_plants_from_one_grammar():
     plane = heightfield_to_mesh(np.zeros((3, 3)), spacing=1.0)
     res = scatter_plants(plane, rng=_rng(5), density=10.0, variants=4, height=0.5)

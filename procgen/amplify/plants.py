@@ -142,6 +142,23 @@ class ScatterResult:
     truncated: bool
 
 
+def _altitude_span(mesh, v: np.ndarray, f: np.ndarray, area: np.ndarray,
+                   *, fragment: float = 0.01) -> tuple[float, float]:
+    """``(zmin, zmax)`` over the connected pieces of ``mesh`` holding at least
+    ``fragment`` of its area (all of it when none does)."""
+    labels, _, _ = mesh.cluster_connected_triangles()
+    labels = np.asarray(labels, np.int64)
+    if len(labels) != len(f):
+        main = np.ones(len(f), bool)
+    else:
+        piece_area = np.bincount(labels, weights=area)
+        main = piece_area[labels] >= fragment * float(area.sum())
+        if not main.any():
+            main[:] = True
+    z = v[f[main]][:, :, 2]
+    return float(z.min()), float(z.max())
+
+
 def _rot_to(z_axis: np.ndarray) -> np.ndarray:
     """A rotation (3, 3) taking +z to the unit vector ``z_axis``."""
     z = z_axis / np.linalg.norm(z_axis)
@@ -156,7 +173,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
                    height: float = 0.2, height_jitter: float = 0.3,
                    slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
                    variants: int = 6, steps: int | None = None, sides: int = 6,
-                   max_plants: int = 400, upright: bool = True,
+                   max_plants: int = 400, upright: bool = True, min_plants: int = 0,
                    max_candidates: int = 2_000_000) -> ScatterResult:
     """Plant a varied forest on ``mesh``.
 
@@ -176,8 +193,10 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         Plant only where the surface's upward slope (:func:`upward_slope` of the face
         normal) is at most this, 0 to 90; overhangs never qualify.
     altitude_range : (2,) float
-        Plant only where ``(z - zmin) / (zmax - zmin)`` of the mesh lies in this range,
-        within [0, 1].
+        Plant only where ``(z - zmin) / (zmax - zmin)`` lies in this range, within [0, 1].
+        ``zmin`` and ``zmax`` span the mesh's main parts: connected pieces holding less
+        than 1 % of the area (a reconstruction's stray fragments, often centimetres off)
+        do not stretch the altitude scale; points below or above it count as 0 or 1.
     variants : int
         Distinct plants derived (each plant is one of them, turned and scaled).
     steps : int, optional
@@ -186,6 +205,10 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         Keep at most this many (the first drawn).
     upright : bool
         Grow along +z (True) or along the surface normal.
+    min_plants : int
+        A floor: when the Poisson draw leaves fewer plants than this (a small mesh, a
+        low density), more candidates are drawn uniformly by area until the floor is
+        met, provided some surface satisfies the rules (up to 16 extra rounds).
     max_candidates : int
         Refuse a density that needs more candidate points than this.
 
@@ -203,6 +226,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     if not 0.0 <= a_lo <= a_hi <= 1.0:
         raise ValueError(f"altitude_range: expected 0 <= lo <= hi <= 1, got {list(altitude_range)}")
     max_plants = check_int(max_plants, "max_plants", 0)
+    min_plants = min(check_int(min_plants, "min_plants", 0), max_plants)
     fn = face_normals(v, f)
     area = surface_area(v, f)
     slope_ok = upward_slope(fn) <= smax + 1e-9
@@ -211,12 +235,27 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     if lam > max_candidates:
         raise ValueError(f"density: {dens:g} plants/m^2 over {area.sum():.4g} m^2 needs "
                          f"{lam:.3g} candidates > {max_candidates}; lower the density")
+    z0, z1 = _altitude_span(mesh, v, f, area)
+
+    def draw(n):
+        p, t = sample_surface(v, f, n, rng)
+        rel = np.clip((p[:, 2] - z0) / (z1 - z0), 0.0, 1.0) if z1 > z0 else np.zeros(len(p))
+        ok = slope_ok[t] & (rel >= a_lo) & (rel <= a_hi)
+        return p[ok], t[ok]
+
     n_cand = int(rng.poisson(lam))
-    pts, tri = sample_surface(v, f, n_cand, rng)
-    z0, z1 = float(v[:, 2].min()), float(v[:, 2].max())
-    rel = (pts[:, 2] - z0) / (z1 - z0) if z1 > z0 else np.zeros(len(pts))
-    keep = slope_ok[tri] & (rel >= a_lo) & (rel <= a_hi)
-    pts, tri = pts[keep], tri[keep]
+    pts, tri = draw(n_cand)
+    if len(pts) < min_plants and eligible_area > 0:
+        # the floor: enough extra candidates for the missing plants at the eligible
+        # fraction seen so far (at least 64 per missing plant), a bounded number of rounds
+        batch = min(max_candidates, max(64 * min_plants, int(4 * lam)))
+        for _ in range(16):
+            p, t = draw(batch)
+            n_cand += batch
+            need = min_plants - len(pts)
+            pts, tri = np.vstack([pts, p[:need]]), np.concatenate([tri, t[:need]])
+            if len(pts) >= min_plants:
+                break
     truncated = len(pts) > max_plants
     pts, tri = pts[:max_plants], tri[:max_plants]
     k = len(pts)

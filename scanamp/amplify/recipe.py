@@ -64,7 +64,12 @@ SPECS: dict[str, dict[str, _F]] = {
     },
     "scatter": {
         "grammar": _F(str, "tree"),
-        "density": _F(float, 4.0, 0.0, 1e6, lo_open=True),  # plants per square metre
+        "density": _F(float, 4.0, 0.0, 1e6, lo_open=True),  # plants per density_unit
+        # "m2": per square metre; "diagonal": per square of the bounding-box diagonal
+        # (relative, like the sizes: the same recipe plants as many on a 20 cm scan as on
+        # a 20 m terrain)
+        "density_unit": _F(str, "m2", choices=("m2", "diagonal")),
+        "min_plants": _F(int, 0, 0, 100_000),  # floor when any surface is eligible
         "height": _F(float, 0.08, 0.0, 10.0, lo_open=True),  # relative
         "height_jitter": _F(float, 0.3, 0.0, 1.0, hi_open=True),
         "slope_max_deg": _F(float, 30.0, 0.0, 90.0),

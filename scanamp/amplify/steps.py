@@ -95,12 +95,13 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
     v, _ = mesh_arrays(state.surface)
     diag = bbox_diagonal(v)
     grammar = p["grammar"] if recipe is None else recipe.resolve(p["grammar"])
-    res = scatter_plants(state.surface, rng=rng, grammar=grammar, density=p["density"],
+    density = p["density"] / diag ** 2 if p["density_unit"] == "diagonal" else p["density"]
+    res = scatter_plants(state.surface, rng=rng, grammar=grammar, density=density,
                          height=p["height"] * diag, height_jitter=p["height_jitter"],
                          slope_max_deg=p["slope_max_deg"],
                          altitude_range=tuple(p["altitude_range"]), variants=p["variants"],
                          steps=p["steps"], sides=p["sides"], max_plants=p["max_plants"],
-                         upright=p["upright"])
+                         upright=p["upright"], min_plants=p["min_plants"])
     name = None
     if res.mesh is not None:
         if p["merge"]:
@@ -108,6 +109,7 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
         else:
             state.parts_unmerged.append(("plants", res.mesh, tuple(p["color"])))
     return {"plants": len(res.positions), "candidates": res.candidates,
+            "density_per_m2": density,
             "eligible_area": res.eligible_area, "truncated": res.truncated,
             "plant_height_mean": float(res.heights.mean()) if len(res.heights) else 0.0,
             "part": name}
