@@ -58,7 +58,7 @@ class LaserReconConfig:
     """Options of the laser reconstruction.
 
     detector : str            sub-pixel peak detector, one of ``reconstruct.stripe.DETECTORS``
-    threshold, min_contrast, max_width : float
+    threshold, min_contrast, max_width, max_steepness : float
                               stripe acceptance (8-bit units; see StripeOptions)
     dist_model : str          distortion estimated by the camera calibration
     meshing : MeshingOptions  Poisson depth, density trimming, outliers
@@ -82,6 +82,7 @@ class LaserReconConfig:
     threshold: float = 8.0
     min_contrast: float = 6.0
     max_width: float = 12.0
+    max_steepness: float = 1.5
     dist_model: str = "k1k2"
     meshing: MeshingOptions = field(default_factory=lambda: MeshingOptions(
         depth=9, density_quantile=0.03, trim_distance=0.002))
@@ -106,7 +107,7 @@ class LaserReconConfig:
         k = 1.0 if bit_depth == 8 else 257.0
         return StripeOptions(method=self.detector, threshold=self.threshold * k,
                              min_contrast=self.min_contrast * k, max_width=self.max_width,
-                             saturation=255.0 * k)
+                             max_steepness=self.max_steepness, saturation=255.0 * k)
 
 
 def _read(path: Path, channel: int | None = None) -> np.ndarray:

@@ -75,6 +75,7 @@ class StripeOptions:
     min_contrast: float = 12.0
     min_width: float = 1.5
     max_width: float = 12.0
+    max_steepness: float = 1.5
     window: int = 8
     saturation: float = 255.0
     ambiguity: float = 0.0
@@ -85,6 +86,7 @@ class StripeOptions:
         check_positive(self.min_contrast, "min_contrast")
         check_positive(self.min_width, "min_width", allow_zero=True)
         check_range(self.max_width, "max_width", self.min_width, None, lo_open=True)
+        check_positive(self.max_steepness, "max_steepness", allow_zero=True)
         if int(self.window) != self.window or not 2 <= self.window <= 64:
             raise ValueError(f"window: expected an integer in [2, 64], got {self.window!r}")
         check_positive(self.saturation, "saturation")
@@ -92,7 +94,8 @@ class StripeOptions:
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, ambiguity):
+def _row_peak(f, method, threshold, min_contrast, min_width, max_width, max_steepness, w,
+              sat, ambiguity):
     n = f.shape[0]
     # 1. integer maximum (first occurrence)
     imax = 0
@@ -140,6 +143,16 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
     width = xr - xl
     if width < min_width or width > max_width:
         return math.nan, 0.0
+    # 3b. profile test: a sampled Gaussian of this FWHM falls by at most its steepest
+    # slope, contrast / (sigma sqrt(e)), per pixel; a lit plateau (a thin ambient-lit
+    # part against a dark background, an albedo band) drops from above half contrast
+    # to the baseline in one pixel on both sides. Skipped for clipped peaks, whose
+    # plateau is the sensor's, and at the image border.
+    if max_steepness > 0.0 and vmax < sat and jl > 0 and jr < n - 1:
+        slope = min(1.0, 2.3548200450309493 / (width * math.sqrt(math.e)))
+        edge = max(f[jl] - f[jl - 1], f[jr] - f[jr + 1]) / contrast
+        if edge > max_steepness * slope:
+            return math.nan, 0.0
     # 4. optional ambiguity test: a second, separate peak nearly as strong
     if ambiguity > 0.0:
         second = base
@@ -236,7 +249,8 @@ def _row_peak(f, method, threshold, min_contrast, min_width, max_width, w, sat, 
 
 
 @numba.njit(cache=True, nogil=True)
-def _peaks(img, method, threshold, min_contrast, min_width, max_width, w, sat, ambiguity):
+def _peaks(img, method, threshold, min_contrast, min_width, max_width, max_steepness, w, sat,
+           ambiguity):
     h = img.shape[0]
     cols = np.empty(h, np.float64)
     contrast = np.empty(h, np.float32)
@@ -244,8 +258,8 @@ def _peaks(img, method, threshold, min_contrast, min_width, max_width, w, sat, a
     for r in range(h):
         for j in range(img.shape[1]):
             row[j] = img[r, j]
-        c, k = _row_peak(row, method, threshold, min_contrast, min_width, max_width, w, sat,
-                         ambiguity)
+        c, k = _row_peak(row, method, threshold, min_contrast, min_width, max_width,
+                         max_steepness, w, sat, ambiguity)
         cols[r] = c
         contrast[r] = k
     return cols, contrast
@@ -281,7 +295,8 @@ def detect_peaks(image: np.ndarray, *, method: str = "gaussian",
         raise ValueError(f"image: expected at least 5 columns, got {img.shape[1]}")
     return _peaks(np.ascontiguousarray(img), _METHOD_CODE[opt.method], float(opt.threshold),
                   float(opt.min_contrast), float(opt.min_width), float(opt.max_width),
-                  int(opt.window), float(opt.saturation), float(opt.ambiguity))
+                  float(opt.max_steepness), int(opt.window), float(opt.saturation),
+                  float(opt.ambiguity))
 
 
 def argmax_peaks(image: np.ndarray) -> np.ndarray:
