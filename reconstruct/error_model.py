@@ -67,7 +67,8 @@ def pixel_variance(image: np.ndarray, sensor: dict, *, speckle: float = 0.0) -> 
 
 
 @numba.njit(cache=True, nogil=True)
-def _peak_model(img, var, cols, method, th, mc, wmin, wmax, w, sat, amb, out_var, out_w2):
+def _peak_model(img, var, cols, method, th, mc, wmin, wmax, steep, w, sat, amb, out_var,
+                out_w2):
     h, n = img.shape
     row = np.empty(n, np.float64)
     for r in range(h):
@@ -90,9 +91,9 @@ def _peak_model(img, var, cols, method, th, mc, wmin, wmax, w, sat, amb, out_var
             step = 1e-3 * (math.sqrt(var[r, j]) + 0.05)
             old = row[j]
             row[j] = old + step
-            cp, _ = _row_peak(row, method, th, mc, wmin, wmax, w, sat, amb)
+            cp, _ = _row_peak(row, method, th, mc, wmin, wmax, steep, w, sat, amb)
             row[j] = old - step
-            cm, _ = _row_peak(row, method, th, mc, wmin, wmax, w, sat, amb)
+            cm, _ = _row_peak(row, method, th, mc, wmin, wmax, steep, w, sat, amb)
             row[j] = old
             dp = (cp - c) / step if np.isfinite(cp) else np.inf
             dm = (c - cm) / step if np.isfinite(cm) else np.inf
@@ -144,7 +145,8 @@ def peak_sigma_model(image: np.ndarray, cols: np.ndarray, variance: np.ndarray, 
     _peak_model(img, np.ascontiguousarray(variance, dtype=np.float64),
                 np.asarray(cols, np.float64), _METHOD_CODE[options.method],
                 float(options.threshold), float(options.min_contrast), float(options.min_width),
-                float(options.max_width), int(options.window), float(options.saturation),
+                float(options.max_width), float(options.max_steepness), int(options.window),
+                float(options.saturation),
                 float(options.ambiguity), v, w2)
     return np.sqrt(v), np.sqrt(w2)
 
