@@ -28,7 +28,11 @@ Rejection of spurious peaks: a row gives no peak when the maximum is below
 ``threshold``, when its contrast above the local baseline is below
 ``min_contrast``, when its full width at half contrast lies outside
 ``[min_width, max_width]`` pixels (a hot pixel or speckle spike is too narrow, a
-specular highlight or ambient blob too wide), or, with ``ambiguity`` > 0, when a
+specular highlight or ambient blob too wide), when either edge of the
+half-contrast run falls faster than ``max_steepness`` times the steepest slope a
+sampled Gaussian of that width allows, ``contrast / (sigma sqrt(e))`` per pixel with
+``sigma = FWHM / 2.355`` (an ambient-lit plateau or step edge: a thin lit part against
+a dark background, an albedo band; 0 = off), or, with ``ambiguity`` > 0, when a
 second peak farther than ``window`` pixels has at least ``ambiguity`` times its
 contrast.
 
