@@ -66,6 +66,9 @@ def pixel_variance(image: np.ndarray, sensor: dict, *, speckle: float = 0.0) -> 
     return v
 
 
+_JUMP_PX = 0.05
+
+
 @numba.njit(cache=True, nogil=True)
 def _peak_model(img, var, cols, method, th, mc, wmin, wmax, steep, w, sat, amb, out_var,
                 out_w2):
@@ -95,8 +98,10 @@ def _peak_model(img, var, cols, method, th, mc, wmin, wmax, steep, w, sat, amb, 
             row[j] = old - step
             cm, _ = _row_peak(row, method, th, mc, wmin, wmax, steep, w, sat, amb)
             row[j] = old
-            dp = (cp - c) / step if np.isfinite(cp) else np.inf
-            dm = (c - cm) / step if np.isfinite(cm) else np.inf
+            # a detection that moves by more than a hair under a 1e-3 sigma nudge has
+            # jumped (another peak, or an accept/reject test flipped): not a slope
+            dp = (cp - c) / step if np.isfinite(cp) and abs(cp - c) < _JUMP_PX else np.inf
+            dm = (c - cm) / step if np.isfinite(cm) and abs(c - cm) < _JUMP_PX else np.inf
             d = dp if abs(dp) < abs(dm) else dm
             if np.isfinite(d):
                 acc += d * d * var[r, j]

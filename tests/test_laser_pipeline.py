@@ -60,9 +60,11 @@ def test_reconstruction_is_accurate(laser_scan):
     assert (out / "mesh.ply").is_file() and (out / "points.ply").is_file()
     de = ev["depth_error"]
     # error propagation: the depth error of the peak noise alone, against the prediction
-    # from the data's own sigma_peak estimate (measured 4.0x: the estimate misses the
-    # row-to-row correlated part of the peak error; see docs/laser.md)
-    assert 0.5 < de["ratio_to_prediction"] < 8.0
+    # from the modelled sigma_peak (noise, quantization, texture through the detector's
+    # Jacobian). Measured 1.57 on this coarse 320x240 scan (1.19 at the 640x480 defaults);
+    # a Jacobian broken by detection jumps once gave 0.04, an estimate blind to the
+    # correlated error 4.0
+    assert 0.7 < de["ratio_to_prediction"] < 2.5
 
 
 def test_bad_inputs_exit_2_with_one_line(laser_scan, tmp_path, capsys):
