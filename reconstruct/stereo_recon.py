@@ -350,6 +350,21 @@ def _reference_in_table(cap: Capture, table_from_left: np.ndarray, *, mounted: b
     return ref, visible, size
 
 
+def _depth_errors(disp: np.ndarray, gt: np.ndarray, mask: np.ndarray, rect) -> dict:
+    """Per-pixel z error of the matching alone (the triangulation sigma_z = z^2/(f b) sigma_d):
+    estimated and true disparity both turned into depth with the rig's own f*b, on
+    non-occluded pixels; the RMS over the good matches (within 2 px, the bad-2.0 split) and
+    the median absolute error over every estimate."""
+    fb = rect.focal * rect.baseline
+    v = mask & np.isfinite(disp) & (disp > 0) & np.isfinite(gt) & (gt > 0)
+    if not v.any():
+        return {"depth_rms_m": float("nan"), "depth_median_abs_m": float("nan")}
+    dz = fb / disp[v] - fb / gt[v]
+    good = np.abs(disp[v] - gt[v]) <= 2.0
+    rms = float(np.sqrt(np.mean(dz[good] ** 2))) if good.any() else float("nan")
+    return {"depth_rms_m": rms, "depth_median_abs_m": float(np.median(np.abs(dz)))}
+
+
 def _reconstruct_mode(cap, calib, rect, table_from_left, key, opts, lo, num, gt_ok):
     mopts = opts.match_options(lo, num)
     depths, cams, metrics, pts_all = [], [], [], []
@@ -384,6 +399,7 @@ def _reconstruct_mode(cap, calib, rect, table_from_left, key, opts, lo, num, gt_
             try:
                 m = disparity_metrics(disp, gdl, mask=mask)
                 m["rectification_dy_px"] = float(np.nanmedian(np.abs(dy[mask])))
+                m.update(_depth_errors(disp, gdl, mask, rect))
             except ValueError as exc:
                 m = {"error": str(exc)}
             metrics.append(m)
@@ -440,7 +456,7 @@ def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> 
             ok = [m for m in metrics if "error" not in m]
             if ok:
                 keys = ("bad1.0", "bad2.0", "avgerr", "invalid", "density", "bad2.0_sparse",
-                        "rectification_dy_px")
+                        "rectification_dy_px", "depth_rms_m", "depth_median_abs_m")
                 res["disparity_mean"] = {k: float(np.mean([m[k] for m in ok])) for k in keys}
         if ref is not None:
             res["evaluation"] = _score(mesh, ref, visible, size)

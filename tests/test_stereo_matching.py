@@ -191,3 +191,24 @@ def test_region_of_interest_matches_only_the_lit_part_identically():
     assert np.isfinite(roi[core]).mean() > 0.97
     np.testing.assert_allclose(roi[core], full[core], atol=0.0625, equal_nan=True)
     assert abs(np.nanmedian(roi[core]) - 14.0) < 0.25
+
+
+def test_depth_error_follows_the_triangulation_law():
+    """sigma_z = z^2 / (f b) * sigma_d to first order, and zero for a perfect match."""
+    from types import SimpleNamespace
+
+    from reconstruct.stereo_recon import _depth_errors
+
+    rect = SimpleNamespace(focal=500.0, baseline=0.08)
+    z = 0.4
+    gt = np.full((20, 30), rect.focal * rect.baseline / z)   # 100 px at 0.4 m
+    mask = np.ones(gt.shape, bool)
+    assert _depth_errors(gt.copy(), gt, mask, rect)["depth_rms_m"] == 0.0
+    delta = 0.05
+    e = _depth_errors(gt + delta, gt, mask, rect)
+    law = z ** 2 / (rect.focal * rect.baseline) * delta
+    assert e["depth_rms_m"] == pytest.approx(law, rel=1e-3)
+    wide = SimpleNamespace(focal=500.0, baseline=0.16)        # same z, twice the baseline
+    gt2 = np.full(gt.shape, wide.focal * wide.baseline / z)
+    assert _depth_errors(gt2 + delta, gt2, mask, wide)["depth_rms_m"] == pytest.approx(law / 2,
+                                                                                     rel=1e-3)
