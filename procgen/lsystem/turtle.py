@@ -121,6 +121,16 @@ def _normalize(a):
             a[t] /= n
 
 
+@numba.njit(cache=True, inline="always")
+def _turn(a, b, has_arg, ang, ca, sa, sign):
+    """One turtle rotation of the pair (a, b) by ``sign`` times the module's own angle
+    ``ang`` (radians) when it has an argument, else by the grammar's default (cos ca, sin sa)."""
+    if has_arg:
+        _rotate(a, b, sign * ang)
+    else:
+        _rotate_cs(a, b, ca, sign * sa)
+
+
 @numba.njit(cache=True)
 def _orthonormalize(H, L, U):
     _normalize(H)
@@ -205,27 +215,15 @@ def _run(codes, ops, params, npar, has_params, step, angle, width, width_factor,
                     pid[p] = cur_poly
                     p += 1
         elif op == _TURN or op == _TURN_NEG:
-            if has:
-                a = arg * deg
-                _rotate(H, L, a if op == _TURN else -a)
-            else:
-                _rotate_cs(H, L, ca, sa if op == _TURN else -sa)
+            _turn(H, L, has, arg * deg, ca, sa, 1.0 if op == _TURN else -1.0)
             _orthonormalize(H, L, U)
         elif op == _PITCH or op == _PITCH_NEG:
             # R_L(+a): H -> cos H - sin U, U -> sin H + cos U
-            if has:
-                a = arg * deg
-                _rotate(U, H, a if op == _PITCH else -a)
-            else:
-                _rotate_cs(U, H, ca, sa if op == _PITCH else -sa)
+            _turn(U, H, has, arg * deg, ca, sa, 1.0 if op == _PITCH else -1.0)
             _orthonormalize(H, L, U)
         elif op == _ROLL or op == _ROLL_NEG:
             # R_H(+a): L -> cos L + sin U
-            if has:
-                a = arg * deg
-                _rotate(L, U, a if op == _ROLL else -a)
-            else:
-                _rotate_cs(L, U, ca, sa if op == _ROLL else -sa)
+            _turn(L, U, has, arg * deg, ca, sa, 1.0 if op == _ROLL else -1.0)
             _orthonormalize(H, L, U)
         elif op == _AROUND:
             _rotate(H, L, np.pi)
