@@ -128,7 +128,8 @@ def build_grid(points: np.ndarray, radius: float, *, lo: np.ndarray | None = Non
                                                       np.asarray(lo, float))
     hi = pts.max(axis=0) if (hi is None and n) else (lo + h if hi is None else
                                                       np.asarray(hi, float))
-    extent = np.maximum(np.asarray(hi, float) - lo, 0.0)
+    with np.errstate(over="ignore"):  # an infinite extent is reported just below
+        extent = np.maximum(np.asarray(hi, float) - lo, 0.0)
     if not np.all(np.isfinite(extent)):
         raise ValueError(f"points: expected a finite extent, got {extent.tolist()}")
     limit = max(_CELLS_PER_POINT * n, _MIN_CELLS)
