@@ -223,3 +223,13 @@ def test_unreachable_scheduler_exits_2_quickly(tmp_path, capsys):
                            "--scheduler", "tcp://127.0.0.1:1", "--timeout", "2")
     assert code == 2 and len(err) == 1, err
     assert err[0].startswith("error: --scheduler: cannot reach") and "127.0.0.1:1" in err[0]
+
+
+def test_a_metric_no_run_reports_is_warned_about_with_a_suggestion(tmp_path, caplog):
+    spec = _spec(tmp_path, GRID.replace('metrics = ["y", "x"]', 'metrics = ["y", "yy"]'))
+    with caplog.at_level("WARNING", logger="scanamp.study"):
+        res = run_study(load_study(spec), tmp_path / "out", workers=1)
+    assert res["table"]["yy"].isna().all() and res["table"]["y"].notna().all()
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1, warned
+    assert "metric yy is in none of the 6 finished runs' reports; did you mean y?" in warned[0]

@@ -123,6 +123,36 @@ def _plot(df, study, metric: str, param: str, path: Path) -> None:
         fig.savefig(tmp, format="png")
 
 
+def _leaf_keys(report, prefix: str = ""):
+    """The dotted keys of the numeric leaves of a report (the keys ``get_metric`` reads)."""
+    if isinstance(report, dict):
+        for k, v in report.items():
+            yield from _leaf_keys(v, f"{prefix}{k}.")
+    elif isinstance(report, (int, float)) and prefix:
+        yield prefix[:-1]
+
+
+def _warn_missing_metrics(study, records: dict) -> None:
+    """Warn about a metric that no finished run reports: a misspelt key in
+    ``[output] metrics`` would otherwise give an empty column and no plot, silently."""
+    import difflib
+
+    from scanamp.study.kinds import get_metric
+
+    reports = [rec["report"] for rec in records.values()
+               if rec.get("status") == "ok" and isinstance(rec.get("report"), dict)]
+    if not reports:
+        return
+    for metric in study.metrics:
+        if any(get_metric(r, metric) is not None for r in reports):
+            continue
+        keys = sorted(set(_leaf_keys(reports[0])))
+        near = difflib.get_close_matches(metric, keys, n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(near)}?" if near else ""
+        log.warning("metric %s is in none of the %d finished runs' reports%s",
+                    metric, len(reports), hint)
+
+
 def write_results(study, records: dict, out_dir: str | os.PathLike):
     """Write ``results.csv``, ``results.parquet`` and ``plots/`` into ``out_dir``;
     returns the table."""
@@ -132,6 +162,7 @@ def write_results(study, records: dict, out_dir: str | os.PathLike):
         df.to_csv(tmp, index=False)
     with atomic_file(out / "results.parquet") as tmp:
         df.to_parquet(tmp, index=False)
+    _warn_missing_metrics(study, records)
     (out / "plots").mkdir(exist_ok=True)
     for metric in study.metrics:
         col = metric_column(study, metric)
