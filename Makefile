@@ -5,8 +5,9 @@ PY       := $(VENV)/bin/python
 STAMP    := $(VENV)/.installed
 SYSLIBS  := libusb-1.0-0 libgl1 libegl1 libgomp1
 DEMO_OUT ?= demo-out
+REAL     := .cache/real
 
-.PHONY: setup syslibs demo test bench lint notebooks clean
+.PHONY: setup syslibs demo test bench lint notebooks clean real-data
 
 setup: $(STAMP)
 
@@ -36,8 +37,24 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
-bench: $(STAMP)
+bench: $(STAMP) real-data
 	$(PY) benchmarks/run_all.py
+
+# Real photographs for benchmarks/bench_real.py: the stereo chessboard pairs and the
+# Middlebury Aloe pair (with its ground-truth disparity) that OpenCV ships as sample data,
+# taken from Debian's opencv-doc package (downloaded and unpacked, not installed).
+real-data: $(REAL)/opencv/.done
+
+$(REAL)/opencv/.done:
+	@command -v apt-get >/dev/null || { echo "error: real-data needs apt-get (Debian's opencv-doc package)"; exit 1; }
+	@rm -rf $(REAL)/deb && mkdir -p $(REAL)/deb $(REAL)/opencv
+	cd $(REAL)/deb && { apt-get download -qq opencv-doc 2>/dev/null || { apt-get update -qq && apt-get download -qq opencv-doc; }; }
+	cd $(REAL)/deb && dpkg-deb -x opencv-doc_*.deb x
+	cp $(REAL)/deb/x/usr/share/doc/opencv-doc/examples/data/left[01]*.jpg \
+	   $(REAL)/deb/x/usr/share/doc/opencv-doc/examples/data/right[01]*.jpg \
+	   $(REAL)/deb/x/usr/share/doc/opencv-doc/examples/data/aloe*.* \
+	   $(REAL)/deb/x/usr/share/doc/opencv-doc/examples/data/intrinsics.yml $(REAL)/opencv/
+	@rm -rf $(REAL)/deb && touch $@
 
 notebooks: $(STAMP)
 	$(PY) notebooks/execute.py
@@ -46,4 +63,4 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 clean:
-	rm -rf $(VENV) .pytest_cache demo-out
+	rm -rf $(VENV) .pytest_cache demo-out .cache

@@ -14,7 +14,7 @@ import numpy as np
 
 from procgen.validate import check_choice, check_positive
 
-__all__ = ["ChArUcoTarget", "ChessboardTarget", "target_from_dict"]
+__all__ = ["ChArUcoTarget", "ChessboardTarget", "target_from_dict", "target_from_spec"]
 
 _DICTS = ("DICT_4X4_50", "DICT_4X4_100", "DICT_5X5_100", "DICT_5X5_250", "DICT_6X6_250")
 
@@ -190,3 +190,30 @@ def target_from_dict(d: dict):
         return cls(**d)
     except TypeError as exc:
         raise ValueError(f"target: {exc}") from None
+
+
+TARGET_SPEC_HELP = ("chessboard:COLSxROWS:SQUARE (counted in squares, so OpenCV's 9x6 inner "
+                    "corners are 10x7) or charuco:COLSxROWS:SQUARE:MARKER[:DICT]; lengths in "
+                    "metres")
+
+
+def target_from_spec(text: str):
+    """A target from a one-line spec, as on the command line (:data:`TARGET_SPEC_HELP`):
+    ``chessboard:10x7:0.025`` or ``charuco:7x5:0.02:0.015:DICT_5X5_100``."""
+    parts = [p.strip() for p in str(text).split(":")]
+    kind = parts[0].lower()
+    want = {"chessboard": (3, 3), "charuco": (4, 5)}
+    if kind not in want or not want[kind][0] <= len(parts) <= want[kind][1]:
+        raise ValueError(f"board: expected {TARGET_SPEC_HELP}, got {text!r}")
+    try:
+        cols, rows = (int(v) for v in parts[1].lower().split("x"))
+        lengths = [float(v) for v in parts[2:4] if v and not v.upper().startswith("DICT")]
+    except ValueError:
+        raise ValueError(f"board: expected {TARGET_SPEC_HELP}, got {text!r}") from None
+    if kind == "chessboard":
+        return ChessboardTarget(cols=cols, rows=rows, square_length=lengths[0])
+    if len(lengths) != 2:
+        raise ValueError(f"board: expected {TARGET_SPEC_HELP}, got {text!r}")
+    extra = {"dictionary": parts[4]} if len(parts) == 5 else {}
+    return ChArUcoTarget(squares_x=cols, squares_y=rows, square_length=lengths[0],
+                         marker_length=lengths[1], **extra)

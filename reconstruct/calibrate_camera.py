@@ -25,6 +25,7 @@ from acquire.camera import Camera
 log = logging.getLogger(__name__)
 
 __all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "detect_target",
+           "detect_board", "to_gray",
            "board_pose", "bootstrap_cameras"]
 
 _DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
@@ -77,6 +78,27 @@ class CameraCalibration:
             d["std_intrinsics"] = dict(zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2",
                                             "k3"), map(float, self.std_intrinsics), strict=True))
         return d
+
+
+def to_gray(img: np.ndarray) -> np.ndarray:
+    """uint8 grayscale of an RGB/gray uint8 or uint16 image."""
+    import cv2
+
+    if img.dtype == np.uint16:
+        img = (img / 257).astype(np.uint8)
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    return img
+
+
+def detect_board(target, image: np.ndarray):
+    """``(object_points (k, 3), image_points (k, 2), ids (k,))`` of ``target`` in an
+    RGB/gray uint8/uint16 ``image``, or None where it is not detected."""
+    det = target.detect(to_gray(image))
+    if det is None:
+        return None
+    ids, px = det
+    return target.corner_points()[ids], px, ids
 
 
 def detect_target(image: np.ndarray, target) -> tuple[np.ndarray, np.ndarray] | None:

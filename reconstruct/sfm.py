@@ -34,6 +34,7 @@ from acquire.nerfstudio import write_transforms
 from procgen.files import atomic_dir, write_json
 from procgen.mesh_io import read_mesh, write_mesh, write_points
 from procgen.validate import InputError, check_choice
+from reconstruct.calib_io import read_camera_yaml
 from reconstruct.colmap_runner import (
     CAMERA_MODELS,
     ColmapOptions,
@@ -107,7 +108,13 @@ class SfmResult:
 
 
 def parse_camera(text: str) -> tuple[str, str]:
-    """``"MODEL:p1,p2,..."`` -> ``(model, params)``; ValueError naming what is wrong."""
+    """``"MODEL:p1,p2,..."`` -> ``(model, params)``; ValueError naming what is wrong.
+
+    A path to a camera YAML (``scanamp calibrate camera``'s output, read by
+    :func:`reconstruct.calib_io.read_camera_yaml`) gives the OPENCV model from it.
+    """
+    if Path(text).suffix.lower() in (".yaml", ".yml", ".xml"):
+        return colmap_params_from_camera(read_camera_yaml(text), "OPENCV")
     if ":" not in text:
         raise ValueError(f"camera: expected MODEL:params (e.g. SIMPLE_RADIAL:800,320,240,0), "
                          f"got {text!r}")
@@ -327,6 +334,13 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     if config.camera:
         model, params = parse_camera(config.camera)
         intr_source = "--camera"
+        if Path(config.camera).suffix.lower() in (".yaml", ".yml", ".xml"):
+            cam = read_camera_yaml(config.camera)
+            if (cam.width, cam.height) != (width, height):
+                raise InputError(f"calibrated for {cam.width}x{cam.height} images, the images "
+                                 f"are {width}x{height}", path=config.camera,
+                                 field="image_width")
+            intr_source = f"--camera {config.camera}"
     elif inp.nominal is not None:
         if (inp.nominal.width, inp.nominal.height) != (width, height):
             raise InputError(f"cameras: nominal size {inp.nominal.width}x{inp.nominal.height} "

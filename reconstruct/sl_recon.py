@@ -24,6 +24,7 @@ from procgen.files import atomic_dir, write_json
 from procgen.mesh_io import write_mesh, write_points
 from procgen.progress import track
 from procgen.validate import InputError
+from reconstruct.calibrate_camera import detect_board
 from reconstruct.stereo_calib import calibrate_pair, world_from_cam_at
 from reconstruct.stereo_recon import (
     _frame_name,
@@ -31,7 +32,6 @@ from reconstruct.stereo_recon import (
     _reference_in_table,
     _score,
     calibrate_axis_entry,
-    detect_board,
 )
 from reconstruct.structured_light import (
     decode_gray_code,

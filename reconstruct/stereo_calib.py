@@ -12,17 +12,70 @@ known stage angles: completely when the board's mount on the platter is known
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import check_array
-from reconstruct.calibrate_camera import calibrate_camera_points
+from procgen.validate import InputError, check_array
+from reconstruct.calibrate_camera import calibrate_camera_points, detect_board
 from reconstruct.stereo import StereoCalibration
 
-__all__ = ["calibrate_pair", "calibrate_turntable_axis", "calibrate_turntable_mount",
-           "world_from_cam_at"]
+__all__ = ["PairViews", "detect_pair_views", "calibrate_pair", "calibrate_turntable_axis",
+           "calibrate_turntable_mount", "world_from_cam_at"]
 
 _log = logging.getLogger(__name__)
+
+
+@dataclass
+class PairViews:
+    """Board detections in a series of image pairs (the inputs of :func:`calibrate_pair`).
+
+    ``obj1, img1`` / ``obj2, img2``: each device's detections (object and image points per
+    view); ``common``: ``(object, left, right)`` points of the corners both saw in the
+    same view; ``missed``: names of the images where the board was not detected;
+    ``image_size``: ``(width, height)``.
+    """
+
+    obj1: list = field(default_factory=list)
+    img1: list = field(default_factory=list)
+    obj2: list = field(default_factory=list)
+    img2: list = field(default_factory=list)
+    common: list = field(default_factory=list)
+    missed: list = field(default_factory=list)
+    image_size: tuple[int, int] | None = None
+
+
+def detect_pair_views(target, pairs, *, min_common: int = 6) -> PairViews:
+    """Detect ``target`` in each ``(name_left, left, name_right, right)`` of ``pairs``.
+
+    Images of a pair must have one size (InputError naming the right image otherwise);
+    a view joins ``common`` when both images show at least ``min_common`` of the same
+    corners.
+    """
+    views = PairViews()
+    for name_l, L, name_r, R in pairs:
+        if L.shape[:2] != R.shape[:2]:
+            raise InputError(f"left and right images differ in size ({L.shape[1]}x{L.shape[0]} "
+                             f"vs {R.shape[1]}x{R.shape[0]})", path=name_r)
+        if views.image_size is not None and views.image_size != (L.shape[1], L.shape[0]):
+            raise InputError(f"image size {L.shape[1]}x{L.shape[0]} differs from the first "
+                             f"pair's {views.image_size[0]}x{views.image_size[1]}", path=name_l)
+        views.image_size = (L.shape[1], L.shape[0])
+        dl, dr = detect_board(target, L), detect_board(target, R)
+        for name, det, obj, img in ((name_l, dl, views.obj1, views.img1),
+                                    (name_r, dr, views.obj2, views.img2)):
+            if det is None:
+                views.missed.append(str(name))
+            else:
+                obj.append(det[0])
+                img.append(det[1])
+        if dl is not None and dr is not None:
+            ids = np.intersect1d(dl[2], dr[2])
+            if len(ids) >= min_common:
+                il = np.searchsorted(dl[2], ids)
+                ir = np.searchsorted(dr[2], ids)
+                views.common.append((dl[0][il], dl[1][il], dr[1][ir]))
+    return views
 
 
 def calibrate_pair(obj1: list, img1: list, obj2: list, img2: list, common: list,

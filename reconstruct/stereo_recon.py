@@ -8,12 +8,13 @@ angle 0. Rig poses come from that calibration and the reported stage angles; gro
 truth is read only to score (disparity metrics, mesh F-score as the mesh lies).
 
 Pair pipeline (:func:`run_pair`): a rectified disparity, depth and points from two
-images and a ``stereo.yaml`` (see :mod:`reconstruct.stereo_io`).
+images and a ``stereo.yaml`` (see :mod:`reconstruct.calib_io`).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ from procgen.files import atomic_dir, write_json
 from procgen.mesh_io import read_image, write_mesh, write_points
 from procgen.progress import track
 from procgen.validate import InputError, check_choice
+from reconstruct.calibrate_camera import detect_board, to_gray
 from reconstruct.disparity_metrics import disparity_metrics
 from reconstruct.stereo import (
     MatchOptions,
@@ -43,6 +45,7 @@ from reconstruct.stereo_calib import (
     calibrate_pair,
     calibrate_turntable_axis,
     calibrate_turntable_mount,
+    detect_pair_views,
     world_from_cam_at,
 )
 from reconstruct.tsdf import fuse_depth_maps
@@ -53,8 +56,9 @@ def _frame_name(axis_report: dict) -> str:
         return "world (the turntable frame fixed by the axis board's mount; object at stage 0)"
     return "turntable axis frame (origin height and heading from the axis board)"
 
-__all__ = ["StereoOptions", "run_capture", "run_pair", "calibrate_capture", "gt_disparity",
-           "detect_board", "to_gray"]
+
+__all__ = ["StereoOptions", "run_capture", "run_pair", "read_disparity", "calibrate_capture",
+           "gt_disparity", "detect_board", "to_gray"]  # the last two from calibrate_camera
 
 _log = logging.getLogger(__name__)
 
@@ -95,26 +99,6 @@ class StereoOptions:
                             uniqueness=self.uniqueness, mode=self.sgbm_mode)
 
 
-def to_gray(img: np.ndarray) -> np.ndarray:
-    """uint8 grayscale of an RGB/gray uint8 or uint16 image."""
-    import cv2
-
-    if img.dtype == np.uint16:
-        img = (img / 257).astype(np.uint8)
-    if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
-    return img
-
-
-def detect_board(target, image: np.ndarray):
-    """``(object_points (k, 3), image_points (k, 2), ids (k,))`` or None."""
-    det = target.detect(to_gray(image))
-    if det is None:
-        return None
-    ids, px = det
-    return target.corner_points()[ids], px, ids
-
-
 def _read(cap: Capture, rel: str, field: str) -> np.ndarray:
     try:
         return read_image(cap.path(rel))
@@ -133,43 +117,26 @@ def calibrate_capture(cap: Capture) -> tuple[StereoCalibration, np.ndarray, dict
         raise InputError("no calibration entry of kind 'stereo'", path=jpath, field="calibration")
     ci, st = entries["stereo"]
     target = target_from_dict(st["target"])
-    size = None
-    obj1, img1, obj2, img2, common, missed = [], [], [], [], [], []
-    for j, pair in enumerate(st["images"]):
-        if not isinstance(pair, list) or len(pair) != 2:
-            raise InputError("expected [left, right] image pairs", path=jpath,
-                             field=f"calibration[{ci}].images[{j}]")
-        L = _read(cap, pair[0], f"calibration[{ci}].images[{j}][0]")
-        R = _read(cap, pair[1], f"calibration[{ci}].images[{j}][1]")
-        if L.shape[:2] != R.shape[:2]:
-            raise InputError(f"left and right images differ in size ({L.shape[1]}x{L.shape[0]} "
-                             f"vs {R.shape[1]}x{R.shape[0]})", path=cap.path(pair[1]))
-        size = (L.shape[1], L.shape[0])
-        dl, dr = detect_board(target, L), detect_board(target, R)
-        if dl is None:
-            missed.append(pair[0])
-        else:
-            obj1.append(dl[0])
-            img1.append(dl[1])
-        if dr is None:
-            missed.append(pair[1])
-        else:
-            obj2.append(dr[0])
-            img2.append(dr[1])
-        if dl is not None and dr is not None:
-            ids = np.intersect1d(dl[2], dr[2])
-            if len(ids) >= 6:
-                il = np.searchsorted(dl[2], ids)
-                ir = np.searchsorted(dr[2], ids)
-                common.append((dl[0][il], dl[1][il], dr[1][ir]))
+
+    def pairs():
+        for j, pair in enumerate(st["images"]):
+            if not isinstance(pair, list) or len(pair) != 2:
+                raise InputError("expected [left, right] image pairs", path=jpath,
+                                 field=f"calibration[{ci}].images[{j}]")
+            yield (cap.path(pair[0]), _read(cap, pair[0], f"calibration[{ci}].images[{j}][0]"),
+                   cap.path(pair[1]), _read(cap, pair[1], f"calibration[{ci}].images[{j}][1]"))
+
+    views = detect_pair_views(target, pairs())
+    missed = [os.path.relpath(m, cap.root) for m in views.missed]
     if missed:
         _log.warning("board not detected in %d calibration images: %s", len(missed),
                      ", ".join(missed[:5]))
-    if len(common) < 3:
-        raise InputError(f"board detected in both images of only {len(common)} views (need 3); "
-                         f"not detected in: {', '.join(missed) or 'none'}", path=jpath,
-                         field=f"calibration[{ci}].images")
-    calib, rep = calibrate_pair(obj1, img1, obj2, img2, common, size)
+    if len(views.common) < 3:
+        raise InputError(f"board detected in both images of only {len(views.common)} views "
+                         f"(need 3); not detected in: {', '.join(missed) or 'none'}",
+                         path=jpath, field=f"calibration[{ci}].images")
+    calib, rep = calibrate_pair(views.obj1, views.img1, views.obj2, views.img2, views.common,
+                                views.image_size)
     report = {"stereo": rep, "undetected": missed}
     if "axis" not in entries:
         raise InputError("no calibration entry of kind 'axis' (board on the turntable)",
@@ -556,18 +523,46 @@ def _score(mesh, ref, visible, size, *, taus=(0.01,)):
     return d
 
 
+def read_disparity(path: Path, *, scale: float | None = None) -> np.ndarray:
+    """A ground-truth disparity map as float64, NaN where unknown (0, inf or NaN).
+
+    ``.npy``/``.pfm``: disparities as stored (Middlebury 2014 is PFM). ``.png``: the stored
+    value divided by ``scale``, by default 256 for a 16-bit PNG (KITTI) and 1 for an 8-bit
+    one (Middlebury 2001-2006 at full size; a reduced size may scale, see its readme).
+    """
+    import cv2
+
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    if path.suffix.lower() == ".npy":
+        g = np.load(path, allow_pickle=False)
+    else:
+        g = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if g is None:
+            raise InputError("unreadable disparity (expected .npy, .pfm or .png)", path=path)
+    if g.ndim != 2:
+        raise InputError(f"expected a single-channel disparity map, got shape {g.shape}",
+                         path=path)
+    if scale is None:
+        scale = 256.0 if g.dtype == np.uint16 else 1.0
+    if not scale > 0:
+        raise InputError(f"disparity scale: expected a positive number, got {scale}", path=path)
+    g = g.astype(np.float64) / (scale if g.dtype in (np.uint8, np.uint16) else 1.0)
+    return np.where(np.isfinite(g) & (g > 0), g, np.nan)
+
+
 def run_pair(left_path, right_path, calibration_path, out_dir, *, options: StereoOptions | None
-             = None, disparity_gt=None) -> Path:
-    """Disparity, depth and points of a user's own pair (see :mod:`reconstruct.stereo_io`).
+             = None, disparity_gt=None, disparity_gt_scale: float | None = None) -> Path:
+    """Disparity, depth and points of a user's own pair (see :mod:`reconstruct.calib_io`).
 
     Writes ``disparity.npy`` (rectified left, NaN = none), ``depth.npy`` (z in the
     rectified left camera), ``points.ply`` (rectified left camera frame),
     ``left_rect.png``/``right_rect.png`` and ``report.json`` (with Middlebury metrics
-    when ``disparity_gt`` — a ``.npy`` or ``.pfm`` in the rectified left frame — is given).
+    when ``disparity_gt`` — a ``.npy``, ``.pfm`` or ``.png`` in the rectified left frame,
+    read by :func:`read_disparity` — is given).
     """
-    import cv2
 
-    from reconstruct.stereo_io import read_stereo_yaml
+    from reconstruct.calib_io import read_stereo_yaml
 
     opts = options or StereoOptions()
     calib = read_stereo_yaml(calibration_path)
@@ -597,17 +592,9 @@ def run_pair(left_path, right_path, calibration_path, out_dir, *, options: Stere
               "timings_s": {"rectify_match": t}}
     if disparity_gt is not None:
         gtp = Path(disparity_gt)
-        if not gtp.is_file():
-            raise InputError("file not found", path=gtp)
-        if gtp.suffix.lower() == ".npy":
-            g = np.load(gtp, allow_pickle=False)
-        else:
-            g = cv2.imread(str(gtp), cv2.IMREAD_UNCHANGED)
-            if g is None:
-                raise InputError("unreadable disparity (expected .npy or .pfm)", path=gtp)
+        g = read_disparity(gtp, scale=disparity_gt_scale)
         if g.shape != disp.shape:
             raise InputError(f"expected shape {disp.shape}, got {g.shape}", path=gtp)
-        g = np.where(np.isfinite(g) & (g > 0), g, np.nan).astype(np.float64)
         try:
             report["disparity_metrics"] = disparity_metrics(disp, g)
         except ValueError as exc:

@@ -52,7 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     group_help = {"capture": "render a virtual capture of a scene",
                   "reconstruct": "reconstruct a mesh from a capture",
                   "simulate": "run a procedural animation",
-                  "procgen": "procedural modeling generators"}
+                  "procgen": "procedural modeling generators",
+                  "calibrate": "calibrate a real camera or stereo pair from board photos"}
     for mod in _command_modules():
         group = getattr(mod, "GROUP", None)
         target = sub

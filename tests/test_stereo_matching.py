@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from procgen.validate import InputError
+from reconstruct.calib_io import read_stereo_yaml, write_stereo_yaml
 from reconstruct.disparity_metrics import disparity_metrics, nonoccluded_mask
 from reconstruct.stereo import (
     MatchOptions,
@@ -16,7 +17,6 @@ from reconstruct.stereo import (
     rectify,
     rectify_pair,
 )
-from reconstruct.stereo_io import read_stereo_yaml, write_stereo_yaml
 
 
 def _texture(h, w, seed=0):
@@ -119,6 +119,48 @@ def test_yaml_missing_matrix_names_file_and_key(tmp_path):
     p.write_text(text[:start] + text[end:])
     with pytest.raises(InputError, match=r"stereo.yaml: K2: missing"):
         read_stereo_yaml(p)
+
+
+def test_yaml_reads_opencv_sample_names_m1_m2(tmp_path):
+    c = _calib()
+    p = write_stereo_yaml(tmp_path / "stereo.yaml", c)
+    p.write_text(p.read_text().replace("K1:", "M1:").replace("K2:", "M2:"))
+    c2 = read_stereo_yaml(p)
+    np.testing.assert_allclose(c2.K2, c.K2, rtol=0, atol=1e-12)
+
+
+def test_camera_yaml_round_trip_and_bad_key(tmp_path):
+    from acquire.camera import Camera
+    from reconstruct.calib_io import read_camera_yaml, write_camera_yaml
+
+    cam = Camera(320, 240, 301.5, 300.25, 160.5, 119.0, np.array([-0.1, 0.02, 1e-3, -2e-3, 0]))
+    p = write_camera_yaml(tmp_path / "camera.yaml", cam, rms=0.12)
+    back = read_camera_yaml(p)
+    np.testing.assert_allclose(back.K, cam.K, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.dist, cam.dist, rtol=0, atol=1e-15)
+    assert (back.width, back.height) == (320, 240)
+    p.write_text(p.read_text().replace("image_height", "height"))
+    with pytest.raises(InputError, match=r"camera.yaml: image_height: missing"):
+        read_camera_yaml(p)
+
+
+@pytest.mark.parametrize("dtype, scale, stored, want", [
+    (np.uint16, None, 256 * 37 + 128, 37.5),     # KITTI: value / 256
+    (np.uint8, None, 75, 75.0),                  # Middlebury 2001-2006 full size
+    (np.uint8, 3.0, 75, 25.0),                   # a reduced size that scales by 3
+])
+def test_png_ground_truth_disparity_scales_and_zero_is_unknown(tmp_path, dtype, scale, stored,
+                                                               want):
+    import cv2
+
+    from reconstruct.stereo_recon import read_disparity
+
+    img = np.full((4, 5), stored, dtype)
+    img[0, 0] = 0
+    cv2.imwrite(str(tmp_path / "gt.png"), img)
+    g = read_disparity(tmp_path / "gt.png", scale=scale)
+    assert np.isnan(g[0, 0]) and np.isnan(g).sum() == 1
+    assert g[1, 1] == want
 
 
 def test_rectified_geometry_triangulates_true_points():

@@ -115,8 +115,8 @@ def test_gt_disparity_is_the_true_correspondence(stereo_capture, perturb):
 
 def _pair(stereo_capture, tmp_path):
     from acquire.capture_io import load_capture
+    from reconstruct.calib_io import write_stereo_yaml
     from reconstruct.stereo import StereoCalibration
-    from reconstruct.stereo_io import write_stereo_yaml
 
     cap = load_capture(stereo_capture)
     gt = cap.ground_truth

@@ -18,8 +18,8 @@ def add_arguments(p):
     p.add_argument("input", type=Path, help="SfM capture folder (capture.json) or image folder")
     p.add_argument("--out", required=True, type=Path, help="reconstruction folder to write")
     p.add_argument("--camera", help="intrinsics MODEL:params in COLMAP's order, e.g. "
-                   "SIMPLE_RADIAL:800,320,240,0 (default: the capture's nominal camera, "
-                   "else EXIF, else estimated)")
+                   "SIMPLE_RADIAL:800,320,240,0, or a camera.yaml from scanamp calibrate "
+                   "camera (default: the capture's nominal camera, else EXIF, else estimated)")
     p.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
     p.add_argument("--matcher", choices=("auto", "exhaustive", "sequential", "spatial"),
                    default="auto")

@@ -21,8 +21,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--right", type=Path, help="right image of a pair")
     p.add_argument("--calibration", type=Path, metavar="stereo.yaml",
                    help="cv2.FileStorage YAML with K1 D1 K2 D2 R T image_size (docs/stereo.md)")
-    p.add_argument("--disparity-gt", type=Path, default=None, metavar="GT.npy|.pfm",
-                   help="ground-truth disparity (rectified left) to score the pair")
+    p.add_argument("--disparity-gt", type=Path, default=None, metavar="GT.npy|.pfm|.png",
+                   help="ground-truth disparity (rectified left) to score the pair; 0 = unknown")
+    p.add_argument("--disparity-gt-scale", type=float, default=None, metavar="S",
+                   help="a PNG ground truth stores disparity x S (default: 256 for 16-bit "
+                        "PNGs as KITTI, 1 for 8-bit as Middlebury 2001-2006 full size)")
     p.add_argument("--mode", choices=("auto", "passive", "active"), default="auto",
                    help="which capture images to match (auto: dot-pattern images if present)")
     p.add_argument("--no-compare", action="store_true",
@@ -55,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("expected a CAPTURE folder, or all of --left, --right and "
                              "--calibration")
         out = run_pair(args.left, args.right, args.calibration, args.out, options=opts,
-                       disparity_gt=args.disparity_gt)
+                       disparity_gt=args.disparity_gt,
+                       disparity_gt_scale=args.disparity_gt_scale)
     else:
         if any(x is not None for x in pair):
             raise ValueError("--left/--right/--calibration: not with a CAPTURE folder")
