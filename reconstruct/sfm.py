@@ -243,21 +243,34 @@ def _clean_mesh(mesh, min_fraction: float = 0.02):
 
 # -- the pipeline -----------------------------------------------------------------------------
 
-def _failures(database: Path, names: list, registered: set, min_kp: int) -> dict:
+# two-view geometries with no baseline to triangulate from (COLMAP's classification)
+_NO_BASELINE = {"WATERMARK": "matches at the same pixels (a static camera, or an overlay)",
+                "PANORAMIC": "a pure rotation", "PLANAR_OR_PANORAMIC":
+                "one homography (a rotating camera, or a flat scene seen from afar)",
+                "DEGENERATE": "a degenerate geometry"}
+
+
+def _failures(database: Path, names: list, registered: set, min_kp: int) -> tuple[dict, str]:
+    """Why each unregistered image failed, and a diagnosis of the whole set ("" when
+    nothing stands out): no texture, no verified match, or matches that show no camera
+    motion (COLMAP's two-view geometry types: watermark, panoramic, planar-or-panoramic)."""
     import pycolmap
 
     out = {}
     db = pycolmap.Database.open(str(database))
     try:
         images = {im.name: im for im in db.read_all_images()}
-        pairs = {}
+        pairs, kinds = {}, {}
         if db.num_verified_image_pairs():
             ids, geoms = db.read_two_view_geometries()
             for pid, g in zip(ids, geoms, strict=False):
                 a, b = pycolmap.pair_id_to_image_pair(pid)
                 n = len(g.inlier_matches)
+                kind = pycolmap.TwoViewGeometryConfiguration(int(g.config)).name
                 for k in (a, b):
                     pairs[k] = max(pairs.get(k, 0), n)
+                    if n >= 15:
+                        kinds.setdefault(k, []).append(kind)
         for n in names:
             if n in registered:
                 continue
@@ -266,16 +279,28 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> dict
                 out[n] = "not imported by COLMAP"
                 continue
             kp = db.num_keypoints_for_image(im.image_id)
+            mine = kinds.get(im.image_id, [])
             if kp < min_kp:
                 out[n] = f"no texture: {kp} SIFT features"
             elif pairs.get(im.image_id, 0) < 15:
                 out[n] = (f"no geometrically verified matches with any other image "
                           f"({kp} SIFT features)")
+            elif all(k in _NO_BASELINE for k in mine):
+                top = max(set(mine), key=mine.count)
+                out[n] = (f"no camera motion: its matches with all {len(mine)} other images "
+                          f"fit {_NO_BASELINE[top]}; nothing to triangulate")
             else:
                 out[n] = "not registered by the mapper (too few 2D-3D correspondences)"
     finally:
         db.close()
-    return out
+    all_kinds = [k for ks in kinds.values() for k in ks]
+    diagnosis = ""
+    if all_kinds and all(k in _NO_BASELINE for k in all_kinds):
+        diagnosis = ("no image pair shows camera motion (COLMAP's two-view geometries: "
+                     + ", ".join(f"{all_kinds.count(k) // 2} {k.lower()}"
+                                 for k in sorted(set(all_kinds)))
+                     + "): SfM needs the camera to move between shots, not only turn")
+    return out, diagnosis
 
 
 def _guessed_intrinsics_source(database: Path, width: int, height: int) -> str:
@@ -370,7 +395,8 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
         if intr_source is None:
             report["intrinsics_source"] = _guessed_intrinsics_source(res.database, width, height)
         registered = sorted(im.name for im in rec.images.values() if im.has_pose) if rec else []
-        failures = _failures(res.database, inp.names, set(registered), config.min_keypoints)
+        failures, diagnosis = _failures(res.database, inp.names, set(registered),
+                                        config.min_keypoints)
         textureless = [n for n, why in failures.items() if why.startswith("no texture")]
         if len(inp.names) - len(textureless) < 3:
             raise InputError("images with no texture (too few SIFT features): "
@@ -382,8 +408,11 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
         ok, message = True, "ok"
         if rec is None or len(registered) < 3:
             ok = False
-            message = (f"SfM did not register: {len(registered)} of {len(inp.names)} images "
-                       f"(see {Path(out_dir) / 'report.json'} for each image)")
+            message = (f"SfM did not register: {len(registered)} of {len(inp.names)} images"
+                       + (f": {diagnosis}" if diagnosis else "")
+                       + f" (see {Path(out_dir) / 'report.json'} for each image)")
+            if diagnosis:
+                report["diagnosis"] = diagnosis
         if ok:
             sparse = tmp / "sparse" / "0"
             (sparse / "text").mkdir(parents=True)

@@ -100,8 +100,11 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # RuntimeError: an algorithm failed; anything else: a bug
         if args.debug:
             traceback.print_exc()
-        kind = "" if isinstance(exc, RuntimeError) else f"internal {type(exc).__name__}: "
-        sys.stderr.write(f"error: {kind}{exc} (run with --debug for the traceback)\n")
+        if isinstance(exc, RuntimeError):  # the message is the diagnosis
+            sys.stderr.write(f"error: {exc}\n")
+        else:
+            sys.stderr.write(f"error: internal {type(exc).__name__}: {exc} (run with --debug "
+                             "for the traceback)\n")
         return 1
 
 

@@ -208,3 +208,22 @@ def test_bad_camera_option_names_the_model(tmp_path, capsys, small_capture):
     code, err = _cli(capsys, "reconstruct", "sfm", small_capture, "--out", tmp_path / "o",
                      "--camera", "PINHOLE:300,160,120")
     assert code == 2 and len(err) == 1 and "PINHOLE expects 4 values" in err[0]
+
+
+def test_a_camera_that_does_not_move_is_diagnosed(tmp_path, capsys):
+    # one view shot five times with fresh sensor noise: every pair's matches sit at the
+    # same pixels, which one homography (the identity) explains
+    rng = np.random.default_rng(1)
+    base = cv2.GaussianBlur(rng.integers(0, 255, (240, 320), dtype=np.uint8), (0, 0), 1.5)
+    folder = tmp_path / "static"
+    folder.mkdir()
+    for i in range(5):
+        img = base.astype(float) + rng.normal(0, 2, base.shape)
+        cv2.imwrite(str(folder / f"{i}.png"), np.clip(img, 0, 255).astype(np.uint8))
+    code, err = _cli(capsys, "reconstruct", "sfm", folder, "--out", tmp_path / "o")
+    assert code == 1 and len(err) == 1, err
+    assert "no image pair shows camera motion" in err[0] and "debug" not in err[0]
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert len(rep["failed_images"]) == 5
+    assert all(why.startswith("no camera motion") for why in rep["failed_images"].values())
+    assert "10 planar_or_panoramic" in rep["diagnosis"] or "10 watermark" in rep["diagnosis"]
