@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from acquire.camera import Camera
@@ -71,94 +72,129 @@ class Render:
     points: np.ndarray
 
 
+@numba.njit(parallel=True, cache=True)
+def _refine_hits(o, d, hit, obj, face, V, F, N, ana_kind, ana_p, ana_n, ana_r,
+                 t, points, normals, geo, bary):  # pragma: no cover
+    """Moller-Trumbore in float64 on the triangle Embree found for each hit ray, the
+    smooth (interpolated) and geometric normals, both turned toward the ray origin; on
+    an object with an analytic shape (``ana_kind`` 1 sphere: centre ``ana_p``, radius
+    ``ana_r``; 2 plane: point ``ana_p``, unit normal ``ana_n``; world frame), the exact
+    intersection and normal instead."""
+    for j in numba.prange(o.shape[0]):
+        if not hit[j]:
+            continue
+        f = face[j]
+        i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+        e1 = np.empty(3)
+        e2 = np.empty(3)
+        tv = np.empty(3)
+        for a in range(3):
+            e1[a] = V[i1, a] - V[i0, a]
+            e2[a] = V[i2, a] - V[i0, a]
+            tv[a] = o[j, a] - V[i0, a]
+        pv0 = d[j, 1] * e2[2] - d[j, 2] * e2[1]
+        pv1 = d[j, 2] * e2[0] - d[j, 0] * e2[2]
+        pv2 = d[j, 0] * e2[1] - d[j, 1] * e2[0]
+        det = e1[0] * pv0 + e1[1] * pv1 + e1[2] * pv2
+        if abs(det) < 1e-300:
+            det = 1e-300
+        u = (tv[0] * pv0 + tv[1] * pv1 + tv[2] * pv2) / det
+        q0 = tv[1] * e1[2] - tv[2] * e1[1]
+        q1 = tv[2] * e1[0] - tv[0] * e1[2]
+        q2 = tv[0] * e1[1] - tv[1] * e1[0]
+        v = (d[j, 0] * q0 + d[j, 1] * q1 + d[j, 2] * q2) / det
+        tt = (e2[0] * q0 + e2[1] * q1 + e2[2] * q2) / det
+        g0 = e1[1] * e2[2] - e1[2] * e2[1]
+        g1 = e1[2] * e2[0] - e1[0] * e2[2]
+        g2 = e1[0] * e2[1] - e1[1] * e2[0]
+        w = 1.0 - u - v
+        s0 = w * N[i0, 0] + u * N[i1, 0] + v * N[i2, 0]
+        s1 = w * N[i0, 1] + u * N[i1, 1] + v * N[i2, 1]
+        s2 = w * N[i0, 2] + u * N[i1, 2] + v * N[i2, 2]
+        kind = ana_kind[obj[j]]
+        if kind == 1:  # from outside the first root (the faceted mesh lies inside the
+            # sphere, so its hit never precedes it); from inside, the exit
+            c = ana_p[obj[j]]
+            oc0, oc1, oc2 = o[j, 0] - c[0], o[j, 1] - c[1], o[j, 2] - c[2]
+            A = d[j, 0] * d[j, 0] + d[j, 1] * d[j, 1] + d[j, 2] * d[j, 2]
+            B = 2.0 * (oc0 * d[j, 0] + oc1 * d[j, 1] + oc2 * d[j, 2])
+            C = oc0 * oc0 + oc1 * oc1 + oc2 * oc2 - ana_r[obj[j]] ** 2
+            sq = np.sqrt(max(B * B - 4.0 * A * C, 0.0))
+            tt = (-B - sq) / (2.0 * A) if C > 0 else (-B + sq) / (2.0 * A)
+            g0 = o[j, 0] + tt * d[j, 0] - c[0]
+            g1 = o[j, 1] + tt * d[j, 1] - c[1]
+            g2 = o[j, 2] + tt * d[j, 2] - c[2]
+            s0, s1, s2 = g0, g1, g2
+        elif kind == 2:
+            p0, nn = ana_p[obj[j]], ana_n[obj[j]]
+            tt = (((p0[0] - o[j, 0]) * nn[0] + (p0[1] - o[j, 1]) * nn[1]
+                   + (p0[2] - o[j, 2]) * nn[2])
+                  / (d[j, 0] * nn[0] + d[j, 1] * nn[1] + d[j, 2] * nn[2]))
+            g0, g1, g2 = nn[0], nn[1], nn[2]
+            s0, s1, s2 = g0, g1, g2
+        gl = max(np.sqrt(g0 * g0 + g1 * g1 + g2 * g2), 1e-300)
+        sl = max(np.sqrt(s0 * s0 + s1 * s1 + s2 * s2), 1e-300)
+        gs = -1.0 if (g0 * d[j, 0] + g1 * d[j, 1] + g2 * d[j, 2]) / gl > 0 else 1.0
+        ss = -1.0 if (s0 * d[j, 0] + s1 * d[j, 1] + s2 * d[j, 2]) / sl > 0 else 1.0
+        t[j] = tt
+        for a in range(3):
+            points[j, a] = o[j, a] + tt * d[j, a]
+        geo[j, 0], geo[j, 1], geo[j, 2] = gs * g0 / gl, gs * g1 / gl, gs * g2 / gl
+        normals[j, 0], normals[j, 1], normals[j, 2] = ss * s0 / sl, ss * s1 / sl, ss * s2 / sl
+        bary[j, 0], bary[j, 1] = u, v
+
+
 def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hits:
     """Cast rays ``origins + t * directions`` (both (n, 3) float64) into the scene."""
     import open3d as o3d
 
-    rs, parts, lut = scene.raycasting()
+    rs, _, lut = scene.raycasting()
+    V, F, N, face_offset = scene.flat_arrays()
     n = len(origins)
+    origins = np.ascontiguousarray(origins, np.float64)
+    directions = np.ascontiguousarray(directions, np.float64)
     rays = np.concatenate([origins, directions], axis=1).astype(np.float32)
     ans = rs.cast_rays(o3d.core.Tensor(rays))
-    t32 = ans["t_hit"].numpy()
-    hit = np.isfinite(t32)
+    hit = np.isfinite(ans["t_hit"].numpy())
     gid = ans["geometry_ids"].numpy().astype(np.int64)
     pid = ans["primitive_ids"].numpy().astype(np.int64)
     obj = np.full(n, -1, np.int64)
     obj[hit] = lut[gid[hit]]
     tri = np.where(hit, pid, -1)
+    face = np.where(hit, face_offset[np.maximum(obj, 0)] + pid, 0)
     t = np.full(n, np.inf)
     points = np.zeros((n, 3))
     normals = np.zeros((n, 3))
     geo = np.zeros((n, 3))
     bary = np.zeros((n, 2))
-    for i, (vw, f, vn) in enumerate(parts):
-        sel = np.flatnonzero(obj == i)
-        if sel.size == 0:
-            continue
-        o = origins[sel]
-        d = directions[sel]
-        tris = f[tri[sel]]
-        a, b, c = vw[tris[:, 0]], vw[tris[:, 1]], vw[tris[:, 2]]
-        # Moller-Trumbore in float64 on the triangle Embree found.
-        e1, e2 = b - a, c - a
-        pv = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", e1, pv)
-        det = np.where(np.abs(det) < 1e-300, 1e-300, det)
-        tv = o - a
-        u = np.einsum("ij,ij->i", tv, pv) / det
-        qv = np.cross(tv, e1)
-        v = np.einsum("ij,ij->i", d, qv) / det
-        tt = np.einsum("ij,ij->i", e2, qv) / det
-        gn = np.cross(e1, e2)
-        gn /= np.maximum(np.linalg.norm(gn, axis=1, keepdims=True), 1e-300)
-        w = 1.0 - u - v
-        sn = w[:, None] * vn[tris[:, 0]] + u[:, None] * vn[tris[:, 1]] + v[:, None] * vn[tris[:, 2]]
-        ana = scene.objects[i].analytic
-        if ana is not None:
-            tt, sn, gn = _refine_analytic(ana, scene.objects[i].world_from_object, o, d, tt)
-        sn /= np.maximum(np.linalg.norm(sn, axis=1, keepdims=True), 1e-300)
-        # two-sided: normals face the ray origin
-        flip = np.einsum("ij,ij->i", gn, d) > 0
-        gn[flip] *= -1
-        sflip = np.einsum("ij,ij->i", sn, d) > 0
-        sn[sflip] *= -1
-        t[sel] = tt
-        points[sel] = o + tt[:, None] * d
-        normals[sel] = sn
-        geo[sel] = gn
-        bary[sel] = np.stack([u, v], axis=1)
+    kind, ana_p, ana_n, ana_r = _analytic_arrays(scene)
+    _refine_hits(origins, directions, hit, np.maximum(obj, 0), face, V, F, N, kind, ana_p,
+                 ana_n, ana_r, t, points, normals, geo, bary)
     return Hits(hit, t, points, normals, geo, obj, tri, bary)
 
 
-def _refine_analytic(ana, T, o, d, t_mesh):
-    """Exact t and normals on an analytic sphere or plane (object frame -> world)."""
-    kind = ana.get("type")
-    R, tr = T[:3, :3], T[:3, 3]
-    if kind == "sphere":
-        c = R @ np.asarray(ana["center"], float) + tr
-        r = float(ana["radius"]) * np.cbrt(abs(np.linalg.det(R)))
-        oc = o - c
-        A = np.einsum("ij,ij->i", d, d)
-        B = 2 * np.einsum("ij,ij->i", oc, d)
-        C = np.einsum("ij,ij->i", oc, oc) - r * r
-        disc = np.maximum(B * B - 4 * A * C, 0.0)
-        sq = np.sqrt(disc)
-        t1 = (-B - sq) / (2 * A)
-        t2 = (-B + sq) / (2 * A)
-        # From outside the sphere the first hit is the entry point (the faceted mesh
-        # lies inside the sphere, so the mesh hit never precedes it); from inside, the exit.
-        tt = np.where(C > 0, t1, t2)
-        n = o + tt[:, None] * d - c
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        return tt, n, n.copy()
-    if kind == "plane":
-        p0 = R @ np.asarray(ana["point"], float) + tr
-        nn = R @ np.asarray(ana["normal"], float)
-        nn /= np.linalg.norm(nn)
-        tt = ((p0 - o) @ nn) / (d @ nn)
-        n = np.broadcast_to(nn, o.shape).copy()
-        return tt, n, n.copy()
-    raise ValueError(f"analytic.type: expected 'sphere' or 'plane', got {kind!r}")
+def _analytic_arrays(scene: RenderScene):
+    """Per object: analytic kind (0 none, 1 sphere, 2 plane), point (sphere centre or a
+    plane point), unit plane normal and sphere radius, all in the world frame."""
+    k = len(scene.objects)
+    kind = np.zeros(k, np.int64)
+    pt, nrm, rad = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
+    for i, ob in enumerate(scene.objects):
+        ana = ob.analytic
+        if ana is None:
+            continue
+        R, tr = ob.world_from_object[:3, :3], ob.world_from_object[:3, 3]
+        typ = ana.get("type")
+        if typ == "sphere":
+            kind[i], pt[i] = 1, R @ np.asarray(ana["center"], float) + tr
+            rad[i] = float(ana["radius"]) * np.cbrt(abs(np.linalg.det(R)))
+        elif typ == "plane":
+            kind[i], pt[i] = 2, R @ np.asarray(ana["point"], float) + tr
+            nrm[i] = R @ np.asarray(ana["normal"], float)
+            nrm[i] /= np.linalg.norm(nrm[i])
+        else:
+            raise ValueError(f"analytic.type: expected 'sphere' or 'plane', got {typ!r}")
+    return kind, pt, nrm, rad
 
 
 def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:

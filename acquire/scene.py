@@ -96,6 +96,7 @@ class RenderScene:
             raise ValueError(f"objects: expected unique names, got {names}")
         self.background = check_array(self.background, "background", shape=(3,))
         self._cache = None
+        self._flat = None
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:
@@ -114,7 +115,7 @@ class RenderScene:
         """A new scene with other lights, sharing the cached ray-casting structure."""
         out = RenderScene(self.objects, list(lights),
                           self.ambient if ambient is None else ambient, self.background)
-        out._cache = self._cache
+        out._cache, out._flat = self._cache, self._flat
         return out
 
     def raycasting(self):
@@ -138,6 +139,22 @@ class RenderScene:
                 lut[g] = i
             self._cache = (rs, parts, lut)
         return self._cache
+
+    def flat_arrays(self):
+        """All objects' world-frame meshes in one set of arrays (cached), for kernels that
+        index any object's triangles: ``(vertices (V, 3), faces (F, 3) int64 into them,
+        vertex_normals (V, 3), face_offset (k + 1,) int64)``; object ``i``'s triangle
+        ``j`` is face ``face_offset[i] + j``."""
+        if self._flat is None:
+            _, parts, _ = self.raycasting()
+            vo = np.cumsum([0] + [len(p[0]) for p in parts])
+            fo = np.cumsum([0] + [len(p[1]) for p in parts]).astype(np.int64)
+            V = np.ascontiguousarray(np.vstack([p[0] for p in parts]), np.float64)
+            F = np.ascontiguousarray(np.vstack([p[1].astype(np.int64) + vo[i]
+                                                for i, p in enumerate(parts)]))
+            N = np.ascontiguousarray(np.vstack([p[2] for p in parts]), np.float64)
+            self._flat = (V, F, N, fo)
+        return self._flat
 
     def bounds(self) -> np.ndarray:
         """World bounding box ``(2, 3)`` of all objects."""
