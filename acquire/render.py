@@ -217,6 +217,21 @@ def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:
     return out
 
 
+@numba.njit(parallel=True, cache=True)
+def _shadow_rays(points, geo, dirs, max_t, offset):  # pragma: no cover
+    """float32 ``(n, 6)`` rays from each point, nudged by ``offset`` off the surface on the
+    side that faces the light, to the light (``dirs * max_t``: t = 1 at the light)."""
+    n = points.shape[0]
+    rays = np.empty((n, 6), np.float32)
+    for i in numba.prange(n):
+        c = geo[i, 0] * dirs[i, 0] + geo[i, 1] * dirs[i, 1] + geo[i, 2] * dirs[i, 2]
+        k = offset * (1.0 if c > 0 else (-1.0 if c < 0 else 0.0))
+        for a in range(3):
+            rays[i, a] = points[i, a] + k * geo[i, a]
+            rays[i, 3 + a] = dirs[i, a] * max_t[i]
+    return rays
+
+
 def visibility(scene: RenderScene, light, points: np.ndarray, geo_normals: np.ndarray,
                *, offset: float = 1e-5) -> np.ndarray:
     """``(n,) bool``: True where ``light`` reaches the surface points unoccluded."""
@@ -226,11 +241,10 @@ def visibility(scene: RenderScene, light, points: np.ndarray, geo_normals: np.nd
         return np.zeros(0, bool)
     rs, _, _ = scene.raycasting()
     dirs, max_t = light.shadow_rays(points)
-    # Start on the side of the surface that faces the light.
-    side = np.sign(np.einsum("ij,ij->i", geo_normals, dirs))[:, None]
-    origins = points + offset * side * geo_normals
-    scaled = dirs * max_t[:, None]
-    rays = np.concatenate([origins, scaled], axis=1).astype(np.float32)
+    rays = _shadow_rays(np.ascontiguousarray(points, np.float64),
+                        np.ascontiguousarray(geo_normals, np.float64),
+                        np.ascontiguousarray(dirs, np.float64),
+                        np.ascontiguousarray(max_t, np.float64), float(offset))
     occluded = rs.test_occlusions(o3d.core.Tensor(rays), tnear=0.0, tfar=1.0 - 1e-6).numpy()
     return ~occluded.astype(bool)
 
