@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from procgen.validate import check_array, check_int, check_positive
 
 __all__ = ["Camera", "distort", "undistort", "look_at_cam_from_world"]
 
@@ -124,10 +124,7 @@ class Camera:
 
     def __post_init__(self):
         for name in ("width", "height"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v <= 0:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-            setattr(self, name, int(v))
+            setattr(self, name, check_int(getattr(self, name), name))
         for name in ("fx", "fy"):
             setattr(self, name, check_positive(getattr(self, name), name))
         self.cx = float(self.cx)
@@ -231,9 +228,7 @@ class Camera:
         With ``supersample = s`` the samples of pixel (u, v) sit at the centres of an
         s x s sub-grid of the pixel's square and are consecutive in the output.
         """
-        s = int(supersample)
-        if s < 1:
-            raise ValueError(f"supersample: expected an integer >= 1, got {supersample!r}")
+        s = check_int(supersample, "supersample")
         off = (np.arange(s) + 0.5) / s - 0.5
         v, u = np.mgrid[0:self.height, 0:self.width]
         ou, ov = np.meshgrid(off, off)

@@ -28,7 +28,7 @@ from acquire.sensor import Sensor
 from procgen.files import atomic_dir, require
 from procgen.mesh_io import write_image, write_mesh
 from procgen.progress import track
-from procgen.validate import InputError, check_choice, check_positive
+from procgen.validate import InputError, check_choice, check_int, check_positive
 
 __all__ = ["PathConfig", "capture", "path_config_from_toml", "PATH_KINDS"]
 
@@ -96,9 +96,7 @@ class PathConfig:
     def __post_init__(self):
         check_choice(self.kind, "kind", PATH_KINDS)
         for name in ("views", "width", "height", "blur_subframes", "supersample"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v < 1:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
+            check_int(getattr(self, name), name)
         if self.views < 3:
             raise ValueError(f"views: expected at least 3 views for SfM, got {self.views}")
         check_positive(self.fov_deg, "fov_deg")

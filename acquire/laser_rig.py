@@ -29,7 +29,7 @@ from acquire.laser import LaserSheet
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, target_from_dict
 from procgen.files import read_toml
-from procgen.validate import InputError, check_choice, check_positive, check_range
+from procgen.validate import InputError, check_choice, check_int, check_positive, check_range
 
 __all__ = ["LaserRig", "load_rig", "rotation_about"]
 
@@ -95,10 +95,7 @@ class LaserRig:
     def __post_init__(self):
         for name in ("width", "height", "steps", "camera_views", "laser_views", "axis_views",
                      "stage_views", "calib_supersample"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v < 1:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-            setattr(self, name, int(v))
+            setattr(self, name, check_int(getattr(self, name), name))
         check_range(self.fov_deg, "fov_deg", 1, 170)
         check_range(self.triangulation_angle_deg, "triangulation_angle_deg", 1, 89)
         check_range(self.fan_angle_deg, "fan_angle_deg", 1, 170)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from acquire.camera import look_at_cam_from_world
-from procgen.validate import check_array, check_positive, check_range
+from procgen.validate import check_array, check_int, check_positive, check_range
 
 __all__ = ["orbit_rings", "hemisphere", "handheld_walk", "subframe_poses", "interpolate_pose"]
 
@@ -50,8 +50,7 @@ def orbit_rings(target, radius: float, *, elevations_deg=(20.0, 40.0),
     cam_from_world : (k, 4, 4) float64
     """
     target = _centre(target, radius)
-    if int(views_per_ring) != views_per_ring or views_per_ring < 1:
-        raise ValueError(f"views_per_ring: expected a positive integer, got {views_per_ring!r}")
+    views_per_ring = check_int(views_per_ring, "views_per_ring")
     elevations = [check_range(e, "elevations_deg", -90, 90, lo_open=True, hi_open=True)
                   for e in np.atleast_1d(elevations_deg)]
     if not elevations:
@@ -80,8 +79,7 @@ def hemisphere(target, radius: float, n: int, *, min_elevation_deg: float = 10.0
     cam_from_world : (n, 4, 4) float64
     """
     target = _centre(target, radius)
-    if int(n) != n or n < 1:
-        raise ValueError(f"n: expected a positive integer, got {n!r}")
+    n = check_int(n, "n")
     lo = check_range(min_elevation_deg, "min_elevation_deg", -90, 90)
     hi = check_range(max_elevation_deg, "max_elevation_deg", lo, 90)
     golden = np.pi * (3.0 - np.sqrt(5.0))
@@ -131,8 +129,7 @@ def handheld_walk(target, radius: float, n: int, *, rng: np.random.Generator,
     cam_from_world : (n, 4, 4) float64
     """
     target = _centre(target, radius)
-    if int(n) != n or n < 1:
-        raise ValueError(f"n: expected a positive integer, got {n!r}")
+    n = check_int(n, "n")
     for name, v in (("position_jitter", position_jitter), ("aim_jitter", aim_jitter),
                     ("height_wobble", height_wobble), ("roll_jitter_deg", roll_jitter_deg)):
         check_positive(v, name, allow_zero=True)
@@ -194,8 +191,7 @@ def subframe_poses(T0: np.ndarray, T1: np.ndarray, n: int, *, shutter: float = 0
     -------
     cam_from_world : (n, 4, 4) float64
     """
-    if int(n) != n or n < 1:
-        raise ValueError(f"n: expected a positive integer, got {n!r}")
+    n = check_int(n, "n")
     check_range(shutter, "shutter", 0, 1)
     offs = (np.arange(int(n)) + 0.5) / n - 0.5 if n > 1 else np.zeros(1)
     return np.array([interpolate_pose(T0, T1, float(o * shutter)) for o in offs])

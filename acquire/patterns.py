@@ -17,17 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.validate import check_choice, check_positive, check_range
+from procgen.validate import check_choice, check_int, check_positive, check_range
 
 __all__ = ["random_dots", "gray_code_patterns", "gray_code_bits", "phase_shift_patterns",
            "white_black"]
 
 
 def _size(width, height):
-    for name, v in (("width", width), ("height", height)):
-        if isinstance(v, bool) or int(v) != v or v <= 0:
-            raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-    return int(width), int(height)
+    return check_int(width, "width"), check_int(height, "height")
 
 
 def random_dots(width: int, height: int, *, rng: np.random.Generator, density: float = 0.25,
@@ -95,8 +92,7 @@ def phase_shift_patterns(width: int, height: int, *, period_px: float, n_steps: 
     width, height = _size(width, height)
     period_px = check_positive(period_px, "period_px")
     check_choice(axis, "axis", {"x", "y"})
-    if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 3:
-        raise ValueError(f"n_steps: expected an integer >= 3, got {n_steps!r}")
+    n_steps = check_int(n_steps, "n_steps", 3)
     c = np.arange(width if axis == "x" else height, dtype=np.float64)
     out = []
     for k in range(int(n_steps)):

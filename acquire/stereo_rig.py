@@ -68,7 +68,7 @@ from acquire.camera import Camera, look_at_cam_from_world
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget
 from procgen.files import read_toml, require
-from procgen.validate import InputError
+from procgen.validate import InputError, check_int
 
 __all__ = ["RigConfig", "load_rig", "rot_z", "rot_y"]
 
@@ -270,9 +270,7 @@ def load_rig(path: str | Path | None = None, **overrides) -> RigConfig:
 def _validate(cfg: RigConfig):
     for name in ("width", "height", "projector_width", "projector_height", "supersample",
                  "calib_views", "axis_views", "n_steps"):
-        v = getattr(cfg, name)
-        if int(v) != v or v < 1:
-            raise ValueError(f"{name}: expected a positive integer, got {v!r}")
+        check_int(getattr(cfg, name), name)
     for name in ("fov_deg", "baseline", "distance", "projector_fov_deg", "period_px"):
         if not getattr(cfg, name) > 0:
             raise ValueError(f"{name}: expected a positive number, got {getattr(cfg, name)!r}")

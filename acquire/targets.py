@@ -12,17 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_choice, check_positive
+from procgen.validate import check_choice, check_int, check_positive
 
 __all__ = ["ChArUcoTarget", "ChessboardTarget", "target_from_dict", "target_from_spec"]
 
 _DICTS = ("DICT_4X4_50", "DICT_4X4_100", "DICT_5X5_100", "DICT_5X5_250", "DICT_6X6_250")
-
-
-def _int_at_least(v, name, lo):
-    if isinstance(v, bool) or int(v) != v or v < lo:
-        raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
-    return int(v)
 
 
 @dataclass
@@ -78,8 +72,8 @@ class ChArUcoTarget(_Board):
     dictionary: str = "DICT_5X5_100"
 
     def __post_init__(self):
-        self.squares_x = _int_at_least(self.squares_x, "squares_x", 3)
-        self.squares_y = _int_at_least(self.squares_y, "squares_y", 3)
+        self.squares_x = check_int(self.squares_x, "squares_x", 3)
+        self.squares_y = check_int(self.squares_y, "squares_y", 3)
         self.square_length = check_positive(self.square_length, "square_length")
         self.marker_length = check_positive(self.marker_length, "marker_length")
         if self.marker_length >= self.square_length:
@@ -133,8 +127,8 @@ class ChessboardTarget(_Board):
     square_length: float = 0.02
 
     def __post_init__(self):
-        self.cols = _int_at_least(self.cols, "cols", 3)
-        self.rows = _int_at_least(self.rows, "rows", 3)
+        self.cols = check_int(self.cols, "cols", 3)
+        self.rows = check_int(self.rows, "rows", 3)
         self.square_length = check_positive(self.square_length, "square_length")
         self.margin_squares = max(self.margin_squares, 1.0)  # SB detector needs a white border
 

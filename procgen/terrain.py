@@ -17,7 +17,7 @@ import numpy as np
 from procgen.fractals.displacement import _check_hurst, diamond_square
 from procgen.meshes import make_mesh
 from procgen.noise.fractal import fbm, ridged, tileable
-from procgen.validate import check_array, check_choice, check_finite, check_positive
+from procgen.validate import check_array, check_choice, check_finite, check_int, check_positive
 
 __all__ = ["heightfield_to_mesh", "water_mesh", "fractal_terrain", "tileable_terrain",
            "check_grid_size"]
@@ -190,8 +190,7 @@ def tileable_terrain(size: int, *, rng: np.random.Generator, frequency: int = 4,
     -------
     (size, size) float64, zero mean, standard deviation ``height``
     """
-    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 3:
-        raise ValueError(f"size: expected an integer >= 3, got {size!r}")
+    size = check_int(size, "size", 3)
     h = _check_hurst(hurst)
     amp = check_positive(height, "height", allow_zero=True)
     seed = _seed_from(rng)

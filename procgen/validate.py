@@ -22,6 +22,7 @@ __all__ = [
     "InputError",
     "check_array",
     "check_choice",
+    "check_int",
     "check_range",
     "check_positive",
     "check_finite",
@@ -142,6 +143,24 @@ def check_range(
         hi_s = "inf" if hi is None else f"{hi:g}"
         raise ValueError(f"{name}: expected a value in {left}{lo_s}, {hi_s}{right}, got {value!r}")
     return v
+
+
+def check_int(value: Any, name: str, lo: int = 1) -> int:
+    """Return ``value`` as an int: an integral number (not a bool) >= ``lo``.
+
+    ``3`` and ``3.0`` pass; ``2.5``, ``True``, ``"3"``, NaN and anything under ``lo`` raise
+    ValueError naming ``name``.
+    """
+    try:
+        ok = (isinstance(value, (int, float, np.integer, np.floating))
+              and not isinstance(value, (bool, np.bool_))
+              and float(value) == int(value) and int(value) >= lo)
+    except (ValueError, OverflowError):  # NaN, infinity
+        ok = False
+    if not ok:
+        what = "a positive integer" if lo == 1 else f"an integer >= {lo}"
+        raise ValueError(f"{name}: expected {what}, got {value!r}")
+    return int(value)
 
 
 def check_positive(value: Any, name: str, *, allow_zero: bool = False) -> float:

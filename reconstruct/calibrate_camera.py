@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.camera import Camera
+from procgen.validate import check_int
 
 log = logging.getLogger(__name__)
 
@@ -297,8 +298,7 @@ def bootstrap_cameras(cal: CameraCalibration, rng: np.random.Generator, *,
     if cal.object_points is None or cal.image_points is None:
         raise ValueError("cal: expected a calibration that kept its corners "
                          "(from calibrate_camera)")
-    if isinstance(draws, bool) or int(draws) != draws or draws < 1:
-        raise ValueError(f"draws: expected a positive integer, got {draws!r}")
+    draws = check_int(draws, "draws")
     c = cal.camera
     sigma = cal.rms / np.sqrt(2.0)
     obj = [o.astype(np.float32) for o in cal.object_points]

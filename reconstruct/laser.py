@@ -26,7 +26,7 @@ from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
 from procgen.files import atomic_dir, write_json
 from procgen.progress import track
-from procgen.validate import InputError, check_choice
+from procgen.validate import InputError, check_choice, check_int
 from reconstruct.calibrate_camera import calibrate_camera
 from reconstruct.error_model import (
     PeakErrorAccumulator,
@@ -99,9 +99,7 @@ class LaserReconConfig:
 
     def __post_init__(self):
         check_choice(self.detector, "detector", DETECTORS)
-        d = self.calibration_draws
-        if isinstance(d, bool) or int(d) != d or d < 0:
-            raise ValueError(f"calibration_draws: expected an integer >= 0, got {d!r}")
+        check_int(self.calibration_draws, "calibration_draws", 0)
 
     def stripe_options(self, bit_depth: int = 8) -> StripeOptions:
         k = 1.0 if bit_depth == 8 else 257.0

@@ -46,7 +46,7 @@ import numba as nb
 import numpy as np
 
 from procgen.files import read_toml, require
-from procgen.validate import InputError, check_array, check_choice, check_range
+from procgen.validate import InputError, check_array, check_choice, check_int, check_range
 from simulate.neighbours import build_grid, threads_for
 
 log = logging.getLogger(__name__)
@@ -158,12 +158,8 @@ class BoidParams:
         if not (self.zor <= self.zoo <= self.zoa):
             raise ValueError(f"zor, zoo, zoa: expected zor <= zoo <= zoa, got "
                              f"{self.zor}, {self.zoo}, {self.zoa}")
-        for name in ("leaders", "probe_rays"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
-                raise ValueError(f"{name}: expected an integer >= 0, got {v!r}")
-        if self.probe_rays < 1:
-            raise ValueError(f"probe_rays: expected an integer >= 1, got {self.probe_rays}")
+        object.__setattr__(self, "leaders", check_int(self.leaders, "leaders", 0))
+        object.__setattr__(self, "probe_rays", check_int(self.probe_rays, "probe_rays"))
         if self.goal is not None:
             object.__setattr__(self, "goal", tuple(
                 check_array(self.goal, "goal", shape=(3,)).tolist()))
@@ -239,8 +235,7 @@ def init_flock(n: int, params: BoidParams, *, rng: np.random.Generator,
     speed : float, optional
         Initial speed; defaults to ``params.speed`` (Couzin) or the mean of the limits.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n: expected an integer >= 1, got {n!r}")
+    n = check_int(n, "n")
     c = check_array(centre, "centre", shape=(3,))
     r = check_range(radius, "radius", 0, None, lo_open=True)
     if speed is None:

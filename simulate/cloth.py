@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_positive
+from procgen.validate import check_array, check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.forces import ForceSet, Springs
 from simulate.integrators import METHODS, check_step, stability_limit
@@ -86,9 +86,7 @@ class ClothSpec:
 
     def __post_init__(self):
         for name in ("nx", "ny"):
-            v = getattr(self, name)
-            if int(v) != v or v < 2:
-                raise ValueError(f"{name}: expected an integer >= 2, got {v!r}")
+            check_int(getattr(self, name), name, 2)
         for name in ("spacing", "mass"):
             check_positive(getattr(self, name), name)
         for name in ("k_stretch", "k_shear", "k_bend", "damping"):

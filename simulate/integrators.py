@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_choice, check_positive
+from procgen.validate import check_choice, check_int, check_positive
 
 log = logging.getLogger(__name__)
 
@@ -158,9 +158,7 @@ def integrate(f: Derivative, t0: float, y0: np.ndarray, t1: float, *, method: st
         check_positive(h, "h")
         n = max(1, math.ceil(abs(span) / h - 1e-9))
     else:
-        n = int(substeps)
-        if n < 1:
-            raise ValueError(f"substeps: expected an integer >= 1, got {substeps!r}")
+        n = check_int(substeps, "substeps")
     dt = span / n
     y = np.asarray(y0, dtype=np.float64)
     for i in range(n):

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_choice, check_positive
+from procgen.validate import check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.emitters import Emitter
 from simulate.forces import ForceSet, _accel_inline
@@ -290,8 +290,7 @@ class ParticleSystem:
     def __post_init__(self):
         check_choice(self.method, "method", METHODS)
         check_positive(self.dt, "dt")
-        if int(self.substeps) != self.substeps or self.substeps < 1:
-            raise ValueError(f"substeps: expected an integer >= 1, got {self.substeps!r}")
+        check_int(self.substeps, "substeps")
         names = [e.name for e in self.emitters]
         if len(set(names)) != len(names):
             raise ValueError(f"emitters: expected unique names, got {names}")

@@ -10,7 +10,7 @@ from procgen.meshes import (
     to_pymeshlab,
     to_pyvista,
 )
-from procgen.validate import InputError, check_array, check_choice, check_range
+from procgen.validate import InputError, check_array, check_choice, check_int, check_range
 
 
 def test_check_array_names_shape():
@@ -28,6 +28,17 @@ def test_check_choice_lists_all():
 def test_check_range():
     with pytest.raises(ValueError, match=r"hurst: expected a value in \(0, 1\)"):
         check_range(1.0, "hurst", 0, 1, lo_open=True, hi_open=True)
+
+
+def test_check_int_accepts_integral_numbers_only():
+    assert check_int(3, "n") == 3 and check_int(3.0, "n") == 3
+    assert check_int(np.int64(7), "n") == 7 and type(check_int(np.int64(7), "n")) is int
+    assert check_int(0, "k", 0) == 0
+    for bad in (2.5, True, "3", float("nan"), float("inf"), None, 0):
+        with pytest.raises(ValueError, match=r"^n: expected a positive integer, got"):
+            check_int(bad, "n")
+    with pytest.raises(ValueError, match=r"^size: expected an integer >= 3, got 2$"):
+        check_int(2, "size", 3)
 
 
 def test_atomic_dir_keeps_old_on_failure(tmp_path):

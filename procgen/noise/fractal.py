@@ -30,7 +30,7 @@ import numpy as np
 
 from procgen.noise import _kernels as K
 from procgen.noise.perlin import perm_table
-from procgen.validate import check_finite, check_range
+from procgen.validate import check_finite, check_int, check_range
 
 __all__ = [
     "fbm",
@@ -206,10 +206,9 @@ def tileable(u, v, *, frequency: int = 4, octaves: int = 4, lacunarity: int = 2,
     True
     """
     octaves = _check_octaves(octaves)
-    for name, val in (("frequency", frequency), ("lacunarity", lacunarity)):
-        if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < 1:
-            raise ValueError(f"{name}: expected a positive integer, got {val!r}")
-    top = int(frequency) * int(lacunarity) ** (octaves - 1)
+    frequency = check_int(frequency, "frequency")
+    lacunarity = check_int(lacunarity, "lacunarity")
+    top = frequency * lacunarity ** (octaves - 1)
     if top > 256:
         raise ValueError(f"octaves: frequency * lacunarity**(octaves-1) must be <= 256, got {top}")
     g = check_finite(gain, "gain")
