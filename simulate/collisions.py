@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_positive, check_range
+from procgen.validate import check_int, check_positive, check_range
 
 log = logging.getLogger(__name__)
 
@@ -63,8 +63,7 @@ class ContactParams:
         check_positive(self.friction, "friction", allow_zero=True)
         check_positive(self.rest_speed, "rest_speed", allow_zero=True)
         check_positive(self.skin, "skin", allow_zero=True)
-        if int(self.max_bounces) != self.max_bounces or self.max_bounces < 1:
-            raise ValueError(f"max_bounces: expected an integer >= 1, got {self.max_bounces!r}")
+        check_int(self.max_bounces, "max_bounces")
 
 
 @dataclass
