@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import check_array, check_int, check_positive
+from core.validate import check_array, check_int, check_positive
 
 __all__ = ["Camera", "distort", "undistort", "look_at_cam_from_world"]
 

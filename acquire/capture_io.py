@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from procgen.files import read_json, write_json
-from procgen.validate import InputError
+from core.files import read_json, write_json
+from core.validate import InputError
 
 __all__ = ["FORMAT", "KINDS", "Capture", "load_capture", "write_capture"]
 

@@ -31,10 +31,10 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import write_capture
 from acquire.laser import LaserRenderer, camera_directions
-from acquire.laser_rig import LaserRig, rotation_about
+from acquire.laser_rig import LaserRig
 from acquire.scene import RenderScene
-from procgen.files import atomic_dir
-from procgen.progress import track
+from core.files import atomic_dir
+from core.progress import track
 
 log = logging.getLogger(__name__)
 
@@ -156,8 +156,8 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
     Path
         ``out_dir``.
     """
-    from procgen.mesh_io import write_mesh
-    from procgen.meshes import merge_meshes, transform_mesh
+    from core.mesh_io import write_mesh
+    from core.meshes import merge_meshes, transform_mesh
 
     cam0 = rig.camera()
     laser0 = rig.laser()
@@ -285,4 +285,4 @@ def transform_for_reading(rig: LaserRig, reading: float) -> np.ndarray:
     return rig.world_from_object(reading)
 
 
-__all__ += ["transform_for_reading", "rotation_about"]
+__all__ += ["transform_for_reading"]

@@ -25,10 +25,11 @@ from acquire.capture_io import write_capture
 from acquire.nerfstudio import write_transforms
 from acquire.render import render
 from acquire.sensor import Sensor
-from procgen.files import atomic_dir, require
-from procgen.mesh_io import write_image, write_mesh
-from procgen.progress import track
-from procgen.validate import InputError, check_choice, check_int, check_positive
+from core.files import atomic_dir, require
+from core.image_io import write_image
+from core.mesh_io import write_mesh
+from core.progress import track
+from core.validate import InputError, check_choice, check_int, check_positive
 
 __all__ = ["PathConfig", "capture", "path_config_from_toml", "PATH_KINDS"]
 

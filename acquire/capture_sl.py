@@ -31,9 +31,9 @@ from acquire.projector import PatternProjector, sample_bilinear
 from acquire.render import albedo, cast, visibility
 from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig
-from procgen.files import atomic_dir
-from procgen.mesh_io import write_image
-from procgen.progress import track
+from core.files import atomic_dir
+from core.image_io import write_image
+from core.progress import track
 
 __all__ = ["capture", "pattern_sequence"]
 

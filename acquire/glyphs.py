@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_positive
 
 __all__ = ["glyph_triangles", "render_glyphs", "heading_colors"]
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from procgen.validate import check_array, check_positive, check_range
+from core.validate import check_array, check_positive, check_range
 
 __all__ = ["LaserSheet", "LaserFrame", "LaserRenderer", "camera_directions", "plane_of"]
 

@@ -28,24 +28,11 @@ from acquire.camera import Camera, look_at_cam_from_world
 from acquire.laser import LaserSheet
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, target_from_dict
-from procgen.files import read_toml
-from procgen.validate import InputError, check_choice, check_int, check_positive, check_range
+from core.files import read_toml
+from core.frames import rotation_about
+from core.validate import InputError, check_choice, check_int, check_positive, check_range
 
-__all__ = ["LaserRig", "load_rig", "rotation_about"]
-
-
-def rotation_about(axis: np.ndarray, angle: float, center=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """Rigid transform (4, 4): rotation by ``angle`` radians about the line through
-    ``center`` along ``axis`` (right-handed)."""
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    R = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
-    c = np.asarray(center, float)
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = c - R @ c
-    return T
+__all__ = ["LaserRig", "load_rig"]
 
 
 @dataclass

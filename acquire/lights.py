@@ -21,7 +21,7 @@ from typing import Protocol
 
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_positive
 
 __all__ = ["Light", "PointLight", "DirectionalLight"]
 

@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.validate import check_array, check_choice, check_positive
 from procgen.noise import SOLID_TEXTURES, fbm
-from procgen.validate import check_array, check_choice, check_positive
 
 __all__ = ["Material", "MATERIAL_KINDS"]
 

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.files import read_json, require, write_json
-from procgen.validate import InputError
+from core.files import read_json, require, write_json
+from core.validate import InputError
 
 __all__ = ["transforms_dict", "write_transforms", "read_transforms", "GL_FROM_CV"]
 

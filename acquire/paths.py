@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from acquire.camera import look_at_cam_from_world
-from procgen.validate import check_array, check_int, check_positive, check_range
+from core.frames import axis_angle_matrix
+from core.validate import check_array, check_int, check_positive, check_range
 
 __all__ = ["orbit_rings", "hemisphere", "handheld_walk", "subframe_poses", "interpolate_pose"]
 
@@ -94,12 +95,6 @@ def hemisphere(target, radius: float, n: int, *, min_elevation_deg: float = 10.0
     return np.array(poses)
 
 
-def _rot(axis, angle):
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
 def handheld_walk(target, radius: float, n: int, *, rng: np.random.Generator,
                   elevation_deg: float = 25.0, arc_deg: float = 360.0,
                   position_jitter: float = 0.03, aim_jitter: float = 0.03,
@@ -148,7 +143,7 @@ def handheld_walk(target, radius: float, n: int, *, rng: np.random.Generator,
         aim = target + rng.normal(0.0, aim_jitter * radius, 3)
         T = look_at_cam_from_world(eye, aim)
         roll = np.radians(rng.normal(0.0, roll_jitter_deg))
-        Rr = _rot([0, 0, 1], roll)  # about the camera's z (viewing) axis
+        Rr = axis_angle_matrix([0, 0, 1], roll)  # about the camera's z (viewing) axis
         T[:3, :3] = Rr @ T[:3, :3]
         T[:3, 3] = -T[:3, :3] @ eye
         poses.append(T)
@@ -173,7 +168,7 @@ def interpolate_pose(T0: np.ndarray, T1: np.ndarray, s: float) -> np.ndarray:
         if np.linalg.norm(axis) < 1e-9:  # 180 degrees: any perpendicular axis of dR
             w, v = np.linalg.eigh(dR + np.eye(3))
             axis = v[:, -1]
-        R = _rot(axis, s * angle) @ R0
+        R = axis_angle_matrix(axis, s * angle) @ R0
     c = (1 - s) * c0 + s * c1
     T = np.eye(4)
     T[:3, :3] = R

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.validate import check_choice, check_int, check_positive, check_range
+from core.validate import check_choice, check_int, check_positive, check_range
 
 __all__ = ["random_dots", "gray_code_patterns", "gray_code_bits", "phase_shift_patterns",
            "white_black"]

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_positive
 
 __all__ = ["PatternProjector", "sample_bilinear"]
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.materials import Material
-from procgen.meshes import mesh_arrays
-from procgen.validate import check_array
+from core.meshes import mesh_arrays
+from core.validate import check_array
 
 __all__ = ["SceneObject", "RenderScene"]
 

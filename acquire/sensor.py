@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_positive, check_range
+from core.validate import check_array, check_choice, check_positive, check_range
 
 __all__ = ["Sensor"]
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array
+from core.validate import check_array
 
 __all__ = ["composite_splats", "render_splats"]
 

@@ -67,8 +67,8 @@ import numpy as np
 from acquire.camera import Camera, look_at_cam_from_world
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget
-from procgen.files import read_toml, require
-from procgen.validate import InputError, check_int
+from core.files import read_toml, require
+from core.validate import InputError, check_int
 
 __all__ = ["RigConfig", "load_rig", "rot_z", "rot_y"]
 

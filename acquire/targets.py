@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_choice, check_int, check_positive
+from core.validate import check_choice, check_int, check_positive
 
 __all__ = ["ChArUcoTarget", "ChessboardTarget", "target_from_dict", "target_from_spec"]
 
@@ -38,7 +38,7 @@ class _Board:
         """A thin textured plane (with margin) to place in a render scene."""
         from acquire.materials import Material
         from acquire.scene import SceneObject
-        from procgen.meshes import make_mesh
+        from core.meshes import make_mesh
 
         tex = self.texture(px_per_square)
         w, h = self.size_m()

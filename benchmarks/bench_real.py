@@ -62,7 +62,7 @@ def _bare_sgbm(left, right, num):
 
 
 def _aloe():
-    from procgen.mesh_io import read_image
+    from core.image_io import read_image
     from reconstruct.calib_io import write_stereo_yaml
     from reconstruct.disparity_metrics import disparity_metrics
     from reconstruct.stereo import StereoCalibration

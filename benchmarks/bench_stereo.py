@@ -53,7 +53,7 @@ def _capture(tmp, kind, sl=False):
 
 def _speed(cap_dir):
     from acquire.capture_io import load_capture
-    from procgen.mesh_io import read_image
+    from core.image_io import read_image
     from reconstruct.stereo import (
         _sgbm,
         disparity_range,

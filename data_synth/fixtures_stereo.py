@@ -12,7 +12,7 @@ import numpy as np
 from acquire.lights import PointLight
 from acquire.materials import Material
 from acquire.scene import RenderScene, SceneObject
-from procgen.meshes import make_mesh, merge_meshes
+from core.meshes import make_mesh, merge_meshes
 
 __all__ = ["textured_scene", "textureless_scene", "scene_mesh"]
 
@@ -52,6 +52,6 @@ def textureless_scene() -> RenderScene:
 
 def scene_mesh(scene: RenderScene):
     """World-frame ground-truth mesh of a scene (all objects merged)."""
-    from procgen.meshes import transform_mesh
+    from core.meshes import transform_mesh
 
     return merge_meshes([transform_mesh(o.mesh, o.world_from_object) for o in scene.objects])

@@ -40,14 +40,14 @@ from acquire.lights import DirectionalLight, PointLight
 from acquire.materials import Material
 from acquire.scene import RenderScene, SceneObject
 from acquire.targets import target_from_dict
+from core.files import atomic_dir, read_toml, require, write_json, write_toml
+from core.frames import euler_xyz_deg
+from core.mesh_io import read_mesh, write_mesh
+from core.meshes import merge_meshes, transform_mesh
+from core.validate import InputError
 from data_synth import shapes
-from procgen.files import atomic_dir, read_toml, require, write_json, write_toml
-from procgen.mesh_io import read_mesh, write_mesh
-from procgen.meshes import merge_meshes, transform_mesh
-from procgen.validate import InputError
 
-__all__ = ["SceneBundle", "build_scene", "load_scene", "write_scene", "scene_names",
-           "euler_xyz_deg"]
+__all__ = ["SceneBundle", "build_scene", "load_scene", "write_scene", "scene_names"]
 
 SHAPES = ("sphere", "box", "cylinder", "torus", "plane", "blob", "terrain", "lsystem", "shell",
           "mesh", "charuco", "chessboard")
@@ -57,16 +57,6 @@ def scene_names() -> list[str]:
     """Names of the built-in scenes."""
     return sorted(p.name[:-5] for p in resources.files("data_synth.scene_specs").iterdir()
                   if p.name.endswith(".toml"))
-
-
-def euler_xyz_deg(angles) -> np.ndarray:
-    """Rotation (3, 3) of extrinsic rotations about X, then Y, then Z (degrees)."""
-    rx, ry, rz = np.radians(np.asarray(angles, float))
-    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
 
 
 @dataclass

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.meshes import make_mesh, mesh_arrays
+from core.meshes import make_mesh, mesh_arrays
+from core.validate import check_positive, check_range
 from procgen.noise import perlin
-from procgen.validate import check_positive, check_range
 
 __all__ = ["sphere", "box", "cylinder", "torus", "plane", "blob", "icosphere", "terrain",
            "lsystem_plant", "seashell"]

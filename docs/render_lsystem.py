@@ -19,7 +19,7 @@ pv.OFF_SCREEN = True
 
 
 def _poly(v, f):
-    from procgen.meshes import make_mesh, to_pyvista  # the one conversion to pyvista
+    from core.meshes import make_mesh, to_pyvista  # the one conversion to pyvista
 
     return to_pyvista(make_mesh(v, f, compute_normals=False))
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import check_range
+from core.validate import check_range
 
 __all__ = ["CityConfig", "City", "generate_city", "grow_roads", "Box", "Cylinder", "Union",
            "Difference", "csg_mesh", "segments_cross"]

@@ -29,11 +29,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from procgen.meshes import from_pyvista, mesh_arrays
+from core.meshes import from_pyvista, mesh_arrays
+from core.validate import check_array, check_choice, check_finite, check_positive, check_range
 from procgen.noise.fractal import bias as _bias
 from procgen.noise.fractal import fbm, turbulence
 from procgen.noise.fractal import gain as _gain
-from procgen.validate import check_array, check_choice, check_finite, check_positive, check_range
 
 __all__ = ["sphere_sdf", "egg_sdf", "sweep_sdf", "mesh_sdf", "isosurface", "hypertexture",
            "fractal_egg", "architexture"]
@@ -146,7 +146,7 @@ def isosurface(values, level: float, *, origin=(0.0, 0.0, 0.0), spacing=1.0):
     grid.point_data["v"] = vol.ravel(order="F")
     surf = grid.contour([lv], scalars="v", method="flying_edges")
     if surf.n_cells == 0:
-        from procgen.meshes import make_mesh
+        from core.meshes import make_mesh
 
         return make_mesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
     mesh = from_pyvista(surf)

@@ -26,8 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import axis_angle_matrix
+from core.validate import InputError
 from procgen.sweeps import revolve, sweep
-from procgen.validate import InputError
 
 __all__ = ["ShapeGrammar", "parse_shape_grammar", "derive_sentence", "interpret_sentence",
            "plant_mesh", "PLANT", "TERMINALS"]
@@ -114,12 +115,6 @@ def derive_sentence(grammar: ShapeGrammar, rng: np.random.Generator, *,
     return out
 
 
-def _rot(axis, ang):
-    axis = axis / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(ang) * K + (1 - np.cos(ang)) * K @ K
-
-
 def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length: float = 1.0,
                        radius: float = 0.08, shrink: float = 0.9, branch_shrink: float = 0.75,
                        tilt: tuple[float, float] = (25.0, 50.0), sides: int = 10
@@ -160,7 +155,7 @@ def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length:
             stack.append((R.copy(), p.copy(), s))
             az = rng.uniform(0, 2 * np.pi)
             axis = R @ np.array([np.cos(az), np.sin(az), 0.0])
-            R = _rot(axis, np.radians(rng.uniform(*tilt))) @ R
+            R = axis_angle_matrix(axis, np.radians(rng.uniform(*tilt))) @ R
             s *= branch_shrink
         elif tok == "]":
             R, p, s = stack.pop()

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.validate import check_choice, check_range
 from procgen.sweeps import sweep
-from procgen.validate import check_choice, check_range
 
 __all__ = ["CortieParams", "SHAPES", "cortie_shell", "cortie_points", "helicospiral_shell"]
 

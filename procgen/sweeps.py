@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from procgen.validate import check_array, check_choice
+from core.validate import check_array, check_choice
 
 __all__ = ["sweep", "extrude", "revolve", "transport_frames", "frenet_frames",
            "segment_tubes", "mesh_volume", "edge_manifold_report"]

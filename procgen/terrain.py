@@ -14,10 +14,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.meshes import make_mesh
+from core.validate import (
+    check_array,
+    check_choice,
+    check_finite,
+    check_int,
+    check_positive,
+    check_rng,
+)
 from procgen.fractals.displacement import _check_hurst, diamond_square
-from procgen.meshes import make_mesh
 from procgen.noise.fractal import fbm, ridged, tileable
-from procgen.validate import check_array, check_choice, check_finite, check_int, check_positive
 
 __all__ = ["heightfield_to_mesh", "water_mesh", "fractal_terrain", "tileable_terrain",
            "check_grid_size"]
@@ -118,8 +125,7 @@ def water_mesh(heights, level: float, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
 
 
 def _seed_from(rng) -> int:
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    check_rng(rng)
     return int(rng.integers(0, 2 ** 31 - 1))
 
 

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.files import atomic_file
-from procgen.validate import InputError
+from core.files import atomic_file
+from core.validate import InputError
 from reconstruct.stereo import StereoCalibration
 
 __all__ = ["read_stereo_yaml", "write_stereo_yaml", "read_camera_yaml", "write_camera_yaml"]

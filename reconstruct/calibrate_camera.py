@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.validate import check_int
+from core.validate import check_int
 
 log = logging.getLogger(__name__)
 
@@ -168,7 +168,7 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
         Too few views with a detected target.
     """
 
-    from procgen.validate import check_choice
+    from core.validate import check_choice
 
     check_choice(dist_model, "dist_model", _DIST_MODELS)
     images = list(images)
@@ -236,7 +236,7 @@ def calibrate_camera_points(object_points, image_points, image_size, *,
     """
     import cv2
 
-    from procgen.validate import check_choice
+    from core.validate import check_choice
 
     check_choice(dist_model, "dist_model", _DIST_MODELS)
     if len(object_points) != len(image_points):

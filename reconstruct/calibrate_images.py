@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.mesh_io import read_image
-from procgen.validate import InputError
+from core.image_io import read_image
+from core.validate import InputError
 from reconstruct.calibrate_camera import CameraCalibration, calibrate_camera, to_gray
 from reconstruct.stereo import Rectification, StereoCalibration, rectify
 from reconstruct.stereo_calib import calibrate_pair, detect_pair_views

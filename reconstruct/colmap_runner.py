@@ -28,8 +28,8 @@ import cv2  # noqa: F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imw
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.progress import track
-from procgen.validate import check_choice
+from core.progress import track
+from core.validate import check_choice
 
 __all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "colmap_params_from_camera",
            "camera_from_colmap", "MATCHERS", "MAPPERS", "CAMERA_MODELS"]

@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.progress import track
-from procgen.validate import check_positive
+from core.progress import track
+from core.validate import check_positive
 
 __all__ = ["DenseOptions", "select_neighbors", "pair_depth", "consistency_filter",
            "depth_maps"]

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.validate import check_array
+from core.validate import check_array
 
 __all__ = ["disparity_metrics", "nonoccluded_mask"]
 

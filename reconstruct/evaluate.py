@@ -39,13 +39,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_positive
+from core.sampling import sample_surface, voxel_thin
+from core.validate import check_array, check_choice, check_positive
 
 __all__ = [
     "EvaluationResult",
     "evaluate",
     "fscore_at",
-    "sample_surface",
     "default_tau",
     "TAU_FRACTION",
     "SAMPLES_PER_TAU2",
@@ -256,58 +256,6 @@ def _normals(n: np.ndarray | None, count: int, name: str) -> np.ndarray | None:
 
 
 # ----------------------------------------------------------------------------- sampling
-def sample_surface(vertices: np.ndarray, triangles: np.ndarray, n: int, *,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Sample ``n`` points uniformly by area on a triangle mesh.
-
-    Parameters
-    ----------
-    vertices : (v, 3) float64
-    triangles : (m, 3) int
-    n : int
-        Number of samples.
-    rng : numpy.random.Generator
-        Same generator state -> identical samples.
-
-    Returns
-    -------
-    points : (n, 3) float64
-    normals : (n, 3) float64
-        Unit face normals of the triangles sampled (orientation as wound).
-    """
-    v = check_array(vertices, "vertices", shape=(None, 3))
-    f = check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64, min_rows=1)
-    tri = v[f]
-    e1 = tri[:, 1] - tri[:, 0]
-    e2 = tri[:, 2] - tri[:, 0]
-    cross = np.cross(e1, e2)
-    dbl = np.linalg.norm(cross, axis=1)
-    cdf = np.cumsum(dbl)
-    if not cdf[-1] > 0:
-        raise ValueError("triangles: expected positive total area, got 0")
-    # side="right" never lands on a zero-area triangle (its cdf equals its predecessor's)
-    idx = np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right")
-    np.minimum(idx, len(f) - 1, out=idx)
-    uv = rng.random((n, 2))
-    flip = uv.sum(axis=1) > 1.0
-    uv[flip] = 1.0 - uv[flip]
-    points = tri[idx, 0] + uv[:, :1] * e1[idx] + uv[:, 1:] * e2[idx]
-    normals = cross[idx] / dbl[idx, None]
-    return points, normals
-
-
-def _voxel_thin(points: np.ndarray, voxel: float) -> np.ndarray:
-    """Indices (sorted) of the first point in each occupied voxel of size ``voxel``."""
-    keys = np.floor((points - points.min(axis=0)) / voxel).astype(np.int64)
-    span = keys.max(axis=0) + 1
-    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:
-        lin = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
-        _, first = np.unique(lin, return_index=True)
-    else:  # pragma: no cover - absurd extents
-        _, first = np.unique(keys, axis=0, return_index=True)
-    return np.sort(first)
-
-
 def _samples(g: _Geom, density: float, max_samples: int | None, thin: bool,
              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
     if g.is_mesh:
@@ -315,7 +263,7 @@ def _samples(g: _Geom, density: float, max_samples: int | None, thin: bool,
         return sample_surface(g.vertices, g.triangles, n, rng=rng)
     pts, nrm = g.vertices, g.normals
     if thin:
-        keep = _voxel_thin(pts, 1.0 / np.sqrt(density))
+        keep = voxel_thin(pts, 1.0 / np.sqrt(density))
         pts, nrm = pts[keep], (None if nrm is None else nrm[keep])
     if max_samples is not None and len(pts) > max_samples:
         keep = np.sort(rng.choice(len(pts), size=max_samples, replace=False))

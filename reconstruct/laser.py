@@ -24,9 +24,10 @@ import numpy as np
 
 from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
-from procgen.files import atomic_dir, write_json
-from procgen.progress import track
-from procgen.validate import InputError, check_choice, check_int
+from core.files import atomic_dir, write_json
+from core.frames import rotation_about
+from core.progress import track
+from core.validate import InputError, check_choice, check_int
 from reconstruct.calibrate_camera import calibrate_camera
 from reconstruct.error_model import (
     PeakErrorAccumulator,
@@ -40,7 +41,6 @@ from reconstruct.laser_calib import (
     calibrate_turntable_axis,
     intersect_rays_plane,
     pixel_rays,
-    rotation_about_axis,
 )
 from reconstruct.meshing import MeshingOptions, points_to_mesh
 from reconstruct.stripe import DETECTORS, StripeOptions, detect_peaks
@@ -134,7 +134,7 @@ def extract_frames(images, options: StripeOptions):
 
 def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     """Reconstruct a laser capture into ``out_dir`` (see the module docstring)."""
-    from procgen.mesh_io import write_mesh, write_points
+    from core.mesh_io import write_mesh, write_points
 
     cfg = config
     timings: dict[str, float] = {}
@@ -286,8 +286,7 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     for k in np.unique(kk):
         sel = kk == k
         if motion == "turntable":
-            M = rotation_about_axis(axis_cal.direction, axis_cal.point,
-                                    -np.radians(readings[k]))
+            M = rotation_about(axis_cal.direction, -np.radians(readings[k]), axis_cal.point)
         else:
             M = np.eye(4)
             M[:3, 3] = -readings[k] * axis_cal.scale * axis_cal.direction

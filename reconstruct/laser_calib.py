@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
+from core.frames import rotation_about
 from reconstruct.calibrate_camera import board_pose, detect_target
 from reconstruct.stripe import StripeOptions, detect_peaks
 
@@ -36,7 +37,7 @@ log = logging.getLogger(__name__)
 __all__ = ["fit_plane", "intersect_rays_plane", "pixel_rays", "LaserPlaneCalibration",
            "calibrate_laser_plane", "refit_laser_plane", "AxisCalibration",
            "calibrate_turntable_axis",
-           "calibrate_stage", "rotation_about_axis"]
+           "calibrate_stage"]
 
 
 def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -64,18 +65,6 @@ def intersect_rays_plane(directions: np.ndarray, plane: np.ndarray,
         t = (d - o @ n) / den
     t = np.where(np.abs(den) > 1e-12, t, np.nan)
     return o + t[:, None] * directions
-
-
-def rotation_about_axis(direction: np.ndarray, point: np.ndarray, angle: float) -> np.ndarray:
-    """Rigid transform (4, 4) turning by ``angle`` radians about a line (right-handed)."""
-    import cv2
-
-    a = np.asarray(direction, float) / np.linalg.norm(direction)
-    R = cv2.Rodrigues(a * angle)[0]
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = point - R @ point
-    return T
 
 
 @dataclass
@@ -336,7 +325,7 @@ def calibrate_turntable_axis(camera: Camera, images, angles_deg, target, *,
         a, p, T0 = unpack(x)
         out = []
         for (objp, px), phi in zip(obs, ang, strict=True):
-            T = rotation_about_axis(a, p, phi - ang[0]) @ T0
+            T = rotation_about(a, phi - ang[0], p) @ T0
             q = objp @ T[:3, :3].T + T[:3, 3]
             proj = cam.project(q)[0]
             out.append((proj - px).ravel())

@@ -23,7 +23,8 @@ import numpy as np
 
 from acquire.camera import Camera
 from acquire.laser import LaserSheet
-from reconstruct.laser_calib import intersect_rays_plane, pixel_rays, rotation_about_axis
+from core.frames import rotation_about
+from reconstruct.laser_calib import intersect_rays_plane, pixel_rays
 
 __all__ = ["evaluate_laser", "visible_lit_mask"]
 
@@ -35,8 +36,8 @@ def _angle_deg(a, b) -> float:
 
 def _world_from_object(gt: dict, motion: str, reading: float) -> np.ndarray:
     if motion == "turntable":
-        return rotation_about_axis(np.asarray(gt["axis_direction_world"]),
-                                   np.asarray(gt["axis_point_world"]), np.radians(reading))
+        return rotation_about(np.asarray(gt["axis_direction_world"]), np.radians(reading),
+                              np.asarray(gt["axis_point_world"]))
     T = np.eye(4)
     T[:3, 3] = reading * np.asarray(gt["axis_direction_world"])
     return T
@@ -103,7 +104,7 @@ def visible_lit_mask(points: np.ndarray, mesh, cam0: Camera, laser0: LaserSheet,
 def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict, *,
                    tau: float) -> dict:
     """Evaluation figures of one reconstruction (see the module docstring)."""
-    from procgen.mesh_io import read_mesh
+    from core.mesh_io import read_mesh
     from reconstruct.evaluate import evaluate
 
     gt = cap.ground_truth
@@ -188,7 +189,7 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
     # -- surface -------------------------------------------------------------------------
     ref = read_mesh(cap.path(gt["mesh"]))
     world_from_obj = cam_gt.world_from_cam @ np.linalg.inv(obj_from_cam)
-    from procgen.meshes import transform_mesh
+    from core.meshes import transform_mesh
 
     recon_w = transform_mesh(mesh, world_from_obj)
     readings = np.asarray([f["angle_deg" if motion == "turntable" else "position_m"]

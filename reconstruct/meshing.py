@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_array, check_range
+from core.validate import check_array, check_range
 
 log = logging.getLogger(__name__)
 

@@ -31,9 +31,9 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import load_capture
 from acquire.nerfstudio import write_transforms
-from procgen.files import atomic_dir, write_json
-from procgen.mesh_io import read_mesh, write_mesh, write_points
-from procgen.validate import InputError, check_choice
+from core.files import atomic_dir, write_json
+from core.mesh_io import read_mesh, write_mesh, write_points
+from core.validate import InputError, check_choice
 from reconstruct.calib_io import read_camera_yaml
 from reconstruct.colmap_runner import (
     CAMERA_MODELS,

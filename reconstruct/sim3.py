@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_array
+from core.frames import rotation_angle_deg
+from core.validate import check_array
 
-__all__ = ["umeyama", "Sim3", "PoseErrors", "align_cameras", "rotation_angle_deg"]
+__all__ = ["umeyama", "Sim3", "PoseErrors", "align_cameras"]
 
 
 @dataclass(frozen=True)
@@ -103,13 +104,6 @@ def umeyama(src: np.ndarray, dst: np.ndarray, *, with_scale: bool = True) -> Sim
     scale = float(np.trace(np.diag(D) @ S) / var_s) if with_scale else 1.0
     t = mu_d - scale * R @ mu_s
     return Sim3(scale, R, t)
-
-
-def rotation_angle_deg(R: np.ndarray) -> float:
-    """Rotation angle in degrees of a (3, 3) rotation matrix (robust near 0 and 180)."""
-    c = (np.trace(R) - 1.0) / 2.0
-    s = np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    return float(np.degrees(np.arctan2(s, np.clip(c, -1.0, 1.0))))
 
 
 @dataclass

@@ -20,10 +20,10 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
-from procgen.files import atomic_dir, write_json
-from procgen.mesh_io import write_mesh, write_points
-from procgen.progress import track
-from procgen.validate import InputError
+from core.files import atomic_dir, write_json
+from core.mesh_io import write_mesh, write_points
+from core.progress import track
+from core.validate import InputError
 from reconstruct.calibrate_camera import detect_board
 from reconstruct.stereo_calib import calibrate_pair, world_from_cam_at
 from reconstruct.stereo_recon import (

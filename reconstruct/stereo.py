@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.validate import check_array, check_choice, check_positive
+from core.validate import check_array, check_choice, check_positive
 
 __all__ = ["StereoCalibration", "Rectification", "rectify", "rectify_pair", "match",
            "MatchOptions", "disparity_to_depth", "depth_to_points", "lr_consistency",

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import InputError, check_array
+from core.validate import InputError, check_array
 from reconstruct.calibrate_camera import calibrate_camera_points, detect_board
 from reconstruct.stereo import StereoCalibration
 

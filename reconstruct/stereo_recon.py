@@ -24,10 +24,11 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
-from procgen.files import atomic_dir, write_json
-from procgen.mesh_io import read_image, write_mesh, write_points
-from procgen.progress import track
-from procgen.validate import InputError, check_choice
+from core.files import atomic_dir, write_json
+from core.image_io import read_image
+from core.mesh_io import write_mesh, write_points
+from core.progress import track
+from core.validate import InputError, check_choice
 from reconstruct.calibrate_camera import detect_board, to_gray
 from reconstruct.disparity_metrics import disparity_metrics
 from reconstruct.stereo import (
@@ -272,8 +273,8 @@ def _reference_in_table(cap: Capture, table_from_left: np.ndarray, *, mounted: b
     calibrated frame's origin height and heading are tied to the world through the
     true left camera (an approximation: it inherits the calibration's camera datum).
     """
-    from procgen.mesh_io import read_mesh
-    from procgen.meshes import transform_mesh
+    from core.mesh_io import read_mesh
+    from core.meshes import transform_mesh
 
     gt = cap.ground_truth
     mesh_rel = gt.get("mesh")
@@ -474,7 +475,7 @@ def _coarse_align(mesh, ref, size):
 
     import open3d as o3d
 
-    from reconstruct.evaluate import sample_surface
+    from core.sampling import sample_surface
 
     rng = np.random.default_rng(0)
     pts = [sample_surface(np.asarray(m.vertices), np.asarray(m.triangles), 30000, rng=rng)
@@ -605,7 +606,7 @@ def run_pair(left_path, right_path, calibration_path, out_dir, *, options: Stere
         np.save(tmp / "depth.npy", depth)
         if len(pts):
             write_points(tmp / "points.ply", pts)
-        from procgen.mesh_io import write_image
+        from core.image_io import write_image
 
         write_image(tmp / "left_rect.png", lr)
         write_image(tmp / "right_rect.png", rr)

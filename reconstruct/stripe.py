@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from procgen.validate import check_choice, check_positive, check_range
+from core.validate import check_choice, check_positive, check_range
 
 __all__ = ["DETECTORS", "StripeOptions", "detect_peaks", "argmax_peaks"]
 

@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from acquire.camera import Camera
-from procgen.progress import track
-from procgen.validate import check_positive
+from core.progress import track
+from core.validate import check_positive
 
 __all__ = ["fuse_depth_maps", "TSDFVolume", "undistort_depth"]
 

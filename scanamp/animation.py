@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from acquire.splats import render_splats
-from procgen.files import atomic_file
-from procgen.progress import track
+from core.files import atomic_file
+from core.progress import track
 
 log = logging.getLogger(__name__)
 

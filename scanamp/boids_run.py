@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_dir, write_json
-from procgen.progress import track
+from core.files import atomic_dir, write_json
+from core.progress import track
 from simulate.boids import FlockState, Recipe, init_flock, step
 from simulate.colliders import MeshCollider
 from simulate.flock_metrics import METRIC_NAMES, flock_metrics
@@ -145,7 +145,7 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
     """Render ``frames`` (a list of ``(positions (n, 3), headings (n, 3))``) as oriented
     glyphs over the shaded mesh, to MP4 or GIF."""
     from acquire.glyphs import render_glyphs
-    from procgen.meshes import mesh_arrays
+    from core.meshes import mesh_arrays
     from scanamp.animation import frame_camera, mesh_background, render_animation
 
     out_path = Path(out_path)
@@ -182,7 +182,7 @@ def plot_metrics(csv_paths, out_png: str | os.PathLike, *, title: str = "",
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure  # no pyplot: the caller's backend stays untouched
 
-    from procgen.files import atomic_file
+    from core.files import atomic_file
 
     paths = [csv_paths] if isinstance(csv_paths, (str, os.PathLike)) else list(csv_paths)
     labels = labels or [Path(p).parent.name for p in paths]

@@ -20,7 +20,7 @@ import traceback
 os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 import cv2  # noqa: E402,F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imwrite)
 
-from procgen.validate import InputError  # noqa: E402
+from core.validate import InputError  # noqa: E402
 
 log = logging.getLogger("scanamp")
 
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         for noisy in ("numba", "matplotlib", "PIL", "distributed", "asyncio"):
             logging.getLogger(noisy).setLevel(logging.WARNING)
     if not args.quiet:
-        from procgen import progress
+        from core import progress
 
         progress.enable(sys.stderr.isatty())
     try:

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_dir, write_json
-from procgen.validate import check_choice
+from core.files import atomic_dir, write_json
+from core.validate import check_choice
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +152,7 @@ def visible_from_above(mesh, *, elevations_deg=(20.0, 45.0, 70.0), azimuths: int
     """
     import open3d as o3d
 
-    from procgen.meshes import mesh_arrays
+    from core.meshes import mesh_arrays
 
     v, f = mesh_arrays(mesh)
     scene = o3d.t.geometry.RaycastingScene()
@@ -184,7 +184,7 @@ def canonical_mesh(mesh):
     order (orientation kept): reconstructions fused on several threads (TSDF extraction)
     list the same triangles in a varying order, which would change the evaluation's
     random samples from run to run."""
-    from procgen.meshes import make_mesh, mesh_arrays
+    from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(mesh)
     order = np.lexsort(v.T[::-1])
@@ -202,7 +202,7 @@ def _distance_to(mesh):
     """``dist(points (n, 3)) -> (n,)``: unsigned distance to the surface of ``mesh``."""
     import open3d as o3d
 
-    from procgen.meshes import mesh_arrays
+    from core.meshes import mesh_arrays
 
     v, f = mesh_arrays(mesh)
     scene = o3d.t.geometry.RaycastingScene()
@@ -240,8 +240,9 @@ def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
     aligned : open3d.geometry.TriangleMesh
         The reconstruction after the ICP alignment.
     """
-    from procgen.meshes import mesh_arrays, transform_mesh
-    from reconstruct.evaluate import evaluate, sample_surface
+    from core.meshes import mesh_arrays, transform_mesh
+    from core.sampling import sample_surface
+    from reconstruct.evaluate import evaluate
 
     recon = canonical_mesh(recon)
     raw = evaluate(recon, reference, tau=tau, reference_mask=mask,
@@ -280,9 +281,9 @@ class _Method:
 def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     from acquire.capture_laser import capture
     from acquire.laser_rig import LaserRig
-    from procgen.files import read_json
-    from procgen.mesh_io import read_mesh
-    from procgen.meshes import transform_mesh
+    from core.files import read_json
+    from core.mesh_io import read_mesh
+    from core.meshes import transform_mesh
     from reconstruct.laser import LaserReconConfig
     from reconstruct.laser import run as run_laser
     from reconstruct.meshing import MeshingOptions
@@ -323,9 +324,9 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     from acquire.capture_stereo import capture
     from acquire.stereo_rig import load_rig
-    from procgen.files import read_json
-    from procgen.mesh_io import read_mesh
-    from procgen.meshes import transform_mesh
+    from core.files import read_json
+    from core.mesh_io import read_mesh
+    from core.meshes import transform_mesh
     from reconstruct.stereo_recon import StereoOptions, run_capture
 
     m = _Method("stereo", "active stereo (random dots, turntable)",
@@ -361,8 +362,8 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     from acquire.capture_sfm import PathConfig, capture
-    from procgen.files import read_json
-    from procgen.mesh_io import read_mesh
+    from core.files import read_json
+    from core.mesh_io import read_mesh
     from reconstruct.sfm import SfmConfig
     from reconstruct.sfm import run as run_sfm
 
@@ -398,8 +399,8 @@ def _scaled_mesh_file(mesh, path: Path, size: float, *, base_at_zero: bool = Tru
     """Write ``mesh`` scaled so its largest horizontal extent is ``size`` metres, centred
     on the origin (its lowest point at z = 0 when ``base_at_zero``): the simulation
     recipes are authored for metres-sized worlds, the scene is 20 cm."""
-    from procgen.mesh_io import write_mesh
-    from procgen.meshes import make_mesh, mesh_arrays
+    from core.mesh_io import write_mesh
+    from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(mesh)
     lo, hi = v.min(0), v.max(0)
@@ -415,7 +416,7 @@ def collider_proxy(mesh, *, cells: int = 80):
     """A lighter collider: ``mesh`` simplified by vertex clustering on a grid of about
     ``cells`` cells along its longest side (a reconstruction has far more triangles than
     a collision needs; the shape changes by at most a cell)."""
-    from procgen.meshes import mesh_arrays
+    from core.meshes import mesh_arrays
 
     v, f = mesh_arrays(mesh)
     voxel = float(np.ptp(v, axis=0).max()) / cells
@@ -426,7 +427,7 @@ def collider_proxy(mesh, *, cells: int = 80):
 
 
 def _animate(mesh, st: DemoSettings, root: Path, seed: int, timings: dict) -> dict:
-    from procgen.mesh_io import read_mesh
+    from core.mesh_io import read_mesh
     from scanamp.boids_run import run_boids
     from scanamp.simulation_run import run_simulation
     from simulate.boids import load_recipe
@@ -457,7 +458,7 @@ def _animate(mesh, st: DemoSettings, root: Path, seed: int, timings: dict) -> di
     run_boids(recipe, anim / "boids", mesh=boids_mesh, width=w, height=h,
               animation="animation.mp4")
     timings["boids"] = time.perf_counter() - t
-    from procgen.files import read_json
+    from core.files import read_json
 
     brep = read_json(anim / "boids" / "report.json")
     out["boids"] = {"recipe": "flock", "n": n, "steps": steps,
@@ -524,8 +525,8 @@ def run(out_dir: str | os.PathLike, *, seed: int = 0, scale: str = "default",
 
 
 def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> dict:
+    from core.mesh_io import write_mesh
     from data_synth.scenes import build_scene, write_scene
-    from procgen.mesh_io import write_mesh
     from reconstruct.evaluate import default_tau
     from scanamp import demo_report
 
@@ -602,8 +603,8 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
         amp_dir = amplify_run(tmp / "recon" / f"{best}_aligned.ply", recipe, tmp / "amplify",
                               seed=seed)
         timings["amplify"] = time.perf_counter() - t
-        from procgen.files import read_json
-        from procgen.mesh_io import read_mesh
+        from core.files import read_json
+        from core.mesh_io import read_mesh
 
         amp_rep = read_json(amp_dir / "report.json")
         if Path(recipe).suffix == ".toml":  # keep the recipe with the results

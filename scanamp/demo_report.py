@@ -41,7 +41,7 @@ def _render(mesh, camera, lights, ambient, albedo):
     from acquire.materials import Material
     from acquire.render import render
     from acquire.scene import RenderScene, SceneObject
-    from procgen.meshes import make_mesh, mesh_arrays
+    from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(mesh)
     m = make_mesh(v, f)
@@ -74,8 +74,8 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
             size=(400, 300), best: str) -> dict:
     """Write the renders and plots under ``root/figures``; returns their relative paths
     (``renders``, ``errors``, ``amplify``, ``plots``) and the F-score curves."""
-    from procgen.mesh_io import write_image
-    from procgen.progress import track
+    from core.image_io import write_image
+    from core.progress import track
     from scanamp.demo import _distance_to
 
     fig = root / "figures"
@@ -226,7 +226,7 @@ def referenced_files(text: str) -> list[str]:
 
 def write_html(path: str | os.PathLike, report: dict) -> list[str]:
     """Write ``report.html`` from the demo report; returns the files it references."""
-    from procgen.files import atomic_file
+    from core.files import atomic_file
 
     r = report
     tau = r["tau"]

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_dir, write_json
-from procgen.mesh_io import read_mesh, write_mesh, write_points
-from procgen.progress import track
+from core.files import atomic_dir, write_json
+from core.mesh_io import read_mesh, write_mesh, write_points
+from core.progress import track
 from simulate.colliders import MeshCollider
 from simulate.particles import NonFiniteStateError
 from simulate.recipes import build_cloth, build_particles, load_recipe, procedural_scan
@@ -104,7 +104,7 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
                 e = cloth.energy()
                 writer.add(cloth.t, cloth.x, triangles=cloth.triangles,
                            point_data={"id": np.arange(len(cloth.x)), "velocity": cloth.v})
-                from procgen.meshes import make_mesh
+                from core.meshes import make_mesh
 
                 write_mesh(tmp / "ply" / f"frame_{k:05d}.ply", make_mesh(cloth.x,
                                                                           cloth.triangles))

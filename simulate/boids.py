@@ -45,8 +45,8 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from procgen.files import read_toml, require
-from procgen.validate import InputError, check_array, check_choice, check_int, check_range
+from core.files import read_toml, require
+from core.validate import InputError, check_array, check_choice, check_int, check_range
 from simulate.neighbours import build_grid, threads_for
 
 log = logging.getLogger(__name__)

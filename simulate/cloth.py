@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_int, check_positive
+from core.validate import check_array, check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.forces import ForceSet, Springs
 from simulate.integrators import METHODS, check_step, stability_limit

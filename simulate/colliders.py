@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.meshes import is_closed, mesh_arrays
-from procgen.validate import check_array
+from core.meshes import is_closed, mesh_arrays
+from core.validate import check_array
 
 log = logging.getLogger(__name__)
 

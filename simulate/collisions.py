@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_int, check_positive, check_range
+from core.validate import check_int, check_positive, check_range
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_positive
+from core.validate import check_array, check_choice, check_positive
 
 __all__ = ["PointShape", "DiscShape", "BoxShape", "MeshSurface", "VelocityDist", "Emitter",
            "birth_count", "normal_clamped", "birth_count_moments"]
@@ -107,7 +107,7 @@ class MeshSurface:
 
     @classmethod
     def from_mesh(cls, mesh, *, offset: float = 0.0) -> MeshSurface:
-        from procgen.meshes import mesh_arrays
+        from core.meshes import mesh_arrays
 
         return cls(*mesh_arrays(mesh), offset=offset)
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_positive
 from simulate.neighbours import neighbour_lists
 
 __all__ = ["polarization", "milling", "nearest_neighbour_distances", "groups",

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
+from core.validate import check_array, check_choice, check_positive
 from procgen.noise.perlin import (
     _GX,
     _GY,
@@ -42,7 +43,6 @@ from procgen.noise.perlin import (
     noise3,
     perm_table,
 )
-from procgen.validate import check_array, check_choice, check_positive
 from simulate.neighbours import neighbour_lists, threads_for
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.validate import check_choice, check_int, check_positive
+from core.validate import check_choice, check_int, check_positive
 
 log = logging.getLogger(__name__)
 

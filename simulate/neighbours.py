@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_positive
 
 __all__ = ["CellGrid", "build_grid", "neighbour_lists", "neighbour_lists_reference",
            "threads_for", "PARALLEL_MIN"]

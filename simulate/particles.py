@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_choice, check_int, check_positive
+from core.validate import check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
 from simulate.emitters import Emitter
 from simulate.forces import ForceSet, _accel_inline

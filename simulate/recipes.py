@@ -4,7 +4,7 @@ Shipped (``simulate/recipes/*.toml``): ``fireworks``, ``fountain`` (wind, bounce
 the mesh), ``snow`` (settles on the mesh), ``smoke`` (turbulence), ``fire`` (coloured
 by temperature) and ``drape`` (cloth over the mesh). :func:`load_recipe` takes one of
 these names or a path; :func:`build_particles` / :func:`build_cloth` turn the table
-into a system. Errors name the file and the field (:class:`procgen.validate.InputError`).
+into a system. Errors name the file and the field (:class:`core.validate.InputError`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import read_toml, require
-from procgen.validate import InputError
+from core.files import read_toml, require
+from core.validate import InputError
 from simulate.cloth import Cloth, ClothSpec
 from simulate.collisions import ContactParams
 from simulate.emitters import BoxShape, DiscShape, Emitter, MeshSurface, PointShape, VelocityDist
@@ -114,7 +114,7 @@ def _ramp(t, path, prefix):
 def procedural_scan(*, seed: int = 0, radius: float = 0.5, resolution: int = 48):
     """A closed, lumpy stand-in for a scanned object resting on z = 0: the
     :func:`simulate.stand_ins.lumpy_sphere` blob, squashed to 80 % of its height."""
-    from procgen.meshes import make_mesh, mesh_arrays
+    from core.meshes import make_mesh, mesh_arrays
     from simulate.stand_ins import lumpy_sphere
 
     v, f = mesh_arrays(lumpy_sphere(radius, resolution=resolution, amplitude=0.25, seed=seed))

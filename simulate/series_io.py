@@ -10,8 +10,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from procgen.files import atomic_file
-from procgen.validate import check_array
+from core.files import atomic_file
+from core.validate import check_array
 
 __all__ = ["SeriesWriter", "write_vtp", "write_pvd"]
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from procgen.meshes import make_mesh, mesh_arrays
+from core.meshes import make_mesh, mesh_arrays
+from core.validate import check_choice, check_positive
 from procgen.noise import perlin
-from procgen.validate import check_choice, check_positive
 
 __all__ = ["stand_in_mesh", "lumpy_sphere", "STAND_INS"]
 

@@ -4,6 +4,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
+from core.meshes import edge_lengths, is_closed, make_mesh, mesh_arrays, surface_area
 from procgen.amplify import (
     displace,
     grow_vines,
@@ -12,8 +13,7 @@ from procgen.amplify import (
     scatter_plants,
     subdivide_to_edge,
 )
-from procgen.amplify._surface import edge_lengths, local_edge_length
-from procgen.meshes import is_closed, make_mesh, mesh_arrays, surface_area
+from procgen.amplify.surface import local_edge_length
 from procgen.terrain import heightfield_to_mesh
 
 
@@ -152,7 +152,7 @@ def test_scatter_respects_slope_and_altitude_rules():
 
 
 def test_scatter_altitude_ignores_stray_fragments_and_floor_plants():
-    from procgen.meshes import merge_meshes
+    from core.meshes import merge_meshes
 
     ground = heightfield_to_mesh(np.zeros((11, 11)), spacing=0.1)          # 1 m^2 at z = 0
     # a stray 1 cm^2 fragment 10 m below (a reconstruction artefact): it must not make

@@ -6,9 +6,10 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from procgen.mesh_io import read_image, read_mesh, write_mesh
-from procgen.meshes import make_mesh, mesh_arrays
-from procgen.validate import InputError
+from core.image_io import read_image
+from core.mesh_io import read_mesh, write_mesh
+from core.meshes import make_mesh, mesh_arrays
+from core.validate import InputError
 from scanamp.amplify import KINDS, load_recipe, recipe_names, run
 from scanamp.cli import main
 

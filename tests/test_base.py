@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from procgen.files import atomic_dir, read_toml, require
-from procgen.meshes import (
+from core.files import atomic_dir, read_toml, require
+from core.meshes import (
     from_pymeshlab,
     from_pyvista,
     make_mesh,
@@ -10,7 +10,7 @@ from procgen.meshes import (
     to_pymeshlab,
     to_pyvista,
 )
-from procgen.validate import InputError, check_array, check_choice, check_int, check_range
+from core.validate import InputError, check_array, check_choice, check_int, check_range
 
 
 def test_check_array_names_shape():
@@ -79,7 +79,7 @@ def test_mesh_conversions_round_trip():
 def test_is_closed():
     import open3d as o3d
 
-    from procgen.meshes import is_closed
+    from core.meshes import is_closed
 
     box = o3d.geometry.TriangleMesh.create_box()
     assert is_closed(box)
@@ -94,7 +94,7 @@ def test_atomic_outputs_get_the_usual_permissions(tmp_path):
     import os
     import stat
 
-    from procgen.files import atomic_file, write_json
+    from core.files import atomic_file, write_json
 
     old = os.umask(0o022)
     try:
@@ -119,7 +119,7 @@ def test_write_points_empty_cloud_is_a_valid_ply(tmp_path):
     import open3d as o3d
     import pytest
 
-    from procgen.mesh_io import write_points
+    from core.mesh_io import write_points
 
     write_points(tmp_path / "e.ply", np.zeros((0, 3)), colors=np.zeros((0, 3)))
     assert len(o3d.io.read_point_cloud(str(tmp_path / "e.ply")).points) == 0

@@ -70,7 +70,7 @@ def test_fscore_curves_agree_with_the_table(report):
 
 
 def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
-    from procgen.mesh_io import read_mesh
+    from core.mesh_io import read_mesh
 
     amp = report["amplify"]
     assert amp["output"]["triangles"] > amp["input"]["triangles"]  # the forest was added
@@ -152,7 +152,7 @@ def test_run_rejects_bad_options(tmp_path):
 def test_visible_from_above_hides_what_is_covered():
     import open3d as o3d
 
-    from procgen.meshes import merge_meshes
+    from core.meshes import merge_meshes
 
     ground = o3d.geometry.TriangleMesh.create_box(4.0, 4.0, 0.01).translate((-2, -2, -0.01))
     # a low wide roof: from its centre, even the 20-degree rays meet it (0.1 / tan 20 < 1)
@@ -168,7 +168,7 @@ def test_visible_from_above_hides_what_is_covered():
 def test_canonical_mesh_ignores_vertex_and_triangle_order():
     import open3d as o3d
 
-    from procgen.meshes import make_mesh, mesh_arrays
+    from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(o3d.geometry.TriangleMesh.create_sphere(1.0, 8))
     rng = np.random.default_rng(0)

@@ -6,9 +6,10 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from procgen.mesh_io import read_geometry, write_mesh, write_points
+from core.mesh_io import read_geometry, write_mesh, write_points
+from core.sampling import sample_surface
 from reconstruct import EvaluationResult, evaluate
-from reconstruct.evaluate import TAU_FRACTION, fscore_at, sample_surface
+from reconstruct.evaluate import TAU_FRACTION, fscore_at
 from scanamp.cli import main
 
 N = 30_000  # samples per side: enough for the tolerances below, fast on 2 cores

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from core.meshes import make_mesh
 from procgen.implicit import (
     architexture,
     fractal_egg,
@@ -12,7 +13,6 @@ from procgen.implicit import (
     sphere_sdf,
     sweep_sdf,
 )
-from procgen.meshes import make_mesh
 
 
 @pytest.fixture(scope="module")

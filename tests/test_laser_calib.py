@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.laser_rig import LaserRig, load_rig, rotation_about
+from acquire.laser_rig import LaserRig, load_rig
+from core.frames import rotation_about
 from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
 from reconstruct.laser_calib import (
     calibrate_stage,

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from procgen.mesh_io import read_image, read_mesh
+from core.image_io import read_image
+from core.mesh_io import read_mesh
 from scanamp.cli import main
 
 

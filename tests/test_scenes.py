@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
+from core.mesh_io import read_mesh
+from core.meshes import is_closed
 from data_synth.scenes import build_scene, scene_names
-from procgen.mesh_io import read_mesh
-from procgen.meshes import is_closed
 from scanamp.cli import main
 
 

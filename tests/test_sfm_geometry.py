@@ -15,7 +15,8 @@ from acquire.paths import (
     orbit_rings,
     subframe_poses,
 )
-from reconstruct.sim3 import Sim3, align_cameras, rotation_angle_deg, umeyama
+from core.frames import rotation_angle_deg
+from reconstruct.sim3 import Sim3, align_cameras, umeyama
 
 
 def _random_rotation(rng):

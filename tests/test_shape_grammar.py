@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from core.validate import InputError
 from procgen.shape_grammar import (
     PLANT,
     derive_sentence,
@@ -11,7 +12,6 @@ from procgen.shape_grammar import (
     plant_mesh,
 )
 from procgen.sweeps import edge_manifold_report
-from procgen.validate import InputError
 
 
 def test_plant_grammar_parses_and_terminates():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from procgen.validate import InputError
+from core.validate import InputError
 from reconstruct.calib_io import read_stereo_yaml, write_stereo_yaml
 from reconstruct.disparity_metrics import disparity_metrics, nonoccluded_mask
 from reconstruct.stereo import (

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from procgen.meshes import make_mesh
+from core.meshes import make_mesh
 from procgen.sweeps import (
     edge_manifold_report,
     extrude,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from procgen.meshes import surface_area
+from core.meshes import surface_area
 from procgen.terrain import fractal_terrain, heightfield_to_mesh, tileable_terrain, water_mesh
 
 

@@ -21,22 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.amplify._surface import (
-    bbox_diagonal,
-    check_int,
-    check_rng,
+from core.meshes import bbox_diagonal, edge_lengths, make_mesh, vertex_normals
+from core.validate import check_choice, check_finite, check_int, check_positive, check_rng
+from procgen.amplify.surface import (
     curvature,
-    edge_lengths,
     local_edge_length,
     mesh_input,
     slope_deg,
     smoothstep,
     subdivide_midpoint,
-    vertex_normals,
 )
-from procgen.meshes import make_mesh
 from procgen.noise.fractal import fbm, ridged, turbulence
-from procgen.validate import check_choice, check_finite, check_positive
 
 __all__ = ["displace", "subdivide_to_edge", "DisplaceResult", "NOISES", "MASKS", "SCALES"]
 

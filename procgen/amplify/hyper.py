@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.amplify._surface import check_int, check_rng, mesh_input
+from core.meshes import is_closed
+from core.validate import check_int, check_positive, check_rng
+from procgen.amplify.surface import mesh_input
 from procgen.implicit import hypertexture
-from procgen.meshes import is_closed
-from procgen.validate import check_positive
 
 __all__ = ["HyperResult", "hypertexture_mesh"]
 

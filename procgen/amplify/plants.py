@@ -28,15 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.amplify._surface import (
-    check_int,
-    check_rng,
-    face_normals,
-    mesh_input,
-    sample_surface,
-)
-from procgen.meshes import make_mesh, surface_area
-from procgen.validate import check_finite, check_positive, check_range
+from core.frames import rotation_to
+from core.meshes import face_normals, make_mesh, surface_area
+from core.sampling import sample_surface
+from core.validate import check_finite, check_int, check_positive, check_range, check_rng
+from procgen.amplify.surface import mesh_input
 
 __all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "upward_slope"]
 
@@ -159,16 +155,6 @@ def _altitude_span(mesh, v: np.ndarray, f: np.ndarray, area: np.ndarray,
     return float(z.min()), float(z.max())
 
 
-def _rot_to(z_axis: np.ndarray) -> np.ndarray:
-    """A rotation (3, 3) taking +z to the unit vector ``z_axis``."""
-    z = z_axis / np.linalg.norm(z_axis)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=1)
-
-
 def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: float = 4.0,
                    height: float = 0.2, height_jitter: float = 0.3,
                    slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
@@ -238,7 +224,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     z0, z1 = _altitude_span(mesh, v, f, area)
 
     def draw(n):
-        p, t = sample_surface(v, f, n, rng)
+        p, _, t = sample_surface(v, f, n, rng=rng, return_index=True)
         rel = np.clip((p[:, 2] - z0) / (z1 - z0), 0.0, 1.0) if z1 > z0 else np.zeros(len(p))
         ok = slope_ok[t] & (rel >= a_lo) & (rel <= a_hi)
         return p[ok], t[ok]
@@ -271,7 +257,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         c, s = np.cos(yaw[i]), np.sin(yaw[i])
         R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         if not upright:
-            R = _rot_to(fn[tri[i]]) @ R
+            R = rotation_to(fn[tri[i]]) @ R
         # sink the base a little so trunks meet curved ground
         local = pv * heights[i] - [0.0, 0.0, 0.02 * heights[i]]
         vs.append(local @ R.T + pts[i])

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.amplify._surface import check_int, check_rng, mesh_input
+from core.meshes import make_mesh
+from core.validate import check_int, check_positive, check_range, check_rng
+from procgen.amplify.surface import mesh_input
 from procgen.fractals.displacement import refine_heightfield
-from procgen.meshes import make_mesh
 from procgen.terrain import _grid_triangles
-from procgen.validate import check_positive, check_range
 
 __all__ = ["Heightfield", "heightfield_from_mesh", "refine_terrain", "TerrainResult"]
 

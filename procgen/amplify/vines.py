@@ -22,12 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from procgen.amplify._surface import check_int, check_rng, face_normals, mesh_input, sample_surface
+from core.meshes import face_normals, make_mesh
+from core.sampling import sample_surface
+from core.validate import check_int, check_positive, check_range, check_rng
 from procgen.amplify.plants import upward_slope
-from procgen.meshes import make_mesh
+from procgen.amplify.surface import mesh_input
 from procgen.noise.fractal import fbm
 from procgen.sweeps import sweep
-from procgen.validate import check_positive, check_range
 
 __all__ = ["VineResult", "grow_vines", "surface_walks"]
 
@@ -109,7 +110,7 @@ def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: fl
     if not ok.any():
         raise ValueError(f"slope_max_deg: no surface is gentler than {smax:g} degrees")
     keep = np.flatnonzero(ok)
-    starts, tri = sample_surface(v, f[keep], count, rng)
+    starts, _, tri = sample_surface(v, f[keep], count, rng=rng, return_index=True)
     n = fn[keep][tri]
     d, norm = _tangent(rng.standard_normal((count, 3)), n)
     d = d / np.maximum(norm, 1e-300)[:, None]

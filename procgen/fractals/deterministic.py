@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_positive
+from core.validate import check_array, check_int, check_positive, check_rng
 
 __all__ = [
     "koch_curve",
@@ -33,12 +33,6 @@ __all__ = [
 ]
 
 
-def _check_int(value, name: str, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
 def koch_curve(level: int, *, start=(0.0, 0.0), end=(1.0, 0.0)) -> np.ndarray:
     """Koch curve polyline: ``4**level + 1`` vertices from ``start`` to ``end``.
 
@@ -50,7 +44,7 @@ def koch_curve(level: int, *, start=(0.0, 0.0), end=(1.0, 0.0)) -> np.ndarray:
     -------
     (4**level + 1, 2) float64
     """
-    level = _check_int(level, "level", 0, 12)
+    level = check_int(level, "level", 0, 12)
     pts = np.array([check_array(start, "start", shape=(2,)), check_array(end, "end", shape=(2,))])
     rot = np.array([[0.5, -np.sqrt(3) / 2], [np.sqrt(3) / 2, 0.5]])  # +60 degrees
     for _ in range(level):
@@ -100,7 +94,7 @@ def sierpinski_triangle(level: int, *, corners=_UNIT_TRIANGLE) -> np.ndarray:
         Triangle corners; total area ``(3/4)**level`` of the initial one; similarity
         dimension ``log 3 / log 2 = 1.585``.
     """
-    level = _check_int(level, "level", 0, 12)
+    level = check_int(level, "level", 0, 12)
     tri = check_array(corners, "corners", shape=(3, 2))[None]
     for _ in range(level):
         a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
@@ -147,9 +141,8 @@ def chaos_game(maps, probabilities, n: int, *, rng: np.random.Generator,
     p = check_array(probabilities, "probabilities", shape=(M.shape[0],))
     if np.any(p < 0) or p.sum() <= 0:
         raise ValueError("probabilities: expected non-negative values with a positive sum")
-    n = _check_int(n, "n", 1, 10 ** 9)
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    n = check_int(n, "n", 1, 10 ** 9)
+    check_rng(rng)
     choice = rng.choice(M.shape[0], size=n + burn_in, p=p / p.sum()).astype(np.int64)
     out = np.empty((n, 2))
     _chaos(np.ascontiguousarray(M[:, :, :2]), np.ascontiguousarray(M[:, :, 2]), choice,
@@ -206,8 +199,8 @@ def _escape(re0, im0, cre, cim, julia, max_iter, out):
 
 
 def _view(width, height, center, zoom, span):
-    w = _check_int(width, "width", 1, 20000)
-    h = _check_int(height, "height", 1, 20000)
+    w = check_int(width, "width", 1, 20000)
+    h = check_int(height, "height", 1, 20000)
     c = check_array(center, "center", shape=(2,))
     z = check_positive(zoom, "zoom")
     half_w = span / z / 2.0
@@ -244,7 +237,7 @@ def mandelbrot(width: int, height: int, *, center=(-0.5, 0.0), zoom: float = 1.0
     True
     """
     re, im, _, _ = _view(width, height, center, zoom, 3.0)
-    it = _check_int(max_iter, "max_iter", 1, 10 ** 7)
+    it = check_int(max_iter, "max_iter", 1, 10 ** 7)
     out = np.empty((len(im), len(re)))
     _escape(re, im, 0.0, 0.0, False, it, out)
     return out
@@ -263,7 +256,7 @@ def julia(width: int, height: int, *, c=(-0.8, 0.156), center=(0.0, 0.0), zoom: 
     """
     re, im, _, _ = _view(width, height, center, zoom, 3.0)
     cc = check_array(c, "c", shape=(2,))
-    it = _check_int(max_iter, "max_iter", 1, 10 ** 7)
+    it = check_int(max_iter, "max_iter", 1, 10 ** 7)
     out = np.empty((len(im), len(re)))
     _escape(re, im, float(cc[0]), float(cc[1]), True, it, out)
     return out

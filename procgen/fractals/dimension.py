@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from procgen.validate import check_array, check_choice, check_positive
+from core.validate import check_array, check_choice, check_positive
 
 __all__ = ["similarity_dimension", "box_counting_dimension", "box_counts"]
 

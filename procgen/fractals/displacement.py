@@ -24,23 +24,11 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from procgen.validate import check_array, check_positive, check_range
+from core.validate import check_array, check_int, check_positive, check_range, check_rng
 
 __all__ = ["midpoint_displacement", "diamond_square", "refine_heightfield"]
 
 _MAX_N = 14
-
-
-def _check_rng(rng) -> np.random.Generator:
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
-    return rng
-
-
-def _check_level(n, name: str, lo: int = 1, hi: int = _MAX_N) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not lo <= n <= hi:
-        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {n!r}")
-    return int(n)
 
 
 def _check_hurst(hurst) -> float:
@@ -77,11 +65,11 @@ def midpoint_displacement(n: int, *, decay: float = 0.5, sigma: float = 1.0,
     >>> h.shape, float(h[0]), float(h[-1])
     ((17,), 0.0, 0.0)
     """
-    n = _check_level(n, "n")
+    n = check_int(n, "n", 1, _MAX_N)
     f = check_range(decay, "decay", 0.0, 1.0, lo_open=True, hi_open=True)
     s = check_positive(sigma, "sigma", allow_zero=True)
     ends = check_array(endpoints, "endpoints", shape=(2,))
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     size = 2 ** n
     out = np.empty(size + 1)
     out[0], out[-1] = ends
@@ -277,9 +265,9 @@ def diamond_square(n: int, *, hurst: float, rng: np.random.Generator, sigma: flo
     >>> z.shape
     (33, 33)
     """
-    n = _check_level(n, "n")
+    n = check_int(n, "n", 1, _MAX_N)
     h = _check_hurst(hurst)
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     s = check_positive(sigma, "sigma", allow_zero=True)
     if control is not None:
         c = check_array(control, "control", shape=(None, None))
@@ -337,9 +325,9 @@ def refine_heightfield(heights, levels: int, *, hurst: float, rng: np.random.Gen
     c = check_array(heights, "heights", shape=(None, None))
     if c.shape[0] < 2 or c.shape[1] < 2:
         raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {c.shape}")
-    L = _check_level(levels, "levels", lo=0)
+    L = check_int(levels, "levels", lo=0)
     h = _check_hurst(hurst)
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     if (c.shape[0] - 1) * 2 ** L + 1 > 2 ** _MAX_N + 1 or (c.shape[1] - 1) * 2 ** L + 1 > \
             2 ** _MAX_N + 1:
         raise ValueError(f"levels: the refined grid would exceed {2 ** _MAX_N + 1} points a side")

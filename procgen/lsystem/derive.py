@@ -147,7 +147,7 @@ def derive(grammar: Grammar, n: int | None = None, *, rng: np.random.Generator |
         A stochastic grammar without ``rng``; an expression error while rewriting (division
         by zero), naming the grammar line.
     """
-    from procgen.validate import check_choice
+    from core.validate import check_choice
 
     check_choice(method, "method", {"auto", "general"})
     n = grammar.n if n is None else int(n)

@@ -3,7 +3,7 @@
 Tubes are the batched generalized cylinders of :func:`procgen.sweeps.segment_tubes`
 (radius = width / 2, tapering from a parent's width to its child's). Polygons (leaves)
 are triangulated as fans from their first vertex; they are open surfaces, so a mesh that
-includes leaves is not closed. Files are written with :func:`procgen.mesh_io.write_mesh`
+includes leaves is not closed. Files are written with :func:`core.mesh_io.write_mesh`
 (PLY, OBJ, glTF/GLB by suffix).
 """
 
@@ -70,7 +70,7 @@ def to_mesh(result: TurtleResult, *, sides: int = 8, caps: bool = True, leaves: 
     ValueError
         Nothing was drawn.
     """
-    from procgen.meshes import make_mesh
+    from core.meshes import make_mesh
 
     v, f = tube_arrays(result, sides=sides, caps=caps, min_radius=min_radius)
     n_tube = len(v)

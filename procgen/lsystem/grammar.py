@@ -24,8 +24,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from core.validate import InputError
 from procgen.lsystem.expr import ExprError, Node, evaluate, parse_expr
-from procgen.validate import InputError
 
 __all__ = ["GrammarError", "Module", "Pattern", "Production", "Grammar", "parse_grammar",
            "load_grammar", "example_names", "TURTLE_SYMBOLS", "CUT", "DIRECTIVES"]

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.validate import check_finite, check_int, check_range
 from procgen.noise import _kernels as K
 from procgen.noise.perlin import perm_table
-from procgen.validate import check_finite, check_int, check_range
 
 __all__ = [
     "fbm",
@@ -43,13 +43,6 @@ __all__ = [
     "bias",
     "gain",
 ]
-
-
-def _check_octaves(octaves) -> int:
-    if isinstance(octaves, bool) or not isinstance(octaves, (int, np.integer)) or octaves < 1 \
-            or octaves > 64:
-        raise ValueError(f"octaves: expected an integer in [1, 64], got {octaves!r}")
-    return int(octaves)
 
 
 def _coords(x, y, z, t):
@@ -80,7 +73,7 @@ def _finish(out, bad, shape):
 
 
 def _run(x, y, z, t, seed, octaves, lacunarity, gain_, mode, h=1.0, offset=1.0, rgain=2.0):
-    octaves = _check_octaves(octaves)
+    octaves = check_int(octaves, "octaves", 1, 64)
     lac = check_range(lacunarity, "lacunarity", 1.0, None, lo_open=True)
     g = check_finite(gain_, "gain")
     table = perm_table(seed)
@@ -205,7 +198,7 @@ def tileable(u, v, *, frequency: int = 4, octaves: int = 4, lacunarity: int = 2,
     >>> bool(abs(a[0] - a[1]) < 1e-12)
     True
     """
-    octaves = _check_octaves(octaves)
+    octaves = check_int(octaves, "octaves", 1, 64)
     frequency = check_int(frequency, "frequency")
     lacunarity = check_int(lacunarity, "lacunarity")
     top = frequency * lacunarity ** (octaves - 1)
@@ -276,7 +269,7 @@ def curl(x, y, z=None, *, octaves: int = 1, lacunarity: float = 2.0, gain: float
     >>> curl(np.array([0.1, 0.2]), 0.3, 0.4).shape
     (2, 3)
     """
-    octaves = _check_octaves(octaves)
+    octaves = check_int(octaves, "octaves", 1, 64)
     lac = check_range(lacunarity, "lacunarity", 1.0, None, lo_open=True)
     g = check_finite(gain, "gain")
     table = perm_table(seed)

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.validate import check_array, check_positive
 from procgen.noise.fractal import bias, fbm, ridged, turbulence
-from procgen.validate import check_array, check_positive
 
 __all__ = ["color_ramp", "fire_ramp", "rock", "clouds", "marble_texture", "wood", "fire",
            "SOLID_TEXTURES"]

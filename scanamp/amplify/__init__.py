@@ -27,11 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_dir, write_json
-from procgen.mesh_io import read_mesh, write_image, write_mesh
-from procgen.meshes import merge_meshes, mesh_arrays
-from procgen.progress import track
-from procgen.validate import InputError
+from core.files import atomic_dir, write_json
+from core.image_io import write_image
+from core.mesh_io import read_mesh, write_mesh
+from core.meshes import merge_meshes, mesh_arrays
+from core.progress import track
+from core.validate import InputError
 from scanamp.amplify.recipe import KINDS, Recipe, Step, load_recipe, parse_recipe, recipe_names
 from scanamp.amplify.steps import EXECUTORS, State
 
@@ -97,7 +98,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
 
     Raises
     ------
-    procgen.validate.InputError
+    core.validate.InputError
         A bad recipe (naming the file and field) or an unreadable mesh.
     """
     t_start = time.perf_counter()
@@ -110,7 +111,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
     v, f = mesh_arrays(mesh)
-    from procgen.meshes import make_mesh
+    from core.meshes import make_mesh
 
     mesh = make_mesh(v, f)
     out_dir = Path(out_dir)

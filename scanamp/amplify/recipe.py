@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from procgen.files import read_toml, require
-from procgen.validate import InputError
+from core.files import read_toml, require
+from core.validate import InputError
 
 __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_names",
            "RECIPE_DIR"]

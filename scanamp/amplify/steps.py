@@ -10,8 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from procgen.amplify._surface import bbox_diagonal, edge_lengths
-from procgen.meshes import mesh_arrays
+from core.meshes import bbox_diagonal, edge_lengths, mesh_arrays
 
 __all__ = ["State", "EXECUTORS"]
 
@@ -42,7 +41,7 @@ class State:
         return out
 
     def merged(self):
-        from procgen.meshes import merge_meshes
+        from core.meshes import merge_meshes
 
         if not self.parts:
             return self.surface
@@ -174,8 +173,8 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     import tempfile
     from pathlib import Path
 
-    from procgen.files import read_json
-    from procgen.mesh_io import write_mesh
+    from core.files import read_json
+    from core.mesh_io import write_mesh
 
     if out_dir is None:
         raise ValueError("out_dir: an animate step needs an output folder")

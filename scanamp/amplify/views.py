@@ -13,7 +13,7 @@ from acquire.lights import DirectionalLight
 from acquire.materials import Material
 from acquire.render import render
 from acquire.scene import RenderScene, SceneObject
-from procgen.meshes import make_mesh, mesh_arrays
+from core.meshes import make_mesh, mesh_arrays
 
 __all__ = ["frame_camera", "render_parts"]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.mesh_io import write_image
+from core.image_io import write_image
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +44,7 @@ def render_preview(meshes, path: Path, *, size=(640, 480)) -> Path:
     try:
         import pyvista as pv
 
-        from procgen.meshes import to_pyvista
+        from core.meshes import to_pyvista
 
         pv.OFF_SCREEN = True
         plotter = pv.Plotter(off_screen=True, window_size=size)

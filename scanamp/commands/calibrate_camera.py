@@ -23,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
     import logging
 
     from acquire.targets import target_from_spec
-    from procgen.files import write_json
+    from core.files import write_json
     from reconstruct.calib_io import write_camera_yaml
     from reconstruct.calibrate_images import calibrate_camera_images, sorted_images
     from reconstruct.colmap_runner import colmap_params_from_camera

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
     import logging
 
     from acquire.targets import target_from_spec
-    from procgen.files import write_json
+    from core.files import write_json
     from reconstruct.calib_io import write_stereo_yaml
     from reconstruct.calibrate_images import calibrate_stereo_images, sorted_images
 

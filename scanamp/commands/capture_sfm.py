@@ -29,8 +29,8 @@ def add_arguments(p):
 
 def run(args) -> int:
     from acquire.capture_sfm import capture, path_config_from_toml
+    from core.files import read_toml
     from data_synth.scenes import build_scene, scene_names
-    from procgen.files import read_toml
 
     data = read_toml(args.config) if args.config else {}
     if args.path:

@@ -37,9 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from procgen.files import write_json
-    from procgen.mesh_io import read_geometry
-    from procgen.validate import InputError
+    from core.files import write_json
+    from core.mesh_io import read_geometry
+    from core.validate import InputError
     from reconstruct.evaluate import DEFAULT_MAX_SAMPLES, evaluate
 
     recon = read_geometry(args.recon)

@@ -28,8 +28,8 @@ def add_arguments(p):
 def run(args) -> int:
     import numpy as np
 
+    from core.mesh_io import MESH_SUFFIXES, POLYLINE_SUFFIXES, write_mesh, write_polylines
     from procgen.lsystem import derive, interpret, load_grammar, to_mesh
-    from procgen.mesh_io import MESH_SUFFIXES, POLYLINE_SUFFIXES, write_mesh, write_polylines
 
     if args.out is None and args.lines is None and not args.stats:
         raise ValueError("--out: give a mesh file to write (or --lines, or --stats)")

@@ -84,7 +84,7 @@ def _render(args) -> np.ndarray:
 
 
 def run(args) -> int:
-    from procgen.mesh_io import write_image
+    from core.image_io import write_image
 
     out = check_out(args.out, (".png",))
     img = _render(args)

@@ -49,8 +49,8 @@ def _polyline(text: str):
 
 
 def run(args) -> int:
+    from core.mesh_io import read_mesh, write_mesh
     from procgen.implicit import egg_sdf, hypertexture, sphere_sdf, sweep_sdf
-    from procgen.mesh_io import read_mesh, write_mesh
 
     out = check_out(args.out, MESH_OUT)
     if args.shape == "mesh":

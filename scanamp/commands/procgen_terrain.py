@@ -36,7 +36,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from procgen.mesh_io import write_mesh
+    from core.mesh_io import write_mesh
     from procgen.terrain import (
         check_grid_size,
         fractal_terrain,

@@ -7,9 +7,9 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.render import render
 from acquire.sensor import Sensor
+from core.files import atomic_dir
+from core.image_io import write_image
 from data_synth.scenes import build_scene
-from procgen.files import atomic_dir
-from procgen.mesh_io import write_image
 
 NAME = "render"
 HELP = "render one view of a scene (and its ground-truth depth, normals, ids)"

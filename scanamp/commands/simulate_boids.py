@@ -25,7 +25,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from procgen.mesh_io import read_mesh
+    from core.mesh_io import read_mesh
     from scanamp.boids_run import run_boids
     from simulate.boids import load_recipe
     from simulate.stand_ins import stand_in_mesh

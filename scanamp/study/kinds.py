@@ -32,8 +32,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from procgen.files import read_toml, write_toml
-from procgen.validate import InputError
+from core.files import read_toml, write_toml
+from core.validate import InputError
 
 __all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", "get_metric"]
 
@@ -199,7 +199,7 @@ def _object_name(bundle) -> str | None:
 
 
 def _read_report(folder: Path) -> dict:
-    from procgen.files import read_json
+    from core.files import read_json
 
     return read_json(Path(folder) / "report.json")
 
@@ -304,7 +304,7 @@ class RunFailed(RuntimeError):
 def _run_peaks(rig, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
     """Render the scan's laser frames, detect the stripe, score against the true centre."""
     from acquire.laser import LaserRenderer
-    from procgen.progress import track
+    from core.progress import track
     from reconstruct.laser import extract_frames
 
     bundle, _ = _scene(scene)

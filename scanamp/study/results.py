@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_file
+from core.files import atomic_file
 
 log = logging.getLogger(__name__)
 

@@ -36,9 +36,9 @@ import time
 import traceback
 from pathlib import Path
 
-from procgen.files import read_json, write_json
-from procgen.progress import track
-from procgen.validate import InputError
+from core.files import read_json, write_json
+from core.progress import track
+from core.validate import InputError
 
 log = logging.getLogger(__name__)
 

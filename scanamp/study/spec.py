@@ -42,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from procgen.files import read_toml, require
-from procgen.validate import InputError
+from core.files import read_toml, require
+from core.validate import InputError
 
 __all__ = ["Run", "Study", "load_study", "shipped_studies", "study_path", "run_id"]
 

@@ -1,8 +1,8 @@
-"""Mesh, point-cloud and image files: the one place that knows these formats.
+"""Mesh and point-cloud files: the one place that knows these formats.
 
 Meshes: PLY, OBJ, glTF/GLB (``.gltf``/``.glb``), STL, OFF. Point clouds: PLY, PCD, XYZ.
-Polylines (curves): OBJ ``l`` records, PLY edges. Images: PNG/JPEG via OpenCV (8- or
-16-bit). Every writer is atomic.
+Polylines (curves): OBJ ``l`` records, PLY edges. Every writer is atomic. Images are
+:mod:`core.image_io`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from procgen.files import atomic_file
-from procgen.validate import InputError
+from core.files import atomic_file
+from core.validate import InputError
 
-__all__ = ["read_mesh", "write_mesh", "read_points", "write_points", "read_image", "write_image",
+__all__ = ["read_mesh", "write_mesh", "read_points", "write_points",
            "read_geometry", "write_polylines", "MESH_SUFFIXES", "POINT_SUFFIXES",
            "POLYLINE_SUFFIXES"]
 
@@ -86,7 +86,7 @@ def write_polylines(path: str | os.PathLike, polylines) -> Path:
     polylines : sequence of (k, 3) float64
         Each with at least 2 points.
     """
-    from procgen.validate import check_array
+    from core.validate import check_array
 
     path = Path(path)
     if path.suffix.lower() not in POLYLINE_SUFFIXES:
@@ -151,44 +151,12 @@ def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
     if Path(path).suffix.lower() != ".ply":
         raise ValueError(f"points: an empty cloud can only be written as .ply, got {path}")
     props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals else [])
-    header = ["ply", "format binary_little_endian 1.0", "comment written by procgen.mesh_io",
+    header = ["ply", "format binary_little_endian 1.0", "comment written by core.mesh_io",
               "element vertex 0", *(f"property double {p}" for p in props),
               *([f"property uchar {c}" for c in ("red", "green", "blue")] if colors else []),
               "end_header"]
     with atomic_file(path) as tmp:
         tmp.write_bytes(("\n".join(header) + "\n").encode("ascii"))
-    return Path(path)
-
-
-def read_image(path: str | os.PathLike, *, grayscale: bool = False) -> np.ndarray:
-    """Read an image as stored (uint8 or uint16; RGB order for colour images)."""
-    import cv2
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path=path)
-    flag = cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_UNCHANGED
-    img = cv2.imread(str(path), flag | (cv2.IMREAD_ANYDEPTH if not grayscale else 0))
-    if img is None:
-        raise InputError("unreadable image (corrupt or unsupported format)", path=path)
-    if img.ndim == 3 and img.shape[2] >= 3:
-        img = np.ascontiguousarray(img[..., 2::-1] if img.shape[2] == 3 else
-                                   img[..., [2, 1, 0, 3]])
-    return img
-
-
-def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
-    """Write a uint8/uint16 image (RGB order for colour) atomically; PNG is lossless."""
-    import cv2
-
-    img = np.asarray(image)
-    if img.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"image: expected uint8 or uint16, got {img.dtype}")
-    if img.ndim == 3 and img.shape[2] == 3:
-        img = np.ascontiguousarray(img[..., ::-1])
-    with atomic_file(path) as tmp:
-        if not cv2.imwrite(str(tmp), img):
-            raise RuntimeError(f"OpenCV failed to write {path}")
     return Path(path)
 
 

@@ -2,7 +2,7 @@
 
 Outputs are written to a temporary sibling and renamed into place, so an
 interrupted or failed run leaves no half-written file or folder. Config readers
-raise :class:`procgen.validate.InputError` naming the file (and the field when
+raise :class:`core.validate.InputError` naming the file (and the field when
 one is at fault).
 """
 
@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from procgen.validate import InputError
+from core.validate import InputError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -2,7 +2,7 @@
 
 scanamp's canonical mesh is :class:`open3d.geometry.TriangleMesh` (float64
 vertices in metres, int32 triangles). Every conversion to pymeshlab or pyvista
-lives here and nowhere else; file formats live in :mod:`procgen.mesh_io`.
+lives here and nowhere else; file formats live in :mod:`core.mesh_io`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from procgen.validate import check_array
+from core.validate import check_array
 
 if TYPE_CHECKING:  # pragma: no cover
     import open3d as o3d
@@ -27,6 +27,11 @@ __all__ = [
     "from_pyvista",
     "surface_area",
     "is_closed",
+    "unique_edges",
+    "edge_lengths",
+    "vertex_normals",
+    "face_normals",
+    "bbox_diagonal",
 ]
 
 
@@ -180,3 +185,46 @@ def is_closed(mesh_or_triangles) -> bool:
     if np.any(counts != 1):  # a directed edge used twice: inconsistent or non-manifold
         return False
     return bool(np.all(np.isin(rev, uniq, assume_unique=False)))
+
+
+def unique_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``edges (e, 2)`` (sorted pairs) and ``tri_edges (m, 3)``: edge index of each
+    triangle side (side k joins corners k and k + 1)."""
+    f = np.asarray(triangles, np.int64)
+    sides = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
+    sides = np.sort(sides, axis=1)
+    edges, inverse = np.unique(sides, axis=0, return_inverse=True)
+    return edges, inverse.reshape(-1, 3)
+
+
+def edge_lengths(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Lengths ``(e,)`` of the unique edges."""
+    e, _ = unique_edges(triangles)
+    return np.linalg.norm(vertices[e[:, 1]] - vertices[e[:, 0]], axis=1)
+
+
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals ``(n, 3)`` (zero for unused vertices)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(triangles, np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, f[:, k], fn)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
+def face_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit face normals ``(m, 3)`` (zero for degenerate triangles)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(triangles, np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    norm = np.linalg.norm(fn, axis=1, keepdims=True)
+    return np.divide(fn, norm, out=np.zeros_like(fn), where=norm > 0)
+
+
+def bbox_diagonal(vertices: np.ndarray) -> float:
+    """Length of the axis-aligned bounding box diagonal of ``vertices (n, 3)``."""
+    v = np.asarray(vertices, np.float64)
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))

@@ -1,29 +1,16 @@
-"""Surface helpers shared by the amplification operators (private to procgen.amplify).
+"""Surface helpers of the amplification operators.
 
-Arrays in, arrays out: midpoint subdivision that carries per-vertex attributes, vertex
-normals, the local scale of a mesh, slope and curvature, area-weighted surface samples.
+Arrays in, arrays out: midpoint subdivision that carries per-vertex attributes, the
+local scale of a mesh, slope and curvature. Generic mesh measures (edges, normals,
+the bounding-box diagonal) are :mod:`core.meshes`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from procgen.meshes import mesh_arrays, surface_area
-from procgen.validate import check_array
-
-
-def check_rng(rng) -> np.random.Generator:
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
-    return rng
-
-
-def check_int(value, name: str, lo: int, hi: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo \
-            or (hi is not None and value > hi):
-        rng_s = f"[{lo}, {hi}]" if hi is not None else f">= {lo}"
-        raise ValueError(f"{name}: expected an integer {rng_s}, got {value!r}")
-    return int(value)
+from core.meshes import mesh_arrays, unique_edges
+from core.validate import check_array
 
 
 def mesh_input(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
@@ -35,22 +22,6 @@ def mesh_input(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{name}: expected a mesh with triangles, got 0 triangles")
     check_array(v, f"{name}.vertices", shape=(None, 3))
     return v, f
-
-
-def unique_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``edges (e, 2)`` (sorted pairs) and ``tri_edges (m, 3)``: edge index of each
-    triangle side (side k joins corners k and k + 1)."""
-    f = np.asarray(triangles, np.int64)
-    sides = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
-    sides = np.sort(sides, axis=1)
-    edges, inverse = np.unique(sides, axis=0, return_inverse=True)
-    return edges, inverse.reshape(-1, 3)
-
-
-def edge_lengths(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Lengths ``(e,)`` of the unique edges."""
-    e, _ = unique_edges(triangles)
-    return np.linalg.norm(vertices[e[:, 1]] - vertices[e[:, 0]], axis=1)
 
 
 def subdivide_midpoint(vertices: np.ndarray, triangles: np.ndarray,
@@ -82,18 +53,6 @@ def subdivide_midpoint(vertices: np.ndarray, triangles: np.ndarray,
         at = np.asarray(attributes, np.float64)
         na = np.concatenate([at, 0.5 * (at[edges[:, 0]] + at[edges[:, 1]])])
     return nv, nf, na
-
-
-def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals ``(n, 3)`` (zero for unused vertices)."""
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(triangles, np.int64)
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    n = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(n, f[:, k], fn)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
 
 
 def local_edge_length(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -145,35 +104,3 @@ def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
         return (x >= lo).astype(np.float64)
     t = np.clip((x - lo) / (hi - lo), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
-
-
-def sample_surface(vertices: np.ndarray, triangles: np.ndarray, n: int,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` points uniform by area: ``points (n, 3)`` and their ``triangle (n,)`` indices."""
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(triangles, np.int64)
-    area = surface_area(v, f)
-    total = area.sum()
-    if n == 0 or total <= 0:
-        return np.zeros((0, 3)), np.zeros(0, np.int64)
-    tri = np.searchsorted(np.cumsum(area) / total, rng.random(n), side="right")
-    tri = np.minimum(tri, len(f) - 1)
-    r1, r2 = rng.random(n), rng.random(n)
-    s = np.sqrt(r1)
-    a, b, c = v[f[tri, 0]], v[f[tri, 1]], v[f[tri, 2]]
-    pts = (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
-    return pts, tri
-
-
-def face_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Unit face normals ``(m, 3)`` (zero for degenerate triangles)."""
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(triangles, np.int64)
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    norm = np.linalg.norm(fn, axis=1, keepdims=True)
-    return np.divide(fn, norm, out=np.zeros_like(fn), where=norm > 0)
-
-
-def bbox_diagonal(vertices: np.ndarray) -> float:
-    v = np.asarray(vertices, np.float64)
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))

@@ -23,6 +23,7 @@ __all__ = [
     "check_array",
     "check_choice",
     "check_int",
+    "check_rng",
     "check_range",
     "check_positive",
     "check_finite",
@@ -145,22 +146,36 @@ def check_range(
     return v
 
 
-def check_int(value: Any, name: str, lo: int = 1) -> int:
-    """Return ``value`` as an int: an integral number (not a bool) >= ``lo``.
+def check_int(value: Any, name: str, lo: int = 1, hi: int | None = None) -> int:
+    """Return ``value`` as an int: an integral number (not a bool) in ``[lo, hi]``.
 
-    ``3`` and ``3.0`` pass; ``2.5``, ``True``, ``"3"``, NaN and anything under ``lo`` raise
-    ValueError naming ``name``.
+    ``3`` and ``3.0`` pass; ``2.5``, ``True``, ``"3"``, NaN and anything outside the
+    range raise ValueError naming ``name``.
+
+    >>> check_int(3.0, "octaves", 1, 64)
+    3
     """
     try:
         ok = (isinstance(value, (int, float, np.integer, np.floating))
               and not isinstance(value, (bool, np.bool_))
-              and float(value) == int(value) and int(value) >= lo)
+              and float(value) == int(value) and int(value) >= lo
+              and (hi is None or int(value) <= hi))
     except (ValueError, OverflowError):  # NaN, infinity
         ok = False
     if not ok:
-        what = "a positive integer" if lo == 1 else f"an integer >= {lo}"
+        if hi is not None:
+            what = f"an integer in [{lo}, {hi}]"
+        else:
+            what = "a positive integer" if lo == 1 else f"an integer >= {lo}"
         raise ValueError(f"{name}: expected {what}, got {value!r}")
     return int(value)
+
+
+def check_rng(rng: Any, name: str = "rng") -> np.random.Generator:
+    """Return ``rng`` if it is a ``numpy.random.Generator`` (no global RNG, no seeds here)."""
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"{name}: expected a numpy.random.Generator, got {type(rng).__name__}")
+    return rng
 
 
 def check_positive(value: Any, name: str, *, allow_zero: bool = False) -> float:
