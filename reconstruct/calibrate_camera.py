@@ -29,7 +29,7 @@ __all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "
            "detect_board", "to_gray",
            "board_pose", "bootstrap_cameras"]
 
-_DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
+DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
 
 
 @dataclass
@@ -170,7 +170,7 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
 
     from core.validate import check_choice
 
-    check_choice(dist_model, "dist_model", _DIST_MODELS)
+    check_choice(dist_model, "dist_model", DIST_MODELS)
     images = list(images)
     if not images:
         raise ValueError("images: expected at least one image, got none")
@@ -238,7 +238,7 @@ def calibrate_camera_points(object_points, image_points, image_size, *,
 
     from core.validate import check_choice
 
-    check_choice(dist_model, "dist_model", _DIST_MODELS)
+    check_choice(dist_model, "dist_model", DIST_MODELS)
     if len(object_points) != len(image_points):
         raise ValueError(f"{name}: image_points: expected one array per view "
                          f"({len(object_points)}), got {len(image_points)}")

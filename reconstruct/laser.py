@@ -17,18 +17,19 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
+from core.config import Config, option
 from core.files import atomic_dir, write_json
 from core.frames import rotation_about
 from core.progress import track
-from core.validate import InputError, check_choice, check_int
-from reconstruct.calibrate_camera import calibrate_camera
+from core.validate import InputError
+from reconstruct.calibrate_camera import DIST_MODELS, calibrate_camera
 from reconstruct.error_model import (
     PeakErrorAccumulator,
     closed_form_sigma_z,
@@ -54,52 +55,49 @@ DEFAULT_DETECTOR = "gaussian"
 
 
 @dataclass
-class LaserReconConfig:
-    """Options of the laser reconstruction.
+class LaserReconConfig(Config):
+    """Options of the laser reconstruction (``scanamp reconstruct laser``)."""
 
-    detector : str            sub-pixel peak detector, one of ``reconstruct.stripe.DETECTORS``
-    threshold, min_contrast, max_width, max_steepness : float
-                              stripe acceptance (8-bit units; see StripeOptions)
-    dist_model : str          distortion estimated by the camera calibration
-    meshing : MeshingOptions  Poisson depth, density trimming, outliers
-    max_range : float         drop points farther than this from the axis (m; 0 = off)
-    speckle : float           the laser's speckle contrast as known on the bench (feeds
-                              the error model only)
-    max_camera_rms_px, max_plane_rms_m, max_axis_rms_px : float
-                              sanity limits of the calibrations: beyond them the
-                              reconstruction stops with a RuntimeError naming the views
-    min_stripe_fraction : float
-                              frames whose stripe has fewer points than this fraction of
-                              the median frame are named in the report's warnings
-    evaluate : bool           score against the capture's ground truth when present
-    tau : float               F-score threshold in metres
-    calibration_draws : int   Monte Carlo recalibrations propagating the camera
-                              intrinsics' uncertainty into depth (0 = off)
-    seed : int                seeds those draws (same seed -> same report)
-    """
-
-    detector: str = DEFAULT_DETECTOR
-    threshold: float = 8.0
-    min_contrast: float = 6.0
-    max_width: float = 12.0
-    max_steepness: float = 1.5
-    dist_model: str = "k1k2"
-    meshing: MeshingOptions = field(default_factory=lambda: MeshingOptions(
-        depth=9, density_quantile=0.03, trim_distance=0.002))
-    max_range: float = 0.0
-    speckle: float = 0.0
-    max_camera_rms_px: float = 1.0
-    max_plane_rms_m: float = 0.5e-3
-    max_axis_rms_px: float = 2.0
-    min_stripe_fraction: float = 0.2
-    evaluate: bool = True
-    tau: float = 0.0005
-    calibration_draws: int = 32
-    seed: int = 0
-
-    def __post_init__(self):
-        check_choice(self.detector, "detector", DETECTORS)
-        check_int(self.calibration_draws, "calibration_draws", 0)
+    detector: str = option(DEFAULT_DETECTOR, choices=DETECTORS,
+                           help="sub-pixel stripe peak detector")
+    threshold: float = option(8.0, unit="8-bit", range="[0, inf)",
+                              help="minimum stripe peak above the row's background")
+    min_contrast: float = option(6.0, unit="8-bit", range="(0, inf)",
+                                 help="minimum peak contrast against its neighbourhood")
+    max_width: float = option(12.0, unit="px", range="(0, inf)",
+                              help="widest accepted stripe profile (FWHM)")
+    max_steepness: float = option(1.5, range="[0, inf)",
+                                  help="profile-steepness test: flanks steeper than a "
+                                       "Gaussian of the measured width by this factor are "
+                                       "rejected as lit plateaus or edges (0 = off)")
+    dist_model: str = option("k1k2", choices=DIST_MODELS,
+                             help="lens distortion estimated by the camera calibration")
+    meshing: MeshingOptions = option(
+        default_factory=lambda: MeshingOptions(depth=9, density_quantile=0.03,
+                                               trim_distance=0.002),
+        help="Poisson depth, density trimming, outliers")
+    max_range: float = option(0.0, unit="m", range="[0, inf)",
+                              help="drop points farther than this from the axis (0 = off)")
+    speckle: float = option(0.0, range="[0, 2]",
+                            help="the laser's speckle contrast as known on the bench (feeds "
+                                 "the error model only)")
+    max_camera_rms_px: float = option(1.0, unit="px", range="(0, inf)",
+                                      help="sanity limit of the camera calibration RMS")
+    max_plane_rms_m: float = option(0.5e-3, unit="m", range="(0, inf)",
+                                    help="sanity limit of the laser-plane fit RMS")
+    max_axis_rms_px: float = option(2.0, unit="px", range="(0, inf)",
+                                    help="sanity limit of the turntable-axis fit RMS")
+    min_stripe_fraction: float = option(0.2, range="[0, 1]",
+                                        help="frames whose stripe has fewer points than "
+                                             "this fraction of the median frame are named "
+                                             "in the report's warnings")
+    evaluate: bool = option(True, help="score against the capture's ground truth when "
+                                       "present")
+    tau: float = option(0.0005, unit="m", range="(0, inf)", help="F-score threshold")
+    calibration_draws: int = option(32, range="[0, 10000]",
+                                    help="Monte Carlo recalibrations propagating the camera "
+                                         "intrinsics' uncertainty into depth (0 = off)")
+    seed: int = option(0, range="[0, inf)", help="seeds those draws (same seed, same report)")
 
     def stripe_options(self, bit_depth: int = 8) -> StripeOptions:
         k = 1.0 if bit_depth == 8 else 257.0

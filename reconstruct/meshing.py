@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.validate import check_array, check_range
+from core.config import Config, option
+from core.validate import check_array
 
 log = logging.getLogger(__name__)
 
@@ -28,31 +29,20 @@ __all__ = ["MeshingOptions", "estimate_normals", "remove_outliers", "poisson_mes
 
 
 @dataclass(frozen=True)
-class MeshingOptions:
-    """Options of :func:`points_to_mesh`.
+class MeshingOptions(Config):
+    """Options of :func:`points_to_mesh`."""
 
-    depth : int                 Poisson octree depth (voxel = bounding cube / 2**depth)
-    density_quantile : float    fraction of lowest-density vertices trimmed
-    normal_neighbours : int     k of the k-NN normal fit
-    outlier_neighbours : int    k of the statistical outlier test (0 = off)
-    outlier_std : float         points farther than mean + std * sigma of their k-NN
-                                mean distance are dropped
-    trim_distance : float       also drop mesh vertices farther than this from every
-                                input point (metres; 0 = off)
-    """
-
-    depth: int = 9
-    density_quantile: float = 0.02
-    normal_neighbours: int = 24
-    outlier_neighbours: int = 20
-    outlier_std: float = 2.5
-    trim_distance: float = 0.0
-
-    def __post_init__(self):
-        if int(self.depth) != self.depth or not 4 <= self.depth <= 12:
-            raise ValueError(f"depth: expected an integer in [4, 12], got {self.depth!r}")
-        check_range(self.density_quantile, "density_quantile", 0, 1, hi_open=True)
-        check_range(self.trim_distance, "trim_distance", 0, None)
+    depth: int = option(9, help="Poisson octree depth (voxel = bounding cube / 2**depth)",
+                        range="[4, 12]")
+    density_quantile: float = option(0.02, help="fraction of lowest-density vertices trimmed",
+                                     range="[0, 1)")
+    normal_neighbours: int = option(24, help="k of the k-NN normal fit", range="[3, 1000]")
+    outlier_neighbours: int = option(20, help="k of the statistical outlier test (0 = off)",
+                                     range="[0, 1000]")
+    outlier_std: float = option(2.5, help="points farther than mean + std * sigma of their "
+                                "k-NN mean distance are dropped", range="(0, inf)")
+    trim_distance: float = option(0.0, unit="m", help="also drop mesh vertices farther than "
+                                  "this from every input point (0 = off)", range="[0, inf)")
 
 
 def _cloud(points, normals=None):

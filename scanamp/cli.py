@@ -3,7 +3,10 @@
 Commands are discovered from the modules of :mod:`scanamp.commands`. A module
 defines ``NAME`` (``"scene"``), optionally ``GROUP`` (``"capture"`` for
 ``scanamp capture laser``), ``HELP``, ``add_arguments(parser)`` and
-``run(args) -> int``. Errors: bad input exits 2 with one line ``error: ...``;
+``run(args) -> int``. A module with ``CONFIG`` (its config dataclass, see
+:mod:`core.config`) gets ``--config FILE.toml`` and one flag per declared option
+(:mod:`scanamp.options`), and is called as ``run(args, config)`` with the effective
+config. Errors: bad input exits 2 with one line ``error: ...``;
 an algorithm that failed or an internal error exits 1 (traceback under --debug).
 """
 
@@ -21,6 +24,7 @@ os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 import cv2  # noqa: E402,F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imwrite)
 
 from core.validate import InputError  # noqa: E402
+from scanamp.options import add_config_flags, config_from_args  # noqa: E402
 
 log = logging.getLogger("scanamp")
 
@@ -67,7 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
         p = target.add_parser(mod.NAME, help=getattr(mod, "HELP", None),
                               description=getattr(mod, "HELP", None))
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        config_cls = getattr(mod, "CONFIG", None)
+        if config_cls is not None:
+            add_config_flags(p, config_cls)
+        p.set_defaults(_run=mod.run, _config_cls=config_cls)
     return parser
 
 
@@ -84,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
 
         progress.enable(sys.stderr.isatty())
     try:
+        if args._config_cls is not None:
+            return int(args._run(args, config_from_args(args._config_cls, args)) or 0)
         return int(args._run(args) or 0)
     except (InputError, ValueError, FileNotFoundError, IsADirectoryError,
             NotADirectoryError) as exc:
