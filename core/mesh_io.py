@@ -19,7 +19,7 @@ from core.validate import InputError
 
 __all__ = ["read_mesh", "write_mesh", "read_points", "write_points",
            "read_geometry", "write_polylines", "MESH_SUFFIXES", "POINT_SUFFIXES",
-           "POLYLINE_SUFFIXES"]
+           "POLYLINE_SUFFIXES", "write_labeled_mesh", "read_labeled_mesh"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
 # open3d 0.20 writes .glb without its binary chunk (unreadable by open3d and VTK).
@@ -73,6 +73,199 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
     return path
+
+
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+              "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+              "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+              "float64": "f8"}
+
+
+def write_labeled_mesh(path: str | os.PathLike, vertices: np.ndarray, triangles: np.ndarray, *,
+                       colors: np.ndarray | None = None, labels: np.ndarray | None = None,
+                       names: dict[int, str] | None = None) -> Path:
+    """Write a triangle mesh whose vertices carry a colour and an integer part label.
+
+    The PLY (binary little-endian) has vertex properties ``x y z`` (double),
+    ``red green blue`` (uchar) and ``label`` (int), which MeshLab, Open3D (colours)
+    and plyfile read. ``names`` (label -> part name) goes to ``labels.json`` beside
+    the mesh, written atomically too.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    triangles : (m, 3) int
+    colors : (n, 3) float in [0, 1] or uint8, optional (default mid grey)
+    labels : (n,) int, optional (default 0)
+    names : dict, optional
+
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> v = np.eye(3); f = np.array([[0, 1, 2]])
+    >>> _ = write_labeled_mesh(d / "m.ply", v, f, labels=np.array([0, 1, 1]),
+    ...                        names={0: "ground", 1: "object"})
+    >>> m = read_labeled_mesh(d / "m.ply")
+    >>> m["labels"].tolist(), m["names"], m["triangles"].tolist()
+    ([0, 1, 1], {0: 'ground', 1: 'object'}, [[0, 1, 2]])
+    """
+    import json
+
+    from core.validate import check_array
+
+    path = Path(path)
+    if path.suffix.lower() != ".ply":
+        raise ValueError(f"path: a labelled mesh is written as .ply, got {path.suffix!r}")
+    v = check_array(vertices, "vertices", shape=(None, 3), finite=True).astype("<f8")
+    f = check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64).astype("<i4")
+    n = len(v)
+    if len(f) and (f.min() < 0 or f.max() >= n):
+        raise ValueError(f"triangles: indices must lie in [0, {n})")
+    if colors is None:
+        rgb = np.full((n, 3), 128, np.uint8)
+    else:
+        c = check_array(colors, "colors", shape=(n, 3), dtype=None)
+        rgb = (c if c.dtype == np.uint8
+               else np.clip(np.round(np.asarray(c, np.float64) * 255), 0, 255).astype(np.uint8))
+    lab = np.zeros(n, "<i4") if labels is None else check_array(
+        labels, "labels", shape=(n,), dtype=np.int64).astype("<i4")
+    vdt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "u1"), ("green", "u1"),
+                    ("blue", "u1"), ("label", "<i4")])
+    vrec = np.empty(n, vdt)
+    vrec["x"], vrec["y"], vrec["z"] = v.T
+    vrec["red"], vrec["green"], vrec["blue"] = rgb.T
+    vrec["label"] = lab
+    frec = np.empty(len(f), np.dtype([("n", "u1"), ("idx", "<i4", (3,))]))
+    frec["n"], frec["idx"] = 3, f
+    header = ("ply\nformat binary_little_endian 1.0\ncomment written by scanamp\n"
+              f"element vertex {n}\n" + "".join(
+                  f"property {t} {k}\n" for k, t in (("x", "double"), ("y", "double"),
+                                                    ("z", "double"), ("red", "uchar"),
+                                                    ("green", "uchar"), ("blue", "uchar"),
+                                                    ("label", "int")))
+              + f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
+    with atomic_file(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(header.encode("ascii"))
+            fh.write(vrec.tobytes())
+            fh.write(frec.tobytes())
+    if names is not None:
+        with atomic_file(path.with_name("labels.json")) as tmp:
+            tmp.write_text(json.dumps({str(int(k)): str(v) for k, v in sorted(names.items())},
+                                      indent=2) + "\n")
+    return path
+
+
+def read_labeled_mesh(path: str | os.PathLike) -> dict:
+    """Read a PLY triangle mesh with its per-vertex colour and label, if present.
+
+    Reads binary little-endian and ASCII PLY with scalar vertex properties and a
+    ``vertex_indices`` face list of triangles (as :func:`write_labeled_mesh` writes).
+
+    Returns
+    -------
+    dict
+        ``vertices (n, 3) float64``, ``triangles (m, 3) int64``, ``colors (n, 3) uint8``
+        or None, ``labels (n,) int64`` or None, ``names`` from ``labels.json`` beside
+        the file (label -> name) or None.
+    """
+    import json
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    data = path.read_bytes()
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise InputError("not a PLY file (no 'ply' magic or no end_header)", path=path)
+    body_start = data.index(b"\n", end) + 1
+    fmt, elements = None, []
+    for line in data[:end].decode("ascii", "replace").splitlines():
+        w = line.split()
+        if not w:
+            continue
+        if w[0] == "format":
+            fmt = w[1]
+        elif w[0] == "element":
+            elements.append([w[1], int(w[2]), []])
+        elif w[0] == "property" and elements:
+            elements[-1][2].append(w[1:])
+    if fmt not in ("binary_little_endian", "ascii"):
+        raise InputError(f"format: {fmt!r} is not supported (binary_little_endian or ascii)",
+                         path=path)
+    out = {"vertices": None, "triangles": np.empty((0, 3), np.int64), "colors": None,
+           "labels": None, "names": None}
+    try:
+        if fmt == "ascii":
+            _read_ascii_elements(data[body_start:], elements, out)
+        else:
+            _read_binary_elements(data, body_start, elements, out)
+    except (ValueError, IndexError, KeyError) as exc:
+        raise InputError(f"truncated or malformed PLY body ({exc})", path=path) from None
+    if out["vertices"] is None or not len(out["vertices"]):
+        raise InputError("no vertices read (empty or corrupt mesh file)", path=path)
+    names_file = path.with_name("labels.json")
+    if names_file.is_file():
+        try:
+            out["names"] = {int(k): v for k, v in json.loads(names_file.read_text()).items()}
+        except (ValueError, AttributeError) as exc:
+            raise InputError(f"expected a JSON object of label -> name ({exc})",
+                             path=names_file) from None
+    return out
+
+
+def _store_vertices(rec, out) -> None:
+    names = rec.dtype.names
+    out["vertices"] = np.stack([rec["x"], rec["y"], rec["z"]], -1).astype(np.float64)
+    if all(c in names for c in ("red", "green", "blue")):
+        out["colors"] = np.stack([rec["red"], rec["green"], rec["blue"]], -1).astype(np.uint8)
+    if "label" in names:
+        out["labels"] = rec["label"].astype(np.int64)
+
+
+def _read_binary_elements(data: bytes, pos: int, elements, out) -> None:
+    for name, count, props in elements:
+        if props and props[0][0] == "list":
+            _, ctype, itype, _ = props[0]
+            c, it = np.dtype("<" + _PLY_TYPES[ctype]), np.dtype("<" + _PLY_TYPES[itype])
+            if name == "face" and count:
+                probe = int(np.frombuffer(data, c, 1, pos)[0])
+                dt = np.dtype([("n", c), ("idx", it, (probe,))])
+                rec = np.frombuffer(data, dt, count, pos)
+                if probe != 3 or np.any(rec["n"] != 3):
+                    raise ValueError("only triangle faces are supported")
+                out["triangles"] = rec["idx"].astype(np.int64)
+                pos += dt.itemsize * count
+            elif count:
+                raise ValueError(f"list element {name!r} is not supported")
+            continue
+        dt = np.dtype([(p[1], "<" + _PLY_TYPES[p[0]]) for p in props])
+        rec = np.frombuffer(data, dt, count, pos)
+        pos += dt.itemsize * count
+        if name == "vertex":
+            _store_vertices(rec, out)
+
+
+def _read_ascii_elements(body: bytes, elements, out) -> None:
+    lines = body.decode("ascii").splitlines()
+    row = 0
+    for name, count, props in elements:
+        chunk = lines[row:row + count]
+        row += count
+        if len(chunk) != count:
+            raise ValueError(f"{name}: expected {count} rows, found {len(chunk)}")
+        if props and props[0][0] == "list":
+            if name == "face" and count:
+                idx = np.array([[int(t) for t in ln.split()] for ln in chunk])
+                if idx.shape[1] != 4 or np.any(idx[:, 0] != 3):
+                    raise ValueError("only triangle faces are supported")
+                out["triangles"] = idx[:, 1:].astype(np.int64)
+            continue
+        arr = np.array([[float(t) for t in ln.split()] for ln in chunk]).reshape(count, len(props))
+        rec = np.empty(count, [(p[1], "<" + _PLY_TYPES[p[0]]) for p in props])
+        for i, p in enumerate(props):
+            rec[p[1]] = arr[:, i]
+        if name == "vertex":
+            _store_vertices(rec, out)
 
 
 def write_polylines(path: str | os.PathLike, polylines) -> Path:
