@@ -38,9 +38,15 @@ def read_mesh(path: str | os.PathLike):
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise InputError(f"expected a mesh file ({', '.join(MESH_SUFFIXES)}), got {path.suffix!r}",
                          path=path)
-    mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False, print_progress=False)
+    said: list[str] = []
+    with _native_stderr(said):
+        mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False,
+                                         print_progress=False)
     if len(mesh.vertices) == 0:
-        raise InputError("no vertices read (empty or corrupt mesh file)", path=path)
+        raise InputError(f"no vertices read (empty or corrupt mesh file){_because(said)}",
+                         path=path)
+    _check_complete(path, "vertex", len(mesh.vertices))
+    _check_complete(path, "face", len(mesh.triangles))
     return mesh
 
 
@@ -313,9 +319,13 @@ def read_points(path: str | os.PathLike):
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path=path)
-    pcd = o3d.io.read_point_cloud(str(path))
+    said: list[str] = []
+    with _native_stderr(said):
+        pcd = o3d.io.read_point_cloud(str(path))
     if len(pcd.points) == 0:
-        raise InputError("no points read (empty or corrupt point file)", path=path)
+        raise InputError(f"no points read (empty or corrupt point file){_because(said)}",
+                         path=path)
+    _check_complete(path, "vertex", len(pcd.points))
     return pcd
 
 
@@ -354,21 +364,92 @@ def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
 
 
 @contextlib.contextmanager
-def _quiet_native_stderr():
-    """Silence file descriptor 2 (C libraries such as RPly print there directly)."""
+def _native_stderr(said: list[str]):
+    """Capture file descriptor 2 (C libraries such as RPly print there directly) and
+    Open3D's own warnings; what they said is appended to ``said``, one string per line,
+    so that our one-line error can carry it instead of a stray line on the terminal."""
+    import tempfile
+
+    import open3d as o3d
+
     sys.stderr.flush()
     try:
         saved = os.dup(2)
     except OSError:  # pragma: no cover - no fd 2 at all
         yield
         return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
+    with tempfile.TemporaryFile() as sink, o3d.utility.VerbosityContextManager(
+            o3d.utility.VerbosityLevel.Error):
+        os.dup2(sink.fileno(), 2)
+        try:
             yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read().decode("utf-8", "replace")
+            said.extend(ln.strip() for ln in text.splitlines() if ln.strip())
+
+
+def _ply_header_counts(path: Path) -> dict[str, int]:
+    """``{"vertex": n, "face": m}`` as a PLY header declares them (empty if not a PLY).
+
+    A binary PLY shorter than its header says (each face at least a triangle) is
+    reported as truncated: Open3D reads such a file without a word, padding with zeros.
+    """
+    if path.suffix.lower() != ".ply":
+        return {}
+    with open(path, "rb") as fh:
+        head = fh.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply"):
+        return {}
+    if end < 0:
+        raise InputError("truncated or corrupt PLY: its header has no end_header", path=path)
+    counts, sizes, binary = {}, {}, False
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        w = line.split()
+        if len(w) == 3 and w[0] == "element" and w[2].isdigit():
+            counts[w[1]] = int(w[2])
+            sizes[w[1]] = 0
+        elif w[:1] == ["format"]:
+            binary = len(w) > 1 and w[1].startswith("binary")
+        elif w[:1] == ["property"] and sizes:
+            elem = list(sizes)[-1]
+            try:
+                if w[1] == "list":  # count + at least three indices
+                    sizes[elem] += (np.dtype(_PLY_TYPES[w[2]]).itemsize
+                                    + 3 * np.dtype(_PLY_TYPES[w[3]]).itemsize)
+                else:
+                    sizes[elem] += np.dtype(_PLY_TYPES[w[1]]).itemsize
+            except (KeyError, IndexError):
+                raise InputError(f"unknown PLY property type in {line.strip()!r}",
+                                 path=path) from None
+    if binary:
+        body = head.index(b"\n", end) + 1
+        need = body + sum(counts[k] * sizes[k] for k in counts)
+        have = path.stat().st_size
+        if have < need:
+            declared = ", ".join(f"{n} {k}" for k, n in counts.items())
+            raise InputError(f"truncated file: its header declares {declared} elements, which "
+                             f"need at least {need} bytes; the file has {have}", path=path)
+    return counts
+
+
+def _check_complete(path: Path, what: str, n_read: int) -> None:
+    """InputError when a PLY declares more ``what`` (vertex/face) than were read."""
+    declared = _ply_header_counts(path).get(what)
+    if declared is not None and n_read < declared:
+        raise InputError(f"truncated file: its header declares {declared} {what} elements, "
+                         f"{n_read} could be read", path=path)
+
+
+def _because(said: list[str]) -> str:
+    """`` (RPly: Wrong magic number...)`` from what a C library said, or nothing."""
+    import re
+
+    lines = list(dict.fromkeys(re.sub(r"\x1b\[[0-9;]*m", "", ln) for ln in said))
+    return f" ({'; '.join(lines[:2])})" if lines else ""
 
 
 def read_geometry(path: str | os.PathLike):
@@ -397,21 +478,27 @@ def read_geometry(path: str | os.PathLike):
     if suffix not in MESH_SUFFIXES + POINT_SUFFIXES:
         allowed = ", ".join(sorted(set(MESH_SUFFIXES + POINT_SUFFIXES)))
         raise InputError(f"expected a mesh or point file ({allowed}), got {suffix!r}", path=path)
-    quiet = o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error)
-    with quiet, _quiet_native_stderr():
+    said: list[str] = []
+    with _native_stderr(said):
+        mesh = None
         if suffix in MESH_SUFFIXES:
             mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False,
                                              print_progress=False)
-            if len(mesh.triangles) > 0:
-                return mesh
-            if suffix != ".ply":
-                if len(mesh.vertices) == 0:
-                    raise InputError("no vertices read (empty or corrupt mesh file)", path=path)
-                pcd = o3d.geometry.PointCloud(mesh.vertices)
-                if mesh.has_vertex_normals():
-                    pcd.normals = mesh.vertex_normals
-                return pcd
-        pcd = o3d.io.read_point_cloud(str(path))
+        if mesh is None or (len(mesh.triangles) == 0 and suffix == ".ply"):
+            pcd = o3d.io.read_point_cloud(str(path))  # a PLY of vertices only
+    if mesh is not None and len(mesh.triangles) > 0:
+        _check_complete(path, "vertex", len(mesh.vertices))
+        _check_complete(path, "face", len(mesh.triangles))
+        return mesh
+    if mesh is not None and suffix != ".ply":
+        if len(mesh.vertices) == 0:
+            raise InputError(f"no vertices read (empty or corrupt mesh file){_because(said)}",
+                             path=path)
+        pcd = o3d.geometry.PointCloud(mesh.vertices)
+        if mesh.has_vertex_normals():
+            pcd.normals = mesh.vertex_normals
+        return pcd
     if len(pcd.points) == 0:
-        raise InputError("no points read (empty or corrupt file)", path=path)
+        raise InputError(f"no points read (empty or corrupt file){_because(said)}", path=path)
+    _check_complete(path, "vertex", len(pcd.points))
     return pcd
