@@ -55,6 +55,11 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary sibling folder; on success it replaces ``path``.
 
     On an exception the temporary folder is removed and ``path`` is left as it was.
+    Only an empty folder or one scanamp wrote (with its manifest,
+    :data:`core.outputs.MANIFEST`) is ever replaced: anything else at ``path`` raises
+    InputError before anything is written. The folder gets the manifest: that of the
+    running command when ``path`` is the output it declared (:func:`core.outputs.writing`),
+    else one that says it was written through the Python API (``"command": "api"``).
 
     >>> import tempfile, pathlib
     >>> root = pathlib.Path(tempfile.mkdtemp())
@@ -64,6 +69,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     ['a.txt']
     """
     path = Path(path)
+    _check_replaceable(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=path.parent))
     try:
@@ -72,6 +78,15 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; outputs get the usual mode
+    from core import outputs  # the manifest of the command's declared output folder
+
+    if not (tmp / outputs.MANIFEST).exists():
+        write_json(tmp / outputs.MANIFEST, outputs.declared_manifest(path))
+    try:
+        _check_replaceable(path)
+    except InputError:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     old = None
     if path.exists():
         old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=path.parent))
@@ -79,6 +94,19 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     os.replace(tmp, path)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _check_replaceable(path: Path) -> None:
+    """atomic_dir replaces only an empty folder or one scanamp wrote (never a file)."""
+    from core.outputs import MANIFEST
+
+    if not (path.exists() or path.is_symlink()):
+        return
+    if path.is_dir() and not path.is_symlink() and (
+            (path / MANIFEST).is_file() or not any(path.iterdir())):
+        return
+    raise InputError("exists and is not an empty folder or one scanamp wrote; nothing was "
+                     "written (choose a new output folder)", path=path)
 
 
 @contextlib.contextmanager

@@ -17,6 +17,7 @@ whose inputs did not change can be skipped (:mod:`core.stages`).
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import json
 import os
 import shutil
@@ -27,7 +28,7 @@ from core.files import atomic_dir
 from core.validate import InputError
 
 __all__ = ["MANIFEST", "read_manifest", "check_output", "check_output_file", "output_dir",
-           "version"]
+           "version", "writing", "write_manifest", "declared_manifest"]
 
 #: the manifest file inside every output folder scanamp writes
 MANIFEST = ".scanamp.json"
@@ -41,6 +42,51 @@ def version() -> str:
         return metadata.version("scanamp")
     except metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
+
+
+#: the "command" of a folder written through the Python API rather than the CLI
+API = "api"
+#: the output folder the running command declared (set by :func:`writing`)
+_DECLARED: contextvars.ContextVar[tuple[Path, str] | None] = contextvars.ContextVar(
+    "scanamp_declared_output", default=None)
+
+
+def _manifest(command: str) -> dict:
+    # no time stamp: the same run gives the same bytes, the manifest included
+    return {"format": "scanamp.output/1", "command": command, "version": version()}
+
+
+def write_manifest(folder: str | os.PathLike, command: str) -> Path:
+    """Write the manifest that marks ``folder`` as written by ``scanamp command``."""
+    m = Path(folder) / MANIFEST
+    m.write_text(json.dumps(_manifest(command), indent=2) + "\n")
+    return m
+
+
+def declared_manifest(path: str | os.PathLike) -> dict:
+    """The manifest for folder ``path``: the running command's if ``path`` is the output it
+    declared, else the Python API's (``"command": "api"``).
+
+    :func:`core.files.atomic_dir` calls this to put the manifest into the folder before
+    it is renamed into place, so a command's output is marked as ours atomically.
+    """
+    declared = _DECLARED.get()
+    if declared is None or Path(path).resolve() != declared[0]:
+        return _manifest(API)
+    return _manifest(declared[1])
+
+
+@contextlib.contextmanager
+def writing(path: str | os.PathLike, command: str) -> Iterator[None]:
+    """Declare ``path`` as the output folder of ``command`` for the duration of a run.
+
+    Any :func:`core.files.atomic_dir` that writes exactly ``path`` then adds the manifest.
+    """
+    token = _DECLARED.set((Path(path).resolve(), command))
+    try:
+        yield
+    finally:
+        _DECLARED.reset(token)
 
 
 def read_manifest(path: str | os.PathLike) -> dict | None:
@@ -95,8 +141,10 @@ def check_output(path: str | os.PathLike, *, command: str,
         raise InputError(f"is a folder scanamp did not write (no {MANIFEST}); choose a new "
                          "output folder (nothing was written)", path=path)
     if manifest["command"] != command:
-        raise InputError(f"holds the output of 'scanamp {manifest['command']}', not "
-                         f"'scanamp {command}'; choose a new output folder", path=path)
+        who = ("was written through scanamp's Python API" if manifest["command"] == API
+               else f"holds the output of 'scanamp {manifest['command']}'")
+        raise InputError(f"{who}, not by 'scanamp {command}'; choose a new output folder",
+                         path=path)
     if not overwrite:
         raise InputError(f"exists (written by 'scanamp {command}'); pass --overwrite to "
                          "replace it, or choose a new output folder", path=path)
@@ -153,7 +201,4 @@ def output_dir(path: str | os.PathLike, *, command: str,
         if reuse and path.is_dir() and read_manifest(path) is not None:
             _copy_into(path, tmp)
         yield tmp
-        # no time stamp: the same run gives the same bytes, the manifest included
-        (tmp / MANIFEST).write_text(json.dumps({
-            "format": "scanamp.output/1", "command": command, "version": version(),
-        }, indent=2) + "\n")
+        write_manifest(tmp, command)

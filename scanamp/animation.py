@@ -156,5 +156,5 @@ def render_animation(frames: Iterable, camera, out_path: str | os.PathLike, *,
             writer.close()
         if count == 0:
             raise ValueError("frames: expected at least one frame, got none")
-    log.info("wrote %s (%d frames)", out_path, count)
+    log.debug("%s: %d frames", out_path.name, count)
     return out_path

@@ -8,17 +8,28 @@ defines ``NAME`` (``"scene"``), optionally ``GROUP`` (``"capture"`` for
 (:mod:`scanamp.options`), and is called as ``run(args, config)`` with the effective
 config. Errors: bad input exits 2 with one line ``error: ...``;
 an algorithm that failed or an internal error exits 1 (traceback under --debug).
+
+Outputs never destroy (:mod:`core.outputs`). A command whose parser has ``--out`` gets
+``--overwrite``; before it runs, its output is checked against what exists and against
+every input path among its arguments. ``OUTPUT`` says what ``--out`` is: ``"dir"``
+(default), ``"file"``, or ``"resume"`` (a folder the same command may extend without
+``--overwrite``: a study); ``OUTPUT_DEST`` names another argument holding the output
+(``"json"``), and ``companions(args)`` lists files or folders written beside a file
+output. The output folder gets the manifest that marks it as scanamp's.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import os
 import pkgutil
+import re
 import sys
 import traceback
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 import cv2  # noqa: E402,F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imwrite)
@@ -36,6 +47,44 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+# core.files writes into ".NAME.tmp-XXXXXXXX" beside NAME and renames it into place:
+# messages name the final path, never the temporary one.
+_TEMP_NAME = re.compile(r"\.([^/\s]+?)\.(?:tmp|old)-[A-Za-z0-9_]{8}")
+
+
+class _FinalPaths(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        msg = record.getMessage()
+        if ".tmp-" in msg or ".old-" in msg:
+            record.msg, record.args = _TEMP_NAME.sub(r"\1", msg), None
+        return True
+
+
+def versions() -> dict[str, str]:
+    """scanamp's version and those of its core dependencies (``scanamp --version``)."""
+    from importlib import metadata
+
+    from core.outputs import version
+
+    found = {"scanamp": version()}
+    for dist in ("numpy", "opencv-contrib-python-headless", "open3d", "pycolmap", "pymeshlab",
+                 "pyvista"):
+        try:
+            found[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            found[dist] = "not installed"
+    return found
+
+
+class _Version(argparse.Action):
+    def __call__(self, parser, namespace, values, option_string=None):
+        v = versions()
+        sys.stdout.write(f"scanamp {v.pop('scanamp')} (Python {sys.version.split()[0]})\n")
+        for name, ver in v.items():
+            sys.stdout.write(f"  {name} {ver}\n")
+        parser.exit(0)
+
+
 def _command_modules():
     import scanamp.commands as pkg
 
@@ -48,6 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="scanamp", description=(
         "Simulate 3-D acquisition of procedural scenes, reconstruct and evaluate meshes, "
         "and amplify them with procedural modeling and animation."))
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="print scanamp's version and those of its core dependencies")
     parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logs")
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -74,8 +125,71 @@ def build_parser() -> argparse.ArgumentParser:
         config_cls = getattr(mod, "CONFIG", None)
         if config_cls is not None:
             add_config_flags(p, config_cls)
-        p.set_defaults(_run=mod.run, _config_cls=config_cls)
+        dest = getattr(mod, "OUTPUT_DEST", "out")
+        if any(a.dest == dest for a in p._actions):
+            p.add_argument("--overwrite", action="store_true",
+                           help="replace an output this command wrote before (never anything "
+                                "else)")
+        command = f"{group} {mod.NAME}" if group else mod.NAME
+        p.set_defaults(_run=mod.run, _config_cls=config_cls, _module=mod, _command=command)
     return parser
+
+
+def _input_paths(args: argparse.Namespace, dest: str) -> list[Path]:
+    """Every existing path among the arguments other than the output: the inputs."""
+    found = []
+    for key, value in vars(args).items():
+        if key == dest or key.startswith("_"):
+            continue
+        for v in value if isinstance(value, (list, tuple)) else [value]:
+            if isinstance(v, (str, Path)) and str(v) and os.path.exists(v):
+                found.append(Path(v))
+    return found
+
+
+def _check_outputs(args: argparse.Namespace) -> tuple[Path, str] | None:
+    """Refuse an output that would destroy something; the folder to mark as ours, if any."""
+    from core.outputs import check_output, check_output_file, read_manifest
+
+    mod = args._module
+    dest = getattr(mod, "OUTPUT_DEST", "out")
+    out, kind = getattr(args, dest, None), getattr(mod, "OUTPUT", "dir")
+    if out is None and kind != "file":
+        return None
+    inputs = _input_paths(args, dest)
+    overwrite = bool(getattr(args, "overwrite", False))
+    if kind == "file":
+        if out is not None:
+            check_output_file(out, inputs=inputs, overwrite=overwrite)
+        companions = getattr(mod, "companions", None)
+        for extra in (companions(args) if companions else []):
+            extra = Path(extra)
+            if extra.is_dir():
+                check_output(extra, command=args._command, inputs=inputs, overwrite=overwrite)
+            else:
+                check_output_file(extra, inputs=inputs, overwrite=overwrite)
+        return None
+    out = Path(out)
+    resumable = kind == "resume" and read_manifest(out) is not None
+    check_output(out, command=args._command, inputs=inputs, overwrite=overwrite or resumable)
+    return out, args._command
+
+
+def _run(args: argparse.Namespace) -> int:
+    from core import outputs
+
+    declared = _check_outputs(args)
+    with contextlib.ExitStack() as stack:
+        if declared is not None:
+            stack.enter_context(outputs.writing(*declared))
+        if args._config_cls is not None:
+            code = int(args._run(args, config_from_args(args._config_cls, args)) or 0)
+        else:
+            code = int(args._run(args) or 0)
+    if declared is not None and code == 0 and declared[0].is_dir() and \
+            outputs.read_manifest(declared[0]) is None:
+        outputs.write_manifest(*declared)  # written in place rather than by atomic_dir
+    return code
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     level = logging.DEBUG if args.debug else (logging.WARNING if args.quiet else logging.INFO)
     logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(_FinalPaths())
     if not args.debug:
         for noisy in ("numba", "matplotlib", "PIL", "distributed", "asyncio"):
             logging.getLogger(noisy).setLevel(logging.WARNING)
@@ -91,9 +207,7 @@ def main(argv: list[str] | None = None) -> int:
 
         progress.enable(sys.stderr.isatty())
     try:
-        if args._config_cls is not None:
-            return int(args._run(args, config_from_args(args._config_cls, args)) or 0)
-        return int(args._run(args) or 0)
+        return _run(args)
     except (InputError, ValueError, FileNotFoundError, IsADirectoryError,
             NotADirectoryError) as exc:
         if args.debug:

@@ -49,7 +49,7 @@ def test_atomic_dir_keeps_old_on_failure(tmp_path):
         with atomic_dir(out) as d:
             (d / "b").write_text("2")
             raise RuntimeError("boom")
-    assert sorted(p.name for p in out.iterdir()) == ["a"]
+    assert sorted(p.name for p in out.iterdir()) == [".scanamp.json", "a"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from core.outputs import MANIFEST, check_output_file, output_dir, read_manifest
+from core.outputs import MANIFEST, check_output, check_output_file, output_dir, read_manifest
 from core.validate import InputError
 
 
@@ -39,7 +39,7 @@ def test_own_folder_needs_overwrite_and_same_command(tmp_path):
     out = _write(tmp_path / "out")
     with pytest.raises(InputError, match="--overwrite"):
         _write(out)
-    with pytest.raises(InputError, match="'scanamp scene', not 'scanamp capture sfm'"):
+    with pytest.raises(InputError, match="'scanamp scene', not by 'scanamp capture sfm'"):
         _write(out, cmd="capture sfm", overwrite=True)
     (out / "a.txt").write_text("old")
     _write(out, overwrite=True)
@@ -80,3 +80,32 @@ def test_single_files(tmp_path):
         check_output_file(f, inputs=[f], overwrite=True)
     with pytest.raises(InputError, match="is a folder"):
         check_output_file(tmp_path)
+
+
+def test_api_folders_are_replaced_by_the_api_but_not_by_a_command(tmp_path):
+    from core.files import atomic_dir
+    from core.outputs import read_manifest
+
+    with atomic_dir(tmp_path / "cap") as d:
+        (d / "a").write_text("1")
+    assert read_manifest(tmp_path / "cap")["command"] == "api"
+    with atomic_dir(tmp_path / "cap") as d:  # the Python API may redo its own output
+        (d / "b").write_text("2")
+    assert (tmp_path / "cap" / "b").exists()
+    with pytest.raises(InputError, match="Python API, not by 'scanamp capture laser'"):
+        check_output(tmp_path / "cap", command="capture laser", overwrite=True)
+
+
+def test_atomic_dir_never_replaces_a_users_folder_or_file(tmp_path):
+    from core.files import atomic_dir
+
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "thesis.tex").write_text("years of work")
+    (tmp_path / "notes.txt").write_text("notes")
+    for target in (tmp_path / "mine", tmp_path / "notes.txt"):
+        with pytest.raises(InputError, match="nothing was written"):
+            with atomic_dir(target) as d:
+                (d / "x").write_text("x")
+    assert (tmp_path / "mine" / "thesis.tex").read_text() == "years of work"
+    assert (tmp_path / "notes.txt").read_text() == "notes"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine", "notes.txt"]

@@ -9,6 +9,11 @@ from scanamp.commands._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
 NAME = "camera"
+OUTPUT = "file"
+
+
+def companions(args):
+    return [report_path(args.out)]
 HELP = "intrinsics and distortion of a real camera from photos of a board"
 
 

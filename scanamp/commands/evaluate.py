@@ -7,6 +7,8 @@ import sys
 from pathlib import Path
 
 NAME = "evaluate"
+OUTPUT = "file"
+OUTPUT_DEST = "json"
 HELP = ("score a reconstruction (mesh or point cloud) against a ground-truth surface: "
         "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff")
 

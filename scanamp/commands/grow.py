@@ -8,6 +8,11 @@ import sys
 from pathlib import Path
 
 NAME = "grow"
+OUTPUT = "file"
+
+
+def companions(args):
+    return [args.lines] if args.lines is not None else []
 HELP = "grow an L-system grammar (a .lsys file or a shipped example name) into a mesh"
 
 

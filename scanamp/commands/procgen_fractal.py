@@ -10,6 +10,7 @@ from scanamp.commands._procgen_common import add_output, check_out
 
 NAME = "fractal"
 GROUP = "procgen"
+OUTPUT = "file"
 HELP = "render a deterministic fractal to PNG (koch, sierpinski, fern, mandelbrot, julia)"
 
 log = logging.getLogger(__name__)

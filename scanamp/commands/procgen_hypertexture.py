@@ -14,6 +14,11 @@ from scanamp.commands._procgen_common import (
 
 NAME = "hypertexture"
 GROUP = "procgen"
+OUTPUT = "file"
+
+
+def companions(args):
+    return [] if args.no_preview else [preview_path(args.out)]
 HELP = "hypertexture a sphere, the fractal egg, a swept polyline or a mesh (marching cubes)"
 
 log = logging.getLogger(__name__)

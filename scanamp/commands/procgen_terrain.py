@@ -16,6 +16,11 @@ from scanamp.commands._procgen_common import (
 
 NAME = "terrain"
 GROUP = "procgen"
+OUTPUT = "file"
+
+
+def companions(args):
+    return [] if args.no_preview else [preview_path(args.out)]
 HELP = "fractal terrain (diamond-square, fBm or ridged; tileable) as a mesh, with water"
 
 log = logging.getLogger(__name__)

@@ -12,6 +12,11 @@ from core.image_io import write_image
 from data_synth.scenes import build_scene
 
 NAME = "render"
+OUTPUT = "file"
+
+
+def companions(args):
+    return [str(args.out)[:-4] + ".gt"] if args.gt else []
 HELP = "render one view of a scene (and its ground-truth depth, normals, ids)"
 log = logging.getLogger("scanamp")
 

@@ -3,6 +3,7 @@
 import logging
 
 NAME = "study"
+OUTPUT = "resume"
 HELP = ("run a scanner study: a grid or random sweep over capture/reconstruction "
         "parameters; resumable; writes results.csv, results.parquet and plots/")
 log = logging.getLogger("scanamp")
