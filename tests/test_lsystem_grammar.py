@@ -203,3 +203,16 @@ def test_parameter_overflow_is_an_error_naming_the_line(text):
 ])
 def test_example_classes(name, classes):
     assert set(load_grammar(name).classes) == classes
+
+
+@pytest.mark.parametrize("text, line, column, what", [
+    ("axiom: F\nF -> F[+F\n", 2, 7, "never closed"),          # the F -> F[+F
+    ("axiom: F[+F[-F]\nF -> FF\n", 1, 9, "never closed"),     # in the axiom
+    ("axiom: F\nF -> F]+F[\n", 2, 7, "without a matching"),
+    ("axiom: F\nF -> F[+Q]\n", 2, 9, "unknown symbol 'Q'"),
+    ("axiom: A(1)\nA(x) -> A(x, 2)\n", 2, 9, "takes 1 parameter"),
+])
+def test_grammars_it_would_have_to_guess_at_are_refused_with_line_and_column(
+        text, line, column, what):
+    with pytest.raises(GrammarError, match=f"line {line}, column {column}: .*{what}"):
+        parse_grammar(text, source="g.lsys")

@@ -539,11 +539,19 @@ def _validate(g: Grammar, path, axiom_line):
 
 
 def _check_brackets(mods, ctx):
-    depth = 0
+    """Every ']' closes a '[' and every '[' is closed, in the same string: a branch is
+    never left open for the derivation to guess where it ends."""
+    opened = []
     for m in mods:
-        depth += (m.symbol == "[") - (m.symbol == "]")
-        if depth < 0:
-            raise ctx.error("']' without a matching '['", m.column)
+        if m.symbol == "[":
+            opened.append(m.column)
+        elif m.symbol == "]":
+            if not opened:
+                raise ctx.error("']' without a matching '['", m.column)
+            opened.pop()
+    if opened:
+        raise ctx.error(f"unbalanced brackets: {len(opened)} '[' never closed with ']'",
+                        opened[-1])
 
 
 def _check_groups(g: Grammar, path):
