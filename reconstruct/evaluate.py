@@ -62,7 +62,6 @@ TAU_FRACTION = 0.005
 SAMPLES_PER_TAU2 = 8.0
 #: Default cap on the samples drawn per side (for speed); a 15 cm object reaches it.
 DEFAULT_MAX_SAMPLES = 200_000
-_ICP_MAX_POINTS = 50_000
 
 
 @dataclass(frozen=True)
@@ -94,9 +93,13 @@ class EvaluationResult:
     distance : {"surface", "samples"}
         How distances were measured (see :func:`evaluate`).
     icp_fitness, icp_inlier_rmse : float or None
-        Open3D ICP figures when aligned (fraction of inliers, their RMS distance).
+        The alignment's final ICP figures when aligned (fraction of inliers within the
+        threshold, their RMS distance).
     icp_reference_from_recon : (4, 4) tuple of tuples or None
         Rigid transform applied to the reconstruction before scoring.
+    alignment : dict or None
+        How it was aligned (:meth:`reconstruct.registration.Registration.to_dict`):
+        method, threshold, and for ``global`` the coarse stage's source and fitness.
     """
 
     tau: float
@@ -119,6 +122,7 @@ class EvaluationResult:
     icp_fitness: float | None = None
     icp_inlier_rmse: float | None = None
     icp_reference_from_recon: tuple | None = None
+    alignment: dict | None = None
 
     def to_dict(self) -> dict:
         """Plain JSON-ready dict of every field (None stays None)."""
@@ -149,11 +153,19 @@ class EvaluationResult:
         ]
         if self.icp_fitness is not None:
             t = np.asarray(self.icp_reference_from_recon)
-            rows += [("ICP fitness", f"{self.icp_fitness:.4f}"),
-                     ("ICP inlier RMSE", _m(self.icp_inlier_rmse)),
-                     ("ICP translation", "[" + ", ".join(f"{x:.6g}" for x in t[:3, 3]) + "] m")]
+            how = (self.alignment or {}).get("method", "icp")
+            rows += [("alignment", how),
+                     ("alignment fitness", f"{self.icp_fitness:.4f}"),
+                     ("alignment inlier RMSE", _m(self.icp_inlier_rmse)),
+                     ("alignment rotation", f"{_rotation_deg(t[:3, :3]):.4g} deg"),
+                     ("alignment translation",
+                      "[" + ", ".join(f"{x:.6g}" for x in t[:3, 3]) + "] m")]
         width = max(len(k) for k, _ in rows)
         return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _rotation_deg(r: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1.0, 1.0))))
 
 
 def _m(x: float) -> str:
@@ -290,6 +302,7 @@ def evaluate(
     density: float | None = None,
     icp: bool = False,
     icp_threshold: float | None = None,
+    align: str | None = None,
     reference_mask: Callable[[np.ndarray], np.ndarray] | None = None,
     thin_points: bool = True,
     distance: str = "surface",
@@ -310,10 +323,14 @@ def evaluate(
         Mesh samples per m^2, the same on both sides. Default
         ``SAMPLES_PER_TAU2 / tau**2`` (spacing ~ tau / 2.8).
     icp : bool
-        Align the reconstruction to the reference with Open3D ICP before scoring
-        (point-to-plane when the reference samples have normals, else point-to-point).
+        Shorthand for ``align="icp"``.
     icp_threshold : float, optional
-        ICP correspondence distance; default ``5 * tau``.
+        Final ICP correspondence distance; default ``5 * tau``.
+    align : {"none", "icp", "global"}, optional
+        Align the reconstruction to the reference before scoring
+        (:func:`reconstruct.registration.register`): ``"icp"`` from the identity
+        (point-to-plane when the reference samples have normals), ``"global"`` from any
+        frame (a deterministic coarse registration first), for a scan in its own frame.
     reference_mask : callable, optional
         ``reference_mask(points (n, 3)) -> (n,) bool``: which reference samples
         count for recall and completeness (e.g. the surface the scanner could see).
@@ -362,19 +379,27 @@ def evaluate(
     rec_pts, rec_nrm = _samples(rec, density, max_samples, thin_points, rng)
     ref_pts, ref_nrm = _samples(ref, density, max_samples, thin_points, rng)
 
+    align = ("icp" if icp else "none") if align is None else align
+    check_choice(align, "align", ("none", "icp", "global"))
     icp_fields = {}
-    if icp:
+    if align != "none":
+        from reconstruct.registration import register
+
         threshold = 5.0 * tau if icp_threshold is None else check_positive(icp_threshold,
                                                                            "icp_threshold")
-        reference_from_recon, fitness, rmse = _icp(rec_pts, ref_pts, ref_nrm, threshold, rng)
-        rot, t = reference_from_recon[:3, :3], reference_from_recon[:3, 3]
+        reg = register(rec_pts, ref_pts, method=align, reference_normals=ref_nrm,
+                       threshold=threshold, rng=rng)
+        rot, t = reg.transform[:3, :3], reg.transform[:3, 3]
         rec_pts = rec_pts @ rot.T + t
         rec = _Geom(rec.name, rec.vertices @ rot.T + t, rec.triangles,
                     None if rec.normals is None else rec.normals @ rot.T)
         if rec_nrm is not None:
             rec_nrm = rec_nrm @ rot.T
-        icp_fields = dict(icp_fitness=fitness, icp_inlier_rmse=rmse,
-                          icp_reference_from_recon=tuple(map(tuple, reference_from_recon.tolist())))
+        icp_fields = dict(icp_fitness=reg.fitness, icp_inlier_rmse=reg.inlier_rmse,
+                          icp_reference_from_recon=tuple(map(tuple, reg.transform.tolist())),
+                          alignment={k: v for k, v in reg.to_dict().items()
+                                     if k not in ("reference_from_scan", "fitness",
+                                                  "inlier_rmse_m")})
 
     surface = distance == "surface"
     acc, acc_nrm = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
@@ -427,27 +452,3 @@ def _nearest(query: np.ndarray, samples: np.ndarray, sample_normals: np.ndarray 
     ans = scene.compute_closest_points(o3d.core.Tensor(q.astype(np.float32)))
     dist = np.linalg.norm(q - ans["points"].numpy().astype(np.float64), axis=1)
     return dist, ans["primitive_normals"].numpy().astype(np.float64)
-
-
-def _icp(src: np.ndarray, dst: np.ndarray, dst_normals: np.ndarray | None, threshold: float,
-         rng: np.random.Generator) -> tuple[np.ndarray, float, float]:
-    """Open3D ICP of ``src`` onto ``dst``; returns (dst_from_src (4, 4), fitness, rmse)."""
-    import open3d as o3d
-
-    reg = o3d.pipelines.registration
-    if len(src) > _ICP_MAX_POINTS:
-        src = src[np.sort(rng.choice(len(src), size=_ICP_MAX_POINTS, replace=False))]
-    source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(src))
-    target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(dst))
-    if dst_normals is not None:
-        target.normals = o3d.utility.Vector3dVector(dst_normals)
-        method = reg.TransformationEstimationPointToPlane()
-    else:
-        method = reg.TransformationEstimationPointToPoint()
-    result = reg.registration_icp(source, target, threshold, np.eye(4), method,
-                                  reg.ICPConvergenceCriteria(max_iteration=60))
-    if result.fitness == 0:
-        log.warning("ICP found no correspondences within %.4g m; scoring unaligned", threshold)
-        return np.eye(4), 0.0, float("nan")
-    return np.asarray(result.transformation).copy(), float(result.fitness), \
-        float(result.inlier_rmse)

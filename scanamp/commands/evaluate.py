@@ -24,8 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "bounding-box diagonal)")
     parser.add_argument("--json", type=Path, default=None, metavar="OUT",
                         help="also write the figures to this JSON file")
-    parser.add_argument("--icp", action="store_true",
-                        help="align RECON to the reference with ICP before scoring")
+    parser.add_argument("--align", choices=("none", "icp", "global"), default=None,
+                        help="align RECON to the reference before scoring: 'icp' from where it "
+                             "is, 'global' from any frame (a turntable, SfM or handheld scan: "
+                             "seeded coarse registration, then ICP); default none")
+    parser.add_argument("--icp", action="store_true", help="the same as --align icp")
     parser.add_argument("--distance", choices=("surface", "samples"), default="surface",
                         help="measure to the other mesh's surface (default, exact) or to its "
                              "nearest sample (the Tanks and Temples / DTU protocol)")
@@ -48,7 +51,10 @@ def run(args: argparse.Namespace) -> int:
     reference = read_geometry(args.reference)
     max_samples = DEFAULT_MAX_SAMPLES if args.max_samples is None else args.max_samples
     try:
-        result = evaluate(recon, reference, tau=args.tau, density=args.density, icp=args.icp,
+        if args.icp and args.align not in (None, "icp"):
+            raise InputError(f"--icp contradicts --align {args.align}", field="--align")
+        align = args.align or ("icp" if args.icp else "none")
+        result = evaluate(recon, reference, tau=args.tau, density=args.density, align=align,
                           distance=args.distance,
                           rng=np.random.default_rng(args.seed), max_samples=max_samples)
     except ValueError as exc:  # name the file the library's message is about
@@ -62,6 +68,13 @@ def run(args: argparse.Namespace) -> int:
                                  field="--" + option.replace("_", "-")) from None
         raise
     sys.stdout.write(f"{args.recon} vs {args.reference}\n{result.table()}\n")
+    from reconstruct.registration import LOW_FITNESS
+
+    if result.icp_fitness is not None and result.icp_fitness < LOW_FITNESS:
+        sys.stderr.write(f"warning: only {100 * result.icp_fitness:.0f}% of {args.recon} lies "
+                         f"near the reference after --align {align}: these scores mean little "
+                         + ("(try --align global)" if align == "icp" else
+                            "(is it the same object, at the same scale?)") + "\n")
     if args.json is not None:
         write_json(args.json, {"recon": str(args.recon), "reference": str(args.reference),
                                **result.to_dict()})
