@@ -7,7 +7,7 @@ SYSLIBS  := libusb-1.0-0 libgl1 libegl1 libgomp1
 DEMO_OUT ?= demo-out
 REAL     := .cache/real
 
-.PHONY: setup syslibs demo test bench lint notebooks clean real-data
+.PHONY: setup syslibs warm demo test bench lint notebooks clean real-data
 
 setup: $(STAMP)
 
@@ -29,7 +29,16 @@ $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PY_SYS) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e ".[dev]"
+	@$(MAKE) --no-print-directory warm
 	@touch $(STAMP)
+
+# Build the compiled kernels' cache (numba, cache=True) once, at set-up, by running the
+# demo at its smallest scale: the first `make demo` is then as fast as the second.
+warm:
+	@echo "building the compiled kernels' cache (about 1.5 min, once)"
+	@rm -rf .cache/warm
+	$(PY) -m scanamp -q demo --scale test --out .cache/warm/demo
+	@rm -rf .cache/warm
 
 demo: $(STAMP)
 	$(VENV)/bin/scanamp demo --out $(DEMO_OUT) --overwrite
