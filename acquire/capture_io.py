@@ -86,7 +86,8 @@ def _check_files(entry: dict, prefix: str, root: Path, jpath: Path):
         if key in entry:
             _check(isinstance(entry[key], str), "expected a relative path", jpath,
                    f"{prefix}.{key}")
-            _check((root / entry[key]).is_file(), "file not found", jpath, f"{prefix}.{key}")
+            _check((root / entry[key]).is_file(), f"file not found: {entry[key]}", jpath,
+                   f"{prefix}.{key}")
     if "images" in entry:
         imgs = entry["images"]
         _check(isinstance(imgs, list) and len(imgs) > 0, "expected a non-empty list", jpath,
@@ -94,11 +95,11 @@ def _check_files(entry: dict, prefix: str, root: Path, jpath: Path):
         for j, rel in enumerate(imgs):
             if isinstance(rel, list):  # e.g. stereo pairs or pattern stacks
                 for k, r in enumerate(rel):
-                    _check((root / r).is_file(), "file not found", jpath,
+                    _check((root / r).is_file(), f"file not found: {r}", jpath,
                            f"{prefix}.images[{j}][{k}]")
             else:
-                _check(isinstance(rel, str) and (root / rel).is_file(), "file not found", jpath,
-                       f"{prefix}.images[{j}]")
+                _check(isinstance(rel, str) and (root / rel).is_file(),
+                       f"file not found: {rel}", jpath, f"{prefix}.images[{j}]")
 
 
 def validate_capture(data: Any, root: Path, jpath: Path) -> dict:

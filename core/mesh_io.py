@@ -47,7 +47,14 @@ def read_mesh(path: str | os.PathLike):
                          path=path)
     _check_complete(path, "vertex", len(mesh.vertices))
     _check_complete(path, "face", len(mesh.triangles))
+    _check_finite(path, np.asarray(mesh.vertices))
     return mesh
+
+
+def _check_finite(path: Path, vertices: np.ndarray) -> None:
+    bad = int(np.count_nonzero(~np.isfinite(vertices).all(axis=1)))
+    if bad:
+        raise InputError(f"vertices: {bad} with NaN or infinite coordinates", path=path)
 
 
 def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):

@@ -61,6 +61,8 @@ def _open(path: Path):
     except cv2.error as exc:
         raise InputError(f"not a cv2.FileStorage YAML/XML file ({exc.msg.strip()})",
                          path=path) from None
+    except SystemError:  # cv2's binding raises this on some malformed files (JSON)
+        raise InputError("not a cv2.FileStorage YAML/XML file (unreadable)", path=path) from None
     if not fs.isOpened():
         raise InputError("not a cv2.FileStorage YAML/XML file", path=path)
     return fs

@@ -42,8 +42,7 @@ log = logging.getLogger("scanamp")
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2, like every other bad input
-        self.print_usage(sys.stderr)
-        sys.stderr.write(f"error: {message}\n")
+        sys.stderr.write(f"error: {self.prog}: {message} (see {self.prog} --help)\n")
         sys.exit(2)
 
 

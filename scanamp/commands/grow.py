@@ -49,7 +49,10 @@ def run(args) -> int:
                          "write .gltf instead")
     grammar = load_grammar(args.grammar)
     rng = np.random.default_rng(args.seed)
-    string = derive(grammar, args.n, rng=rng)
+    try:
+        string = derive(grammar, args.n, rng=rng)
+    except ValueError as exc:  # a limit of the derivation: name the grammar
+        raise ValueError(f"{args.grammar}: {exc}") from None
     result = interpret(string, grammar)
     if args.out is not None:
         mesh = to_mesh(result, sides=args.sides, leaves=not args.no_leaves,

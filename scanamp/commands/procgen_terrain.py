@@ -52,8 +52,8 @@ def run(args) -> int:
 
     out = check_out(args.out, MESH_OUT)
     check_grid_size(args.size, "--size")
-    if not args.extent > 0:
-        raise ValueError(f"--extent: expected a positive length, got {args.extent}")
+    if not 0 < args.extent < float("inf"):
+        raise ValueError(f"--extent: expected a positive finite length, got {args.extent}")
     rng = np.random.default_rng(args.seed)
     if args.tileable:
         z = tileable_terrain(args.size, rng=rng, hurst=args.hurst, height=args.height)

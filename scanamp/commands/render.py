@@ -58,6 +58,8 @@ def run(args):
         w, h = (int(x) for x in args.size.lower().split("x"))
     except ValueError:
         raise ValueError(f"--size: expected WIDTHxHEIGHT, got {args.size!r}") from None
+    if not (0 < w <= 16384 and 0 < h <= 16384):
+        raise ValueError(f"--size: expected WIDTHxHEIGHT between 1 and 16384, got {args.size!r}")
     if not str(args.out).lower().endswith(".png"):
         raise ValueError(f"--out: expected a .png path, got {args.out!r}")
     bundle = build_scene(args.scene)
