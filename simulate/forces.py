@@ -32,17 +32,7 @@ import numba as nb
 import numpy as np
 
 from core.validate import check_array, check_choice, check_positive
-from procgen.noise.perlin import (
-    _GX,
-    _GY,
-    _GZ,
-    _cell,
-    _corner_values,
-    _hashes,
-    _trilerp,
-    noise3,
-    perm_table,
-)
+from procgen.noise import curl_potentials, noise3, perm_table
 from simulate.neighbours import neighbour_lists, threads_for
 
 __all__ = ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
@@ -211,58 +201,6 @@ class Springs:
 # Offsets decorrelating the Perlin-vector components (irrational, far from lattice points).
 _O1 = (31.416, 47.853, 12.734)
 _O2 = (-19.271, 8.917, 53.129)
-
-
-@nb.njit(inline="always", cache=True)
-def _gradient(h, c, x, y, z, u, v, w, du, dv, dw):
-    """Gradient of improved noise in a cell from the corner hashes ``h`` and the corner
-    values ``c`` (corners ordered as :func:`procgen.noise.perlin._hashes`): the
-    interpolated corner gradients plus the fade derivatives times the value differences."""
-    gx = _trilerp(u, v, w, (_GX[h[0] & 15], _GX[h[1] & 15], _GX[h[2] & 15], _GX[h[3] & 15],
-                            _GX[h[4] & 15], _GX[h[5] & 15], _GX[h[6] & 15], _GX[h[7] & 15]))
-    gy = _trilerp(u, v, w, (_GY[h[0] & 15], _GY[h[1] & 15], _GY[h[2] & 15], _GY[h[3] & 15],
-                            _GY[h[4] & 15], _GY[h[5] & 15], _GY[h[6] & 15], _GY[h[7] & 15]))
-    gz = _trilerp(u, v, w, (_GZ[h[0] & 15], _GZ[h[1] & 15], _GZ[h[2] & 15], _GZ[h[3] & 15],
-                            _GZ[h[4] & 15], _GZ[h[5] & 15], _GZ[h[6] & 15], _GZ[h[7] & 15]))
-    # x: differences b-a, d-c, f-e, h-g bilinear in (v, w); y and z alike
-    gx += du * _bilerp(v, w, c[1] - c[0], c[3] - c[2], c[5] - c[4], c[7] - c[6])
-    gy += dv * _bilerp(u, w, c[2] - c[0], c[3] - c[1], c[6] - c[4], c[7] - c[5])
-    gz += dw * _bilerp(u, v, c[4] - c[0], c[5] - c[1], c[6] - c[2], c[7] - c[3])
-    return _trilerp(u, v, w, c), gx, gy, gz
-
-
-@nb.njit(inline="always", cache=True)
-def _bilerp(s, t, a, b, c, d):
-    ab = a + s * (b - a)
-    cd = c + s * (d - c)
-    return ab + t * (cd - ab)
-
-
-@nb.njit(inline="always", cache=True)
-def curl_potentials(p, x, y, z):
-    """Two decorrelated improved noises and their gradients from one lattice walk.
-
-    The corner hashes are Perlin's (``p`` a :func:`perm_table`); the first noise takes its
-    gradient index from the low four bits of each hash — it is :func:`noise3` exactly —
-    and the second from the high four bits. Over a permutation of 0..255 the two nibbles
-    are uniform and independent, so the second noise is another improved noise on the
-    same lattice, for the price of eight more dot products instead of a second walk.
-
-    Returns ``(n1, dn1/dx, dn1/dy, dn1/dz, n2, dn2/dx, dn2/dy, dn2/dz)``.
-    """
-    ix, x, u = _cell(x)
-    iy, y, v = _cell(y)
-    iz, z, w = _cell(z)
-    du = 30.0 * x * x * (x * (x - 2.0) + 1.0)
-    dv = 30.0 * y * y * (y * (y - 2.0) + 1.0)
-    dw = 30.0 * z * z * (z * (z - 2.0) + 1.0)
-    X = ix & 255
-    Y = iy & 255
-    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
-    g = (h[0] >> 4, h[1] >> 4, h[2] >> 4, h[3] >> 4, h[4] >> 4, h[5] >> 4, h[6] >> 4, h[7] >> 4)
-    n1, g1x, g1y, g1z = _gradient(h, _corner_values(h, x, y, z), x, y, z, u, v, w, du, dv, dw)
-    n2, g2x, g2y, g2z = _gradient(g, _corner_values(g, x, y, z), x, y, z, u, v, w, du, dv, dw)
-    return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
 def _accel_py(codes, params, perms, t, x, y, z, vx, vy, vz, inv_m, temp):

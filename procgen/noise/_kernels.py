@@ -82,12 +82,29 @@ def _dfade(t):
 
 
 @nb.njit(inline="always", cache=True)
-def _blend(g, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw):
-    """One component of the corner gradients ``g[h]`` interpolated over the cell."""
-    a, b, c, d, e, f, gg, h = g[ha], g[hb], g[hc], g[hd], g[he], g[hf], g[hg], g[hh]
-    return (a + u * (b - a) + v * (c - a) + w * (e - a) + uv * (a - b - c + d)
-            + vw * (a - c - e + gg) + wu * (a - b - e + f)
-            + uvw * (-a + b + c - d + e - f - gg + h))
+def _bilerp(s, t, a, b, c, d):
+    ab = a + s * (b - a)
+    cd = c + s * (d - c)
+    return ab + t * (cd - ab)
+
+
+@nb.njit(inline="always", cache=True)
+def _cell_gradient(g, c, u, v, w, du, dv, dw):
+    """The one gradient of improved noise in a cell: the corner gradients (indices
+    ``g & 15``, corners ordered as :func:`procgen.noise.perlin._hashes`) interpolated,
+    plus the fade derivatives times the corner-value differences ``c``.
+    Returns ``(n, dn/dx, dn/dy, dn/dz)``."""
+    gx = _trilerp(u, v, w, (_GX[g[0] & 15], _GX[g[1] & 15], _GX[g[2] & 15], _GX[g[3] & 15],
+                            _GX[g[4] & 15], _GX[g[5] & 15], _GX[g[6] & 15], _GX[g[7] & 15]))
+    gy = _trilerp(u, v, w, (_GY[g[0] & 15], _GY[g[1] & 15], _GY[g[2] & 15], _GY[g[3] & 15],
+                            _GY[g[4] & 15], _GY[g[5] & 15], _GY[g[6] & 15], _GY[g[7] & 15]))
+    gz = _trilerp(u, v, w, (_GZ[g[0] & 15], _GZ[g[1] & 15], _GZ[g[2] & 15], _GZ[g[3] & 15],
+                            _GZ[g[4] & 15], _GZ[g[5] & 15], _GZ[g[6] & 15], _GZ[g[7] & 15]))
+    # x: differences b-a, d-c, f-e, h-g bilinear in (v, w); y and z alike
+    gx += du * _bilerp(v, w, c[1] - c[0], c[3] - c[2], c[5] - c[4], c[7] - c[6])
+    gy += dv * _bilerp(u, w, c[2] - c[0], c[3] - c[1], c[6] - c[4], c[7] - c[5])
+    gz += dw * _bilerp(u, v, c[4] - c[0], c[5] - c[1], c[6] - c[2], c[7] - c[3])
+    return _trilerp(u, v, w, c), gx, gy, gz
 
 
 @nb.njit(inline="always", cache=True)
@@ -96,42 +113,36 @@ def noise3_grad(p, x, y, z):
     ix, x, u = _cell(x)
     iy, y, v = _cell(y)
     iz, z, w = _cell(z)
+    h = _hashes(p, ix & 255, (ix & 255) + 1, iy & 255, (iy & 255) + 1, iz & 255)
     du = _dfade(x)
     dv = _dfade(y)
     dw = _dfade(z)
-    X = ix & 255
-    Y = iy & 255
-    h = _hashes(p, X, X + 1, Y, Y + 1, iz & 255)
-    # corners a..h = (000, 100, 010, 110, 001, 101, 011, 111), gradient indices
-    ha = h[0] & 15
-    hb = h[1] & 15
-    hc = h[2] & 15
-    hd = h[3] & 15
-    he = h[4] & 15
-    hf = h[5] & 15
-    hg = h[6] & 15
-    hh = h[7] & 15
-    va, vb, vc, vd, ve, vf, vg, vh = _corner_values(h, x, y, z)
-    k1 = vb - va
-    k2 = vc - va
-    k3 = ve - va
-    k4 = va - vb - vc + vd
-    k5 = va - vc - ve + vg
-    k6 = va - vb - ve + vf
-    k7 = -va + vb + vc - vd + ve - vf - vg + vh
-    n = va + u * k1 + v * k2 + w * k3 + u * v * k4 + v * w * k5 + w * u * k6 + u * v * w * k7
-    uv = u * v
-    vw = v * w
-    wu = w * u
-    uvw = uv * w
-    # gradient: interpolated corner gradients + fade derivatives times the value differences
-    gx = _blend(_GX, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + du * (
-        k1 + v * k4 + w * k6 + vw * k7)
-    gy = _blend(_GY, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + dv * (
-        k2 + u * k4 + w * k5 + wu * k7)
-    gz = _blend(_GZ, ha, hb, hc, hd, he, hf, hg, hh, u, v, w, uv, vw, wu, uvw) + dw * (
-        k3 + v * k5 + u * k6 + uv * k7)
-    return n, gx, gy, gz
+    return _cell_gradient(h, _corner_values(h, x, y, z), u, v, w, du, dv, dw)
+
+
+@nb.njit(inline="always", cache=True)
+def curl_potentials(p, x, y, z):
+    """Two decorrelated improved noises and their gradients from one lattice walk.
+
+    The corner hashes are Perlin's (``p`` a :func:`perm_table`); the first noise takes its
+    gradient index from the low four bits of each hash — it is :func:`noise3` exactly —
+    and the second from the high four bits. Over a permutation of 0..255 the two nibbles
+    are uniform and independent, so the second noise is another improved noise on the
+    same lattice, for the price of eight more dot products instead of a second walk.
+
+    Returns ``(n1, dn1/dx, dn1/dy, dn1/dz, n2, dn2/dx, dn2/dy, dn2/dz)``.
+    """
+    ix, x, u = _cell(x)
+    iy, y, v = _cell(y)
+    iz, z, w = _cell(z)
+    h = _hashes(p, ix & 255, (ix & 255) + 1, iy & 255, (iy & 255) + 1, iz & 255)
+    du = _dfade(x)
+    dv = _dfade(y)
+    dw = _dfade(z)
+    g = (h[0] >> 4, h[1] >> 4, h[2] >> 4, h[3] >> 4, h[4] >> 4, h[5] >> 4, h[6] >> 4, h[7] >> 4)
+    n1, g1x, g1y, g1z = _cell_gradient(h, _corner_values(h, x, y, z), u, v, w, du, dv, dw)
+    n2, g2x, g2y, g2z = _cell_gradient(g, _corner_values(g, x, y, z), u, v, w, du, dv, dw)
+    return n1, g1x, g1y, g1z, n2, g2x, g2y, g2z
 
 
 @nb.njit(inline="always", cache=True)
