@@ -31,6 +31,7 @@ from acquire.camera import Camera
 from core.frames import rotation_about
 from reconstruct.calibrate_camera import board_pose, detect_target
 from reconstruct.stripe import StripeOptions, detect_peaks
+from reconstruct.turntable import fit_axis
 
 log = logging.getLogger(__name__)
 
@@ -298,21 +299,10 @@ def calibrate_turntable_axis(camera: Camera, images, angles_deg, target, *,
         raise RuntimeError(f"axis calibration: target found in {len(used)} views, need 3")
     ang = ang[used]
     R0, t0 = poses[0][:3, :3], poses[0][:3, 3]
-    # linear start: axis from relative rotations, point from (I - R) c = t_k - R t_0
-    acc = np.zeros(3)
-    A, b = [], []
-    for T, a in zip(poses[1:], ang[1:], strict=True):
-        Rr = T[:3, :3] @ R0.T
-        rv = cv2.Rodrigues(Rr)[0].ravel()
-        dphi = a - ang[0]
-        if abs(dphi) > 1e-6:
-            acc += rv * np.sign(dphi)
-        A.append(np.eye(3) - Rr)
-        b.append(T[:3, 3] - Rr @ t0)
-    axis = acc / np.linalg.norm(acc)
-    c = np.linalg.lstsq(np.vstack(A), np.concatenate(b), rcond=None)[0]
+    # linear start, then the reprojection errors of every view
     centre0 = poses[0][:3, :3] @ np.r_[np.asarray(target.size_m()) / 2, 0] + t0
-    c = c + ((centre0 - c) @ axis) * axis  # the axis point nearest the board's centre
+    axis, c = fit_axis([T[:3, :3] for T in poses], [T[:3, 3] for T in poses], ang,
+                       near=centre0)
 
     def unpack(x):
         a = x[:3] / np.linalg.norm(x[:3])

@@ -19,6 +19,7 @@ import numpy as np
 from core.validate import InputError, check_array
 from reconstruct.calibrate_camera import calibrate_camera_points, detect_board
 from reconstruct.stereo import StereoCalibration
+from reconstruct.turntable import fit_axis
 
 __all__ = ["PairViews", "detect_pair_views", "calibrate_pair", "calibrate_turntable_axis",
            "calibrate_turntable_mount", "world_from_cam_at"]
@@ -178,27 +179,7 @@ def calibrate_turntable_axis(object_points: list, image_points: list, angles_deg
         Rs.append(cv2.Rodrigues(rvec)[0])
         ts.append(tvec.ravel())
     a = np.radians(np.asarray(angles_deg, float))
-    # axis direction: rotation vectors of R_i R_0^T, each along +/- axis
-    axes = []
-    for i in range(1, len(Rs)):
-        rv = cv2.Rodrigues(Rs[i] @ Rs[0].T)[0].ravel()
-        da = a[i] - a[0]
-        if np.linalg.norm(rv) > 1e-6 and abs(da) > 1e-6:
-            axes.append(rv / np.linalg.norm(rv) * np.sign(da))
-    if not axes:
-        raise RuntimeError("axis views: the board did not turn between views")
-    n = np.mean(axes, axis=0)
-    n /= np.linalg.norm(n)
-    # a point c on the axis: for board points p, x_i = R_rel_i (x_0 - c) + c
-    A, b = [], []
-    for i in range(1, len(Rs)):
-        Rrel = Rs[i] @ Rs[0].T
-        trel = ts[i] - Rrel @ ts[0]  # x_i = Rrel x_0 + trel
-        A.append(np.eye(3) - Rrel)
-        b.append(trel)
-    A = np.concatenate(A + [n[None, :]])
-    b = np.concatenate(b + [[float(n @ np.mean(ts, axis=0))]])
-    c = np.linalg.lstsq(A, b, rcond=None)[0]
+    n, c = fit_axis(Rs, ts, a)  # the linear start, refined below
     # measured rotation angles about n vs reported
     meas = []
     for i in range(len(Rs)):
