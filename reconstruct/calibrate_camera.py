@@ -25,9 +25,8 @@ from core.validate import check_int
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "detect_target",
-           "detect_board", "to_gray",
-           "board_pose", "bootstrap_cameras"]
+__all__ = ["CameraCalibration", "calibrate_camera", "calibrate_camera_points", "detect_board",
+           "to_gray", "board_pose", "bootstrap_cameras"]
 
 DIST_MODELS = ("k1k2", "k1k2p1p2", "full")
 
@@ -94,21 +93,13 @@ def to_gray(img: np.ndarray) -> np.ndarray:
 
 def detect_board(target, image: np.ndarray):
     """``(object_points (k, 3), image_points (k, 2), ids (k,))`` of ``target`` in an
-    RGB/gray uint8/uint16 ``image``, or None where it is not detected."""
-    det = target.detect(to_gray(image))
-    if det is None:
-        return None
-    ids, px = det
-    return target.corner_points()[ids], px, ids
-
-
-def detect_target(image: np.ndarray, target) -> tuple[np.ndarray, np.ndarray] | None:
-    """Corners of ``target`` in ``image``: ``(object_points (k, 3), pixels (k, 2))`` or None."""
+    RGB/gray uint8/uint16 ``image`` (the target converts it to grey), or None where it is
+    not detected. The one board detector of the calibrations."""
     det = target.detect(image)
     if det is None:
         return None
     ids, px = det
-    return target.corner_points()[ids], px
+    return target.corner_points()[ids], px, ids
 
 
 def _rt_to_T(rvec, tvec):
@@ -181,7 +172,7 @@ def calibrate_camera(images, target, *, dist_model: str = "k1k2p1p2",
         if im.shape[:2] != (h, w):
             raise ValueError(f"images: {names[i]} is {im.shape[1]}x{im.shape[0]}, "
                              f"expected {w}x{h} like the first")
-        det = detect_target(im, target)
+        det = detect_board(target, im)
         if det is None or len(det[0]) < min_corners:
             rejected.append(i)
             continue

@@ -29,7 +29,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from core.frames import rotation_about
-from reconstruct.calibrate_camera import board_pose, detect_target
+from reconstruct.calibrate_camera import board_pose, detect_board
 from reconstruct.stripe import StripeOptions, detect_peaks
 from reconstruct.turntable import fit_axis
 
@@ -160,7 +160,7 @@ def calibrate_laser_plane(camera: Camera, pairs, target, *,
     pts_all, used, rejected, obs = [], [], [], []
     w_b, h_b = target.size_m()
     for i, (off, on) in enumerate(pairs):
-        det = detect_target(off, target)
+        det = detect_board(target, off)
         if det is None or len(det[0]) < 8:
             rejected.append(i)
             log.warning("laser-plane calibration: target not detected in %s", names[i])
@@ -273,13 +273,13 @@ def _poses(camera, images, target, names):
     cam = camera.with_pose(np.eye(4))
     obs, poses, used, rejected = [], [], [], []
     for i, img in enumerate(images):
-        det = detect_target(img, target)
+        det = detect_board(target, img)
         if det is None or len(det[0]) < 8:
             rejected.append(i)
             log.warning("axis calibration: target not detected in %s", names[i])
             continue
         poses.append(board_pose(det[0], det[1], cam))
-        obs.append(det)
+        obs.append(det[:2])
         used.append(i)
     return cam, obs, poses, used, rejected
 

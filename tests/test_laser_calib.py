@@ -212,7 +212,7 @@ def test_rendered_board_corners_are_unbiased(s):
     from acquire.laser import camera_directions
     from acquire.sensor import Sensor
     from acquire.targets import ChArUcoTarget
-    from reconstruct.calibrate_camera import detect_target
+    from reconstruct.calibrate_camera import detect_board
 
     rig = LaserRig(width=320, height=240)
     cam = rig.camera()
@@ -224,7 +224,7 @@ def test_rendered_board_corners_are_unbiased(s):
         hi = _hires(cam, s)
         img = _calib_image(tgt, T, hi, camera_directions(hi), s, None, _CALIB_AMBIENT,
                            Sensor.ideal(), np.random.default_rng(0))
-        obj, px = detect_target(img, tgt)
+        obj, px, _ = detect_board(tgt, img)
         errs.append(px - cam.project(obj @ T[:3, :3].T + T[:3, 3])[0])
     e = np.concatenate(errs)
     assert len(e) >= 30
