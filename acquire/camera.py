@@ -19,7 +19,7 @@ import numpy as np
 
 from core.validate import check_array, check_int, check_positive
 
-__all__ = ["Camera", "distort", "undistort", "look_at_cam_from_world"]
+__all__ = ["Camera", "distort", "undistort", "look_at_cam_from_world", "frame_camera"]
 
 
 def distort(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -248,3 +248,29 @@ class Camera:
         return cls(d["width"], d["height"], d["fx"], d["fy"], d["cx"], d["cy"],
                    np.asarray(d.get("dist", np.zeros(5)), float),
                    np.asarray(d.get("cam_from_world", np.eye(4)), float))
+
+
+def frame_camera(points: np.ndarray, *, width: int = 640, height: int = 480,
+                 fov_deg: float = 45.0, elevation_deg: float = 20.0,
+                 azimuth_deg: float = -90.0, margin: float = 1.15) -> Camera:
+    """A look-at camera that sees the bounding sphere of ``points (n, 3)`` whole.
+
+    The camera sits ``elevation_deg`` above the horizon and ``azimuth_deg`` about +z
+    (from +x), ``margin`` times as far as the sphere needs to fit the narrower field of
+    view (``fov_deg`` is the horizontal one). Non-finite points are ignored; with none
+    left, the unit cube is framed.
+
+    >>> cam = frame_camera(np.array([[0.0, 0, 0], [1, 1, 1]]), width=64, height=48)
+    >>> bool(cam.project(np.array([[0.0, 0, 0], [1, 1, 1]]))[1].all())
+    True
+    """
+    p = np.asarray(points, float).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    lo, hi = (p.min(0), p.max(0)) if len(p) else (-np.ones(3), np.ones(3))
+    center = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)
+    half_narrow = np.arctan(np.tan(np.radians(fov_deg) / 2) * min(1.0, height / width))
+    dist = margin * radius / np.sin(half_narrow)
+    el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
+    eye = center + dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return Camera.look_at(eye, center, width=width, height=height, fov_deg=fov_deg)

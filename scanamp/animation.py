@@ -27,7 +27,7 @@ from core.progress import track
 
 log = logging.getLogger(__name__)
 
-__all__ = ["render_animation", "draw_splats", "mesh_background", "frame_camera"]
+__all__ = ["render_animation", "draw_splats", "mesh_background"]
 
 
 def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0.12),
@@ -61,25 +61,6 @@ def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0
     img = np.clip(r.radiance.astype(np.float64), 0.0, 1.0)
     depth = np.where(r.mask, r.depth.astype(np.float64), np.inf)
     return img, depth
-
-
-def frame_camera(points: np.ndarray, *, width: int = 640, height: int = 480,
-                 fov_deg: float = 45.0, elevation_deg: float = 20.0, azimuth_deg: float = -90.0,
-                 margin: float = 1.15):
-    """A look-at camera that frames the bounding box of ``points (n, 3)``."""
-    from acquire.camera import Camera
-
-    p = np.asarray(points, float).reshape(-1, 3)
-    p = p[np.all(np.isfinite(p), axis=1)]
-    lo, hi = (p.min(0), p.max(0)) if len(p) else (-np.ones(3), np.ones(3))
-    center = 0.5 * (lo + hi)
-    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
-    # the bounding sphere fits the narrower field of view (fov_deg is the horizontal one)
-    half_narrow = np.arctan(np.tan(np.radians(fov_deg) / 2) * min(1.0, height / width))
-    dist = margin * radius / np.sin(half_narrow)
-    el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
-    eye = center + dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-    return Camera.look_at(eye, center, width=width, height=height, fov_deg=fov_deg)
 
 
 def draw_splats(frame: dict, camera, background, background_depth) -> np.ndarray:

@@ -144,9 +144,10 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
                  height: int = 480, fps: float = 24, size: float = 0.3) -> Path:
     """Render ``frames`` (a list of ``(positions (n, 3), headings (n, 3))``) as oriented
     glyphs over the shaded mesh, to MP4 or GIF."""
+    from acquire.camera import frame_camera
     from acquire.glyphs import render_glyphs
     from core.meshes import mesh_arrays
-    from scanamp.animation import frame_camera, mesh_background, render_animation
+    from scanamp.animation import mesh_background, render_animation
 
     out_path = Path(out_path)
     suffix = out_path.suffix.lower()

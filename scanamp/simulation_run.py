@@ -124,7 +124,8 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
         writer.close()
         sim_seconds = time.perf_counter() - t0
         if render and render_frames:
-            from scanamp.animation import frame_camera, mesh_background, render_animation
+            from acquire.camera import frame_camera
+            from scanamp.animation import mesh_background, render_animation
 
             pts = [f["points"] for f in render_frames if len(f["points"])]
             allp = np.concatenate(pts + [np.asarray(mesh.vertices)])
