@@ -27,7 +27,7 @@ applies dotted overrides (``{"meshing.depth": 10}``), as study sweeps and CLI fl
 >>> Demo(angle_deg=90)
 Traceback (most recent call last):
 ...
-ValueError: angle_deg: expected a value in (0, 90), got 90
+ValueError: angle_deg: expected a value in (0, 90), got 90.0
 """
 
 from __future__ import annotations

@@ -66,7 +66,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     >>> with atomic_dir(root / "out") as tmp:
     ...     _ = (tmp / "a.txt").write_text("x")
     >>> sorted(p.name for p in (root / "out").iterdir())
-    ['a.txt']
+    ['.scanamp.json', 'a.txt']
     """
     path = Path(path)
     _check_replaceable(path)

@@ -1,9 +1,11 @@
 """Scanner studies: grid or random sweeps over capture and reconstruction parameters.
 
->>> from scanamp.study import load_study, run_study      # doctest: +SKIP
->>> study = load_study("laser-angle")                    # a shipped name or a TOML path
->>> summary = run_study(study, "out/laser-angle", workers=2)
->>> summary["table"]                                     # also out/.../results.csv
+Usage (not run as a doctest: it runs the whole study)::
+
+    from scanamp.study import load_study, run_study
+    study = load_study("laser-angle")                    # a shipped name or a TOML path
+    summary = run_study(study, "out/laser-angle", workers=2)
+    summary["table"]                                     # also out/.../results.csv
 
 See ``docs/study.md`` for the file format and the shipped studies.
 """
