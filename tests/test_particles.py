@@ -79,10 +79,26 @@ def test_deaths_by_age_and_kill_plane_and_reproducible():
 
 
 def test_sink_removes_particles():
-    a = _system(1, sinks=[Sink(kind="box", lo=(-5, -5, 0.3), hi=(5, 5, 5))])
+    """A sink deletes exactly the particles that enter it: beside a twin system without the
+    sink (same seed), the survivors are the twin's particles that never entered, with the
+    same positions, and nothing else is lost."""
+    box = Sink(kind="box", lo=(-5, -5, 0.3), hi=(5, 5, 5))
+    a = _system(1, sinks=[box])
+    free = _system(1)
+    entered: set[int] = set()
     for _ in range(20):
         a.step_frame()
-    assert np.all(a.state["x"][:, 2] < 0.3 + 1e-12) or a.count == 0
+        free.step_frame()
+        entered |= set(free.state["id"][box.contains(free.state["x"])].tolist())
+        assert not box.contains(a.state["x"]).any()
+    ids_a, ids_free = a.state["id"], free.state["id"]
+    assert entered and 0 < len(ids_a) < len(ids_free)
+    expect = np.array(sorted(set(ids_free.tolist()) - entered))
+    np.testing.assert_array_equal(np.sort(ids_a), expect)
+    xa = a.state["x"][np.argsort(ids_a)]
+    xf = free.state["x"][np.isin(ids_free, expect)][np.argsort(ids_free[np.isin(ids_free,
+                                                                                 expect)])]
+    np.testing.assert_allclose(xa, xf, atol=1e-12)
 
 
 def test_bursts_on_death():

@@ -28,14 +28,61 @@ def test_terrain_same_seed_same_bytes(tmp_path):
     assert a.read_bytes() == b.read_bytes()
 
 
+def _shoelace(p):
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
 @pytest.mark.parametrize("kind", ["koch", "sierpinski", "fern", "mandelbrot", "julia"])
 def test_fractal_images(tmp_path, kind):
+    """Each image shows its fractal: the areas it covers match the geometry (closed forms
+    where they exist), the escape-time sets their known area or symmetry."""
+    from matplotlib.path import Path
+    from scipy.ndimage import binary_erosion
+    from scipy.spatial import ConvexHull
+
+    from procgen import fractals as F
+    from scanamp.commands.procgen_fractal import _fit
+
+    w, h, level = 120, 90, 3
     out = tmp_path / f"{kind}.png"
-    rc = main(["-q", "procgen", "fractal", kind, "--width", "120", "--height", "90",
-               "--level", "3", "--points", "20000", "--max-iter", "64", "--out", str(out)])
+    rc = main(["-q", "procgen", "fractal", kind, "--width", str(w), "--height", str(h),
+               "--level", str(level), "--points", "20000", "--max-iter", "64",
+               "--out", str(out)])
     assert rc == 0
-    img = read_image(out)
-    assert img.shape == (90, 120, 3) and len(np.unique(img.reshape(-1, 3), axis=0)) > 2
+    img = read_image(out).astype(int)
+    assert img.shape == (h, w, 3)
+    inked = (765 - img.sum(axis=2)) > 30  # clearly not white (faint anti-aliasing aside)
+    if kind in ("koch", "sierpinski"):  # drawn where the library's polygons are
+        if kind == "koch":
+            polys = [_fit(F.koch_snowflake(level), w, h)]
+        else:
+            polys = list(_fit(F.sierpinski_triangle(level).reshape(-1, 2), w, h)
+                         .reshape(-1, 3, 2))
+            outer = ConvexHull(np.vstack(polys)).volume
+            assert len(polys) == 3 ** level  # (3/4)^L of the outer triangle remains
+            assert sum(_shoelace(t) for t in polys) == pytest.approx(0.75 ** level * outer)
+        yy, xx = np.mgrid[0:h, 0:w]
+        centres = np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
+        truth = np.zeros(h * w, bool)
+        for poly in polys:
+            truth |= Path(poly).contains_points(centres)
+        truth = truth.reshape(h, w)
+        # away from the edges (3 px: anti-aliasing, the outline) the image is exact
+        assert inked[binary_erosion(truth, iterations=3)].all()
+        assert not inked[binary_erosion(~truth, iterations=3)].any()
+        assert truth.sum() > 0.05 * w * h
+    elif kind == "fern":  # Barnsley's fern spans x in [-2.18, 2.66], y in [0, 9.99]
+        rows, cols = np.nonzero(inked)
+        aspect = (np.ptp(rows) + 1) / (np.ptp(cols) + 1)
+        assert aspect == pytest.approx(9.99 / 4.84, rel=0.1)
+    else:
+        inside = (img == 0).all(axis=2)  # the sets are drawn black
+        if kind == "mandelbrot":  # 120 px over a width of 3: area 1.506 (+ boundary pixels)
+            assert inside.sum() * (3.0 / w) ** 2 == pytest.approx(1.55, abs=0.1)
+        else:  # a filled Julia set is symmetric under z -> -z
+            assert inside.sum() > 50
+            assert (inside == inside[::-1, ::-1]).mean() > 0.99
 
 
 def test_hypertexture_sphere_and_mesh(tmp_path):

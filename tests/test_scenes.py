@@ -34,13 +34,35 @@ def test_seed_changes_procedural_shapes():
 
 
 def test_render_cli_and_gt(tmp_path):
+    """The ground-truth depth is the scene's: every hit pixel, unprojected with the render's
+    camera, lands on the scene's surface; the normals face the camera."""
+    import open3d as o3d
+
+    from acquire.camera import Camera
+    from scanamp.commands.render import default_view
+
     out = tmp_path / "v.png"
     assert main(["render", "primitives", "--out", str(out), "--size", "96x72", "--gt",
                  "--supersample", "1"]) == 0
     depth = np.load(tmp_path / "v.gt" / "depth.npy")
     mask = np.load(tmp_path / "v.gt" / "mask.npy")
+    normals = np.load(tmp_path / "v.gt" / "normals.npy")
     assert depth.shape == (72, 96) and depth.dtype == np.float32
-    assert np.all(depth[mask] > 0) and np.all(depth[~mask] == 0)
+    assert np.all(depth[mask] > 0) and np.all(depth[~mask] == 0) and 0.05 < mask.mean() < 1
+    bundle = build_scene("primitives")
+    eye, target = default_view(bundle.bounds())
+    cam = Camera.look_at(eye, target, width=96, height=72, fov_deg=50.0)  # render's defaults
+    v, u = np.nonzero(mask)
+    pts = cam.unproject(np.stack([u, v], 1).astype(float), depth[v, u].astype(float))
+    gt = bundle.gt_mesh()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(gt))
+    dist = scene.compute_distance(o3d.core.Tensor(pts.astype(np.float32))).numpy()
+    diag = np.linalg.norm(np.ptp(np.asarray(gt.vertices), axis=0))
+    assert np.percentile(dist, 99) < 1e-3 * diag  # on the surface (float32 depth)
+    to_eye = eye - pts
+    facing = np.einsum("ij,ij->i", normals[v, u], to_eye)
+    assert (facing > 0).mean() > 0.99
 
 
 @pytest.mark.parametrize("spec, field", [

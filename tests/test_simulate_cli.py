@@ -8,15 +8,30 @@ from simulate.recipes import RECIPES, build_particles, load_recipe
 
 
 def test_every_shipped_recipe_loads():
+    """Each shipped recipe builds the system it describes: its emitters, forces, time step
+    and sheet, read back from what was built (a recipe parsed wrongly fails here)."""
     from simulate.recipes import build_cloth, procedural_scan
 
     mesh = procedural_scan(resolution=12)
     for name in RECIPES:
         table, path = load_recipe(name)
+        n_forces = len(table.get("forces", []))
         if table["kind"] == "particles":
-            build_particles(table, path, mesh=mesh)
+            ps = build_particles(table, path, mesh=mesh)
+            assert len(ps.emitters) == len(table["emitters"]) > 0, name
+            assert [e.name for e in ps.emitters][:1] == [
+                table["emitters"][0].get("name", "emitter0")], name
+            assert ps.dt == pytest.approx(1.0 / table["fps"]), name
+            assert ps.substeps == table.get("substeps", 4), name
+            f = ps.forces
+            built = f.local + f.pairwise + f.springs
         else:
-            build_cloth(table, path, mesh=mesh)
+            cloth, substeps = build_cloth(table, path, mesh=mesh)
+            spec = table["cloth"]
+            assert cloth.x.shape == (spec.get("nx", 20) * spec.get("ny", 20), 3), name
+            assert substeps >= 1 and np.isfinite(cloth.x).all(), name
+            built = cloth.forces.local + cloth.forces.pairwise
+        assert len(built) == n_forces, name
 
 
 def test_particles_cli_writes_series_and_report(tmp_path):
