@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from acquire.camera import Camera
+from core.config import Config, option
 from core.progress import track
 from core.validate import check_positive
 
@@ -38,39 +39,29 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class DenseOptions:
-    """Options of the dense stage.
+class DenseOptions(Config):
+    """Options of the dense stage (rectified-pair SGBM depth maps, consistency filter)."""
 
-    Attributes
-    ----------
-    num_neighbors : int
-        Views checked against each depth map by the consistency filter.
-    min_angle_deg, max_angle_deg : float
-        Useful triangulation angles between a reference and its stereo partner.
-    block_size : int
-        SGBM matching window (odd).
-    uniqueness : int
-        SGBM uniqueness ratio in percent.
-    depth_margin : float
-        Depth range of a view = that of its sparse points widened by this fraction.
-    consistency_tol : float
-        Relative depth agreement required by the consistency filter.
-    min_views : int
-        Other depth maps that must agree for a depth to survive.
-    min_gradient : float
-        Pixels of a reference whose 7x7 grey-level standard deviation is below this
-        (flat or black background) get no depth.
-    """
-
-    num_neighbors: int = 4
-    min_angle_deg: float = 5.0
-    max_angle_deg: float = 40.0
-    block_size: int = 5
-    uniqueness: int = 10
-    depth_margin: float = 0.25
-    consistency_tol: float = 0.01
-    min_views: int = 1
-    min_gradient: float = 2.0
+    num_neighbors: int = option(4, range="[1, 64]",
+                                help="views checked against each depth map by the "
+                                     "consistency filter")
+    min_angle_deg: float = option(5.0, unit="deg", range="[0, 90]",
+                                  help="smallest useful triangulation angle with a partner")
+    max_angle_deg: float = option(40.0, unit="deg", range="(0, 90]",
+                                  help="largest useful triangulation angle with a partner")
+    block_size: int = option(5, unit="px", range="[1, 31]", help="SGBM matching window (odd)")
+    uniqueness: int = option(10, unit="%", range="[0, 100]", help="SGBM uniqueness ratio")
+    depth_margin: float = option(0.25, range="[0, 10]",
+                                 help="a view's depth range: its sparse points' widened by "
+                                      "this fraction")
+    consistency_tol: float = option(0.01, range="(0, 1)",
+                                    help="relative depth agreement the consistency filter "
+                                         "requires")
+    min_views: int = option(1, range="[0, 64]",
+                            help="other depth maps that must agree for a depth to survive")
+    min_gradient: float = option(2.0, unit="8-bit", range="[0, inf)",
+                                 help="pixels whose 7x7 grey-level standard deviation is "
+                                      "below this (flat or black background) get no depth")
 
 
 def _centre(cam: Camera) -> np.ndarray:

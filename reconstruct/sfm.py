@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import cv2  # noqa: F401  (before pycolmap)
@@ -31,6 +31,7 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import load_capture
 from acquire.nerfstudio import write_transforms
+from core.config import Config, option
 from core.files import atomic_dir, write_json
 from core.mesh_io import read_mesh, write_mesh, write_points
 from core.validate import InputError, check_choice
@@ -55,44 +56,34 @@ MATCHER_CHOICES = ("auto", "exhaustive", "sequential", "spatial")
 
 
 @dataclass
-class SfmConfig:
-    """Options of the SfM pipeline.
+class SfmConfig(Config):
+    """Options of the SfM pipeline (``scanamp reconstruct sfm``)."""
 
-    Attributes
-    ----------
-    camera : str or None
-        ``"MODEL:p1,p2,..."`` intrinsics in COLMAP's order and pixel convention
-        (e.g. ``"SIMPLE_RADIAL:800,320,240,0"``); overrides everything else.
-    mapper : {'incremental', 'global'}
-    matcher : {'auto', 'exhaustive', 'sequential', 'spatial'}
-        'auto': exhaustive up to 100 images, sequential beyond or for a hand-held
-        walk (frames in order) with more than 40 images.
-    dense : bool
-        Build the dense surface.
-    num_threads : int
-    seed : int
-    max_features : int
-    voxel_fraction : float
-        TSDF voxel edge as a fraction of the scene extent (robust sparse-point extent).
-    dense_options : DenseOptions
-    min_keypoints : int
-        Fewer SIFT features than this marks an image as textureless.
-    """
-
-    camera: str | None = None
-    mapper: str = "incremental"
-    matcher: str = "auto"
-    dense: bool = True
-    num_threads: int = -1
-    seed: int = 0
-    max_features: int = 8192
-    voxel_fraction: float = 1.0 / 300.0
-    dense_options: DenseOptions = field(default_factory=DenseOptions)
-    min_keypoints: int = 30
+    camera: str | None = option(None, help="intrinsics MODEL:p1,p2,... in COLMAP's order and "
+                                           "pixel convention (e.g. SIMPLE_RADIAL:800,320,240,0"
+                                           "), or a camera.yaml from scanamp calibrate camera; "
+                                           "default: the capture's nominal camera, else EXIF, "
+                                           "else estimated")
+    mapper: str = option("incremental", choices=("incremental", "global"),
+                         help="pycolmap's mapper")
+    matcher: str = option("auto", choices=MATCHER_CHOICES,
+                          help="'auto': exhaustive up to 100 images, sequential beyond or for "
+                               "a hand-held walk of more than 40")
+    dense: bool = option(True, help="build the dense surface (else sparse only)")
+    num_threads: int = option(-1, range="[-1, 1024]", help="threads (-1 = all cores)")
+    seed: int = option(0, range="[0, inf)", help="pycolmap's random seed")
+    max_features: int = option(8192, range="[100, 1000000]", help="SIFT features per image")
+    voxel_fraction: float = option(1.0 / 300.0, range="(0, 1)",
+                                   help="TSDF voxel edge as a fraction of the scene extent "
+                                        "(robust sparse-point extent)")
+    dense_options: DenseOptions = option(default_factory=DenseOptions,
+                                         help="the dense stage's options")
+    min_keypoints: int = option(30, range="[0, inf)",
+                                help="fewer SIFT features than this marks an image "
+                                     "textureless")
 
     def __post_init__(self):
-        check_choice(self.mapper, "mapper", ("incremental", "global"))
-        check_choice(self.matcher, "matcher", MATCHER_CHOICES)
+        super().__post_init__()
         if self.camera is not None:
             parse_camera(self.camera)
 

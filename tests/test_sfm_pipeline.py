@@ -111,7 +111,7 @@ def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, cap
     # one blank frame (lens cap on) among the photos: reported by name, the rest goes on
     cv2.imwrite(str(folder / "9999_blank.jpg"), np.full((240, 320, 3), 90, np.uint8))
     code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "rec",
-                     "--no-dense", "--threads", "1")
+                     "--no-dense", "--num-threads", "1")
     assert code == 0, err
     rep = json.loads((tmp_path / "rec" / "report.json").read_text())
     assert rep["registered"] == 12 and rep["num_images"] == 13
@@ -130,7 +130,7 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
     # COLMAP's EXIF rule: f_px = f_35mm * diag(w, h) / diag(36 mm, 24 mm) = 37 * 400 / 43.27
     folder = _jpegs(small_capture, tmp_path / "exif", n=6, focal_35mm=37)
     code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r1",
-                     "--no-dense", "--threads", "1")
+                     "--no-dense", "--num-threads", "1")
     assert code == 0, err
     rep = json.loads((tmp_path / "r1" / "report.json").read_text())
     assert rep["intrinsics_source"].startswith("EXIF focal length (342.0 px)")
@@ -138,7 +138,7 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
     assert rep["sparse"]["cameras"]["1"]["has_prior_focal_length"] is True
     # --camera wins over EXIF, in COLMAP's pixel convention (centre of pixel 0 at 0.5)
     code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r2",
-                     "--no-dense", "--threads", "1", "--camera", "PINHOLE:343,343,160,120")
+                     "--no-dense", "--num-threads", "1", "--camera", "PINHOLE:343,343,160,120")
     assert code == 0, err
     rep = json.loads((tmp_path / "r2" / "report.json").read_text())
     assert rep["intrinsics_source"] == "--camera" and rep["registered"] == 6
@@ -152,7 +152,7 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
 def test_spatial_matcher_without_position_priors_is_a_clear_error(small_capture, tmp_path,
                                                                    capsys):
     code, err = _cli(capsys, "reconstruct", "sfm", _jpegs(small_capture, tmp_path / "p", n=3),
-                     "--out", tmp_path / "o", "--matcher", "spatial", "--threads", "1")
+                     "--out", tmp_path / "o", "--matcher", "spatial", "--num-threads", "1")
     assert code == 2 and len(err) == 1 and "position priors" in err[0]
     assert not (tmp_path / "o").exists()
 
