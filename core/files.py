@@ -78,10 +78,9 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; outputs get the usual mode
-    from core import outputs  # the manifest of the command's declared output folder
+    from core import outputs  # the manifest (and config) of the command's declared output
 
-    if not (tmp / outputs.MANIFEST).exists():
-        write_json(tmp / outputs.MANIFEST, outputs.declared_manifest(path))
+    outputs.write_declared(tmp, path)
     try:
         _check_replaceable(path)
     except InputError:

@@ -28,7 +28,8 @@ from core.files import atomic_dir
 from core.validate import InputError
 
 __all__ = ["MANIFEST", "read_manifest", "check_output", "check_output_file", "output_dir",
-           "version", "writing", "write_manifest", "declared_manifest"]
+           "version", "writing", "write_manifest", "declared_manifest", "write_declared",
+           "CONFIG_FILE"]
 
 #: the manifest file inside every output folder scanamp writes
 MANIFEST = ".scanamp.json"
@@ -47,8 +48,10 @@ def version() -> str:
 #: the "command" of a folder written through the Python API rather than the CLI
 API = "api"
 #: the output folder the running command declared (set by :func:`writing`)
-_DECLARED: contextvars.ContextVar[tuple[Path, str] | None] = contextvars.ContextVar(
+_DECLARED: contextvars.ContextVar[tuple[Path, str, object] | None] = contextvars.ContextVar(
     "scanamp_declared_output", default=None)
+#: the effective configuration of a command, beside its manifest in the output folder
+CONFIG_FILE = "config.toml"
 
 
 def _manifest(command: str) -> dict:
@@ -76,13 +79,30 @@ def declared_manifest(path: str | os.PathLike) -> dict:
     return _manifest(declared[1])
 
 
-@contextlib.contextmanager
-def writing(path: str | os.PathLike, command: str) -> Iterator[None]:
-    """Declare ``path`` as the output folder of ``command`` for the duration of a run.
+def write_declared(folder: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Into ``folder`` (the temporary folder that becomes ``path``), write the manifest and,
+    when ``path`` is the running command's declared output and it has a config, the
+    effective ``config.toml`` (re-running with ``--config`` it reproduces the output)."""
+    folder = Path(folder)
+    if not (folder / MANIFEST).exists():
+        (folder / MANIFEST).write_text(json.dumps(declared_manifest(path), indent=2) + "\n")
+    declared = _DECLARED.get()
+    if declared is not None and declared[2] is not None and \
+            Path(path).resolve() == declared[0] and not (folder / CONFIG_FILE).exists():
+        from core.config import write_config
 
-    Any :func:`core.files.atomic_dir` that writes exactly ``path`` then adds the manifest.
+        write_config(folder / CONFIG_FILE, declared[2])
+
+
+@contextlib.contextmanager
+def writing(path: str | os.PathLike, command: str, config=None) -> Iterator[None]:
+    """Declare ``path`` as the output folder of ``command`` (run with ``config``, a
+    :class:`core.config.Config`, if it has one) for the duration of a run.
+
+    Any :func:`core.files.atomic_dir` that writes exactly ``path`` then adds the manifest
+    and ``config.toml`` (:func:`write_declared`).
     """
-    token = _DECLARED.set((Path(path).resolve(), command))
+    token = _DECLARED.set((Path(path).resolve(), command, config))
     try:
         yield
     finally:

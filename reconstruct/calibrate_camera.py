@@ -15,6 +15,7 @@ Z. Zhang, "A flexible new technique for camera calibration", IEEE TPAMI 22(11),
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass, field
 
@@ -78,6 +79,20 @@ class CameraCalibration:
             d["std_intrinsics"] = dict(zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2",
                                             "k3"), map(float, self.std_intrinsics), strict=True))
         return d
+
+
+@contextlib.contextmanager
+def cv2_single_thread():
+    """Run OpenCV on one thread inside: its calibration solvers sum over views in parallel,
+    and the sums' order changes the last bits from run to run (same input, other bytes)."""
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
 
 
 def to_gray(img: np.ndarray) -> np.ndarray:
@@ -248,9 +263,10 @@ def calibrate_camera_points(object_points, image_points, image_size, *,
     f0 = 0.5 * w / np.tan(np.radians(25))
     K0 = np.array([[f0, 0, (w - 1) / 2], [0, f0, (h - 1) / 2], [0, 0, 1]])
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    rms, K, dist, rvecs, tvecs, std_in, _, per_view = cv2.calibrateCameraExtended(
-        obj, img, (w, h), K0, np.zeros(5), flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS,
-        criteria=crit)
+    with cv2_single_thread():
+        rms, K, dist, rvecs, tvecs, std_in, _, per_view = cv2.calibrateCameraExtended(
+            obj, img, (w, h), K0, np.zeros(5), flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS,
+            criteria=crit)
     cam = Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist.ravel()[:5])
     poses = [_rt_to_T(r, t) for r, t in zip(rvecs, tvecs, strict=True)]
     return CameraCalibration(cam, float(rms), np.asarray(per_view, float).ravel(),
@@ -298,9 +314,10 @@ def bootstrap_cameras(cal: CameraCalibration, rng: np.random.Generator, *,
     for _ in range(int(draws)):
         img = [(p + rng.normal(0.0, sigma, p.shape)).astype(np.float32).reshape(-1, 1, 2)
                for p in cal.image_points]
-        _, K, dist, *_ = cv2.calibrateCamera(
-            obj, img, (c.width, c.height), c.K.copy(), c.dist.copy(),
-            flags=cal.flags | cv2.CALIB_USE_INTRINSIC_GUESS, criteria=crit)
+        with cv2_single_thread():
+            _, K, dist, *_ = cv2.calibrateCamera(
+                obj, img, (c.width, c.height), c.K.copy(), c.dist.copy(),
+                flags=cal.flags | cv2.CALIB_USE_INTRINSIC_GUESS, criteria=crit)
         out.append(Camera(c.width, c.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2],
                           dist.ravel()[:5]))
     return out

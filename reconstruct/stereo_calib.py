@@ -17,7 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.validate import InputError, check_array
-from reconstruct.calibrate_camera import calibrate_camera_points, detect_board
+from reconstruct.calibrate_camera import (
+    calibrate_camera_points,
+    cv2_single_thread,
+    detect_board,
+)
 from reconstruct.stereo import StereoCalibration
 from reconstruct.turntable import fit_axis
 
@@ -134,9 +138,10 @@ def calibrate_pair(obj1: list, img1: list, obj2: list, img2: list, common: list,
                   "k1k2p1p2": cv2.CALIB_FIX_K3, "full": 0}[dist_model]
     else:
         flags = cv2.CALIB_FIX_INTRINSIC
-    rms, K1, D1, K2, D2, R, T, _, _ = cv2.stereoCalibrate(
-        op, p1, p2, K1.copy(), D1.copy(), K2.copy(), D2.copy(), tuple(image_size), flags=flags,
-        criteria=crit)
+    with cv2_single_thread():
+        rms, K1, D1, K2, D2, R, T, _, _ = cv2.stereoCalibrate(
+            op, p1, p2, K1.copy(), D1.copy(), K2.copy(), D2.copy(), tuple(image_size),
+            flags=flags, criteria=crit)
     calib = StereoCalibration(K1, D1.ravel()[:5], K2, D2.ravel()[:5], R, T.ravel(),
                               tuple(image_size), rms=float(rms))
     return calib, {"rms_1": rms1, "rms_2": rms2, "rms_stereo": float(rms),

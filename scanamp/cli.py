@@ -178,16 +178,15 @@ def _run(args: argparse.Namespace) -> int:
     from core import outputs
 
     declared = _check_outputs(args)
+    config = (config_from_args(args._config_cls, args) if args._config_cls is not None
+              else None)
     with contextlib.ExitStack() as stack:
         if declared is not None:
-            stack.enter_context(outputs.writing(*declared))
-        if args._config_cls is not None:
-            code = int(args._run(args, config_from_args(args._config_cls, args)) or 0)
-        else:
-            code = int(args._run(args) or 0)
-    if declared is not None and code == 0 and declared[0].is_dir() and \
-            outputs.read_manifest(declared[0]) is None:
-        outputs.write_manifest(*declared)  # written in place rather than by atomic_dir
+            stack.enter_context(outputs.writing(*declared, config))
+        code = int((args._run(args, config) if config is not None else args._run(args)) or 0)
+        if declared is not None and code == 0 and declared[0].is_dir() and \
+                outputs.read_manifest(declared[0]) is None:
+            outputs.write_declared(declared[0], declared[0])  # written in place, not atomically
     return code
 
 

@@ -144,3 +144,18 @@ def test_global_alignment_scores_the_scan_from_its_own_frame(laser_scan, tmp_pat
     assert np.degrees(np.arccos(np.clip((np.trace(same[:3, :3]) - 1) / 2, -1, 1))) < 0.5
     assert np.linalg.norm(same[:3, 3]) < 1e-3
     assert score(tmp_path / "turned.ply", "global") == ev70  # deterministic
+
+
+def test_output_config_reproduces_the_run(laser_scan, tmp_path):
+    """Issue 14: every output folder holds its effective config.toml; re-running with it
+    (and no flags) gives the same bytes."""
+    cap, _, _ = laser_scan
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli(["-q", "reconstruct", "laser", str(cap), "--out", str(a), "--threshold", "10",
+                "--meshing.depth", "8", "--no-evaluate"]) == 0
+    text = (a / "config.toml").read_text()
+    assert "threshold = 10.0" in text and "depth = 8" in text
+    assert cli(["-q", "reconstruct", "laser", str(cap), "--out", str(b), "--config",
+                str(a / "config.toml")]) == 0
+    assert (b / "config.toml").read_text() == text
+    assert (b / "mesh.ply").read_bytes() == (a / "mesh.ply").read_bytes()
