@@ -20,6 +20,7 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
+from core.config import Config, option
 from core.files import atomic_dir, write_json
 from core.mesh_io import write_mesh, write_points
 from core.progress import track
@@ -48,13 +49,17 @@ _log = logging.getLogger(__name__)
 
 
 @dataclass
-class SLOptions:
-    """Options: ``min_contrast`` (DN between white and black), ``min_modulation`` (DN of
-    the phase sinusoid), ``voxel_size`` (m; default far working distance / 1000)."""
+class SLOptions(Config):
+    """Options of the structured-light reconstruction (``scanamp reconstruct
+    structured-light``)."""
 
-    min_contrast: float = 12.0
-    min_modulation: float = 4.0
-    voxel_size: float | None = None
+    min_contrast: float = option(12.0, unit="DN", range="[0, inf)",
+                                 help="white - black below which a pixel is in shadow")
+    min_modulation: float = option(4.0, unit="DN", range="[0, inf)",
+                                   help="amplitude of the phase sinusoid below which a pixel "
+                                        "is rejected")
+    voxel_size: float | None = option(None, unit="m", range="(0, inf)",
+                                      help="TSDF voxel (default: far working distance / 1000)")
 
 
 def decode_stack(images: list, info: dict, opts: SLOptions):

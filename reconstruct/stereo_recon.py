@@ -24,6 +24,7 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
+from core.config import Config, option
 from core.files import atomic_dir, write_json
 from core.image_io import read_image
 from core.mesh_io import write_mesh, write_points
@@ -65,34 +66,30 @@ _log = logging.getLogger(__name__)
 
 
 @dataclass
-class StereoOptions:
-    """Options of the stereo pipelines.
+class StereoOptions(Config):
+    """Options of the stereo pipelines (``scanamp reconstruct stereo``); the matcher's are
+    :class:`reconstruct.stereo.MatchOptions`'s."""
 
-    Attributes
-    ----------
-    mode : {"auto", "passive", "active"}
-        Which images to match ("auto": the dot-pattern images when present).
-    compare : bool
-        With a capture holding both, also reconstruct and score the other mode.
-    block_size, wls, lr_check, lr_tol, uniqueness, sgbm_mode :
-        See :class:`reconstruct.stereo.MatchOptions`.
-    voxel_size : float or None
-        TSDF voxel (m); default: far working distance / 500.
-    min_disparity, num_disparities : int or None
-        Search range; default from the rig's nominal working range.
-    """
-
-    mode: str = "auto"
-    compare: bool = True
-    block_size: int = 5
-    wls: bool = False
-    lr_check: bool = False
-    lr_tol: float = 1.0
-    uniqueness: int = 5
-    sgbm_mode: str = "sgbm"
-    voxel_size: float | None = None
-    min_disparity: int | None = None
-    num_disparities: int | None = None
+    mode: str = option("auto", choices=("auto", "passive", "active"),
+                       help="which images to match ('auto': the dot-pattern images when "
+                            "present)")
+    compare: bool = option(True, help="with a capture holding both, also reconstruct and "
+                                      "score the other mode")
+    block_size: int = option(5, unit="px", range="[1, 31]", help="SGBM window (odd)")
+    wls: bool = option(False, help="WLS disparity filter (ximgproc)")
+    lr_check: bool = option(False, help="left-right consistency check")
+    lr_tol: float = option(1.0, unit="px", range="(0, inf)",
+                           help="left-right disagreement tolerated by the check")
+    uniqueness: int = option(5, unit="%", range="[0, 100]", help="SGBM uniqueness ratio")
+    sgbm_mode: str = option("sgbm", choices=("sgbm", "hh", "3way"), help="OpenCV SGBM mode")
+    voxel_size: float | None = option(None, unit="m", range="(0, inf)",
+                                      help="TSDF voxel (default: far working distance / 500)")
+    min_disparity: int | None = option(None, unit="px",
+                                       help="search range start (default from the rig's "
+                                            "working range)")
+    num_disparities: int | None = option(None, unit="px", range="[16, 4096]",
+                                         help="search range, a multiple of 16 (default from "
+                                              "the rig's working range)")
 
     def match_options(self, lo: int, num: int) -> MatchOptions:
         return MatchOptions(min_disparity=lo, num_disparities=num, block_size=self.block_size,
