@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from core.files import atomic_dir, write_json
+from core.meshes import surface_distance
 from core.validate import check_choice
 
 log = logging.getLogger(__name__)
@@ -198,24 +199,6 @@ def canonical_mesh(mesh):
     return make_mesh(v[order], f)
 
 
-def _distance_to(mesh):
-    """``dist(points (n, 3)) -> (n,)``: unsigned distance to the surface of ``mesh``."""
-    import open3d as o3d
-
-    from core.meshes import mesh_arrays
-
-    v, f = mesh_arrays(mesh)
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(v.astype(np.float32)),
-                        o3d.core.Tensor(f.astype(np.uint32)))
-
-    def dist(points):
-        q = o3d.core.Tensor(np.asarray(points, np.float32))
-        return scene.compute_distance(q).numpy().astype(np.float64)
-
-    return dist
-
-
 def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
           max_samples: int = 100_000, curve_samples: int = 40_000) -> tuple[dict, dict, object]:
     """Evaluate ``recon`` against ``reference`` (both world-frame meshes).
@@ -256,8 +239,8 @@ def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
     rp, _ = sample_surface(rv, rf, curve_samples, rng=rng)
     gp, _ = sample_surface(gv, gf, curve_samples, rng=rng)
     gp = gp[mask(gp)]
-    acc = _distance_to(reference)(rp)
-    comp = _distance_to(aligned)(gp)
+    acc = surface_distance(reference)(rp)
+    comp = surface_distance(aligned)(gp)
     metrics = res.to_dict()
     metrics.update(fscore_unaligned=raw.fscore, accuracy_mean_unaligned=raw.accuracy_mean,
                    completeness_mean_unaligned=raw.completeness_mean)

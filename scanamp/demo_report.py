@@ -75,8 +75,8 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
     """Write the renders and plots under ``root/figures``; returns their relative paths
     (``renders``, ``errors``, ``amplify``, ``plots``) and the F-score curves."""
     from core.image_io import write_image
+    from core.meshes import surface_distance
     from core.progress import track
-    from scanamp.demo import _distance_to
 
     fig = root / "figures"
     fig.mkdir(exist_ok=True)
@@ -90,7 +90,7 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
     write_image(fig / "render_gt.png", _to_u8(np.where(gt_r.mask[..., None],
                                                         gt_r.radiance * k, 0.08)))
     out["renders"]["ground truth"] = "figures/render_gt.png"
-    gt_dist = _distance_to(gt)
+    gt_dist = surface_distance(gt)
     for name, m in track(list(methods.items()), "renders", total=len(methods)):
         r = _render(m.mesh, cam, lights, ambient, _RECON_ALBEDO)
         write_image(fig / f"render_{name}.png",
