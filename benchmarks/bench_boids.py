@@ -29,7 +29,7 @@ def _setup(n, seed=0):
 
 
 def _sums_kdtree(x, v, P):
-    """Neighbour sums as in :func:`simulate.boids._sums_reference`, via cKDTree pairs."""
+    """Neighbour sums as in :func:`simulate.boid_kernels._sums_reference`, via cKDTree pairs."""
     from scipy.spatial import cKDTree
 
     n = len(x)
