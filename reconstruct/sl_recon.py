@@ -27,13 +27,8 @@ from core.progress import track
 from core.validate import InputError
 from reconstruct.calibrate_camera import detect_board
 from reconstruct.stereo_calib import calibrate_pair, world_from_cam_at
-from reconstruct.stereo_recon import (
-    _frame_name,
-    _read,
-    _reference_in_table,
-    _score,
-    calibrate_axis_entry,
-)
+from reconstruct.stereo_recon import _frame_name, _read, calibrate_axis_entry
+from reconstruct.stereo_scoring import reference_in_table, score_mesh
 from reconstruct.structured_light import (
     decode_gray_code,
     decode_phase,
@@ -179,9 +174,9 @@ def run_capture(capture_path, out_dir, options: SLOptions | None = None) -> Path
               "frame": _frame_name(cal_rep["axis"])}
     gt = cap.ground_truth
     if gt and gt.get("mesh"):
-        ref, visible, size = _reference_in_table(
+        ref, visible, size = reference_in_table(
             cap, table_from_cam, mounted=cal_rep["axis"].get("method") == "mount")
-        ev = _score(mesh, ref, visible, size, taus=(0.01, 0.005))
+        ev = score_mesh(mesh, ref, visible, size, taus=(0.01, 0.005))
         report["evaluation"] = ev
         true_p = Camera.from_dict(gt["cameras"]["right"])
         true_c = Camera.from_dict(gt["cameras"]["left"])

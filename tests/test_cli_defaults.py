@@ -21,8 +21,8 @@ from scanamp.options import config_from_args
 NOT_YET_DECLARED = {
     "amplify", "calibrate camera", "calibrate stereo", "capture laser", "capture sfm",
     "capture stereo", "capture structured-light", "demo", "evaluate", "grow",
-    "procgen fractal", "procgen hypertexture", "procgen terrain", "render", "scene", "simulate boids", "simulate cloth",
-    "simulate particles", "study",
+    "procgen fractal", "procgen hypertexture", "procgen terrain", "render", "scene",
+    "simulate boids", "simulate cloth", "simulate particles", "study",
 }
 
 

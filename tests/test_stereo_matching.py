@@ -239,7 +239,7 @@ def test_depth_error_follows_the_triangulation_law():
     """sigma_z = z^2 / (f b) * sigma_d to first order, and zero for a perfect match."""
     from types import SimpleNamespace
 
-    from reconstruct.stereo_recon import _depth_errors
+    from reconstruct.stereo_scoring import depth_errors as _depth_errors
 
     rect = SimpleNamespace(focal=500.0, baseline=0.08)
     z = 0.4
