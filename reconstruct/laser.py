@@ -48,7 +48,7 @@ from reconstruct.stripe import DETECTORS, StripeOptions, detect_peaks
 
 log = logging.getLogger(__name__)
 
-__all__ = ["LaserReconConfig", "run", "extract_frames", "DEFAULT_DETECTOR"]
+__all__ = ["LaserReconConfig", "run", "extract_frames", "DEFAULT_DETECTOR", "STAGES"]
 
 #: the most accurate detector measured on rendered scans (benchmarks/bench_laser.py)
 DEFAULT_DETECTOR = "gaussian"
@@ -130,15 +130,59 @@ def extract_frames(images, options: StripeOptions):
     return np.stack(cols), np.asarray(sat)
 
 
-def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
-    """Reconstruct a laser capture into ``out_dir`` (see the module docstring)."""
+#: the named stages of :func:`run`, in order (``scanamp reconstruct laser --from STAGE``)
+STAGES = ("calibrate", "extract", "triangulate", "mesh", "evaluate")
+_STRIPE_FIELDS = ("detector", "threshold", "min_contrast", "max_width", "max_steepness")
+
+
+def run(config: LaserReconConfig, capture_dir, out_dir, *,
+        from_stage: str | None = None) -> Path:
+    """Reconstruct a laser capture into ``out_dir`` (see the module docstring).
+
+    The work is five named stages (:data:`STAGES`), each cached in ``out_dir/stages``
+    (:class:`core.stages.Stages`): run again into the same folder, only the stages whose
+    options or inputs changed are recomputed (a new Poisson depth re-runs ``mesh`` and
+    ``evaluate``, not the calibrations). ``from_stage`` forces a stage and the later ones.
+    """
     from core.mesh_io import write_mesh, write_points
+    from core.stages import Stages, files_key
 
     cfg = config
-    timings: dict[str, float] = {}
-    warnings: list[str] = []
     t_all = time.perf_counter()
     cap = load_capture(capture_dir)
+    prep = _prepare(cap)
+    out_dir = Path(out_dir)
+    opts = {k: v for k, v in asdict(cfg).items() if k != "meshing"}
+    stripe_opts = {k: opts[k] for k in _STRIPE_FIELDS}
+    with atomic_dir(out_dir) as tmp:
+        st = Stages(tmp, STAGES, from_stage=from_stage,
+                    reuse=out_dir if out_dir.is_dir() else None)
+        inputs = files_key([cap.root / "capture.json"])
+        calib = st.run("calibrate", _calibrate, cap, prep, cfg, depends={
+            "capture": inputs, "dist_model": cfg.dist_model, "stripe": stripe_opts,
+            "limits": [cfg.max_camera_rms_px, cfg.max_plane_rms_m, cfg.max_axis_rms_px]})
+        stripes = st.run("extract", _extract, cap, prep, cfg, depends={
+            "capture": inputs, "stripe": stripe_opts, "speckle": cfg.speckle,
+            "min_stripe_fraction": cfg.min_stripe_fraction})
+        tri = st.run("triangulate", _triangulate, cap, prep, calib, stripes, cfg,
+                     depends={"max_range": cfg.max_range})
+        m = _with_mesh(st.run("mesh", _mesh, tri["P"], tri["V"], cfg.meshing,
+                              depends={"meshing": asdict(cfg.meshing)}))
+        report = st.run("evaluate", _report, cap, prep, calib, stripes, tri, m, cfg,
+                        depends={k: opts[k] for k in ("calibration_draws", "seed", "evaluate",
+                                                      "tau")})
+        report = {**report, "stages": {"ran": st.ran, "reused": st.skipped}}
+        report["timings"] = {**report["timings"], "total_s": time.perf_counter() - t_all}
+        write_points(tmp / "points.ply", m["points"], normals=m["normals"])
+        write_mesh(tmp / "mesh.ply", m["mesh"])
+        for w in report["warnings"]:
+            log.warning("%s", w)
+        write_json(tmp / "report.json", report)
+    return out_dir
+
+
+def _prepare(cap) -> dict:
+    """The capture's motion, stage readings, channels and calibration entries, checked."""
     jpath = cap.root / "capture.json"
     if cap.kind != "laser":
         raise InputError(f"expected a laser capture, got kind {cap.kind!r}", path=jpath,
@@ -158,20 +202,22 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
             raise InputError(f"expected the stage reading {key!r}", path=jpath,
                              field=f"frames[{i}].{key}")
         readings.append(float(fr[key]))
-    readings = np.asarray(readings)
-    channel = rig.get("laser_channel", 0)
-    bit_depth = int(rig.get("bit_depth", 8))
-    sopt = cfg.stripe_options(bit_depth)
     calib = {c["kind"]: (i, c) for i, c in enumerate(cap.calibration)}
     for need in ("camera", "laser_plane", "axis" if motion == "turntable" else "stage"):
         if need not in calib:
             raise InputError(f"missing a {need!r} calibration capture", path=jpath,
                              field="calibration")
-    # -- camera -----------------------------------------------------------------------------
+    return {"jpath": jpath, "frames": frames, "motion": motion,
+            "readings": np.asarray(readings), "channel": rig.get("laser_channel", 0),
+            "bit_depth": int(rig.get("bit_depth", 8)), "calib": calib}
+
+
+def _calibrate(cap, prep, cfg) -> dict:
+    """Stage ``calibrate``: the camera, the laser plane, the turntable axis (or stage)."""
+    jpath, calib, warnings, timings = prep["jpath"], prep["calib"], [], {}
     t = time.perf_counter()
     ci, cc = calib["camera"]
-    target = _target(cc, jpath, ci)
-    cam_cal = calibrate_camera([_read(cap.path(p)) for p in cc["images"]], target,
+    cam_cal = calibrate_camera([_read(cap.path(p)) for p in cc["images"]], _target(cc, jpath, ci),
                                dist_model=cfg.dist_model, names=cc["images"])
     cam = cam_cal.camera
     _check_calibration("camera calibration", cam_cal.rms, cfg.max_camera_rms_px, "px",
@@ -181,9 +227,31 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
         warnings.append("camera calibration: target not detected in "
                         + ", ".join(cc["images"][i] for i in cam_cal.rejected_views))
     timings["camera_calibration_s"] = time.perf_counter() - t
-    # -- laser plane ------------------------------------------------------------------------
     t = time.perf_counter()
-    li, lc = calib["laser_plane"]
+    plane_cal = _calibrate_plane(cap, prep, cam, cfg, warnings)
+    timings["laser_calibration_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    motion = prep["motion"]
+    ai, ac = calib["axis" if motion == "turntable" else "stage"]
+    fit = calibrate_turntable_axis if motion == "turntable" else calibrate_stage
+    axis_cal = fit(cam, [_read(cap.path(p)) for p in ac["images"]],
+                   _readings(ac, "angles_deg" if motion == "turntable" else "positions_m",
+                             jpath, ai), _target(ac, jpath, ai), names=ac["images"])
+    what = "axis" if motion == "turntable" else "stage"
+    _check_calibration(f"{what} calibration", axis_cal.rms_px, cfg.max_axis_rms_px, "px",
+                       None, None, warnings)
+    if axis_cal.rejected_views:
+        warnings.append(f"{what} calibration: target not detected in "
+                        + ", ".join(ac["images"][i] for i in axis_cal.rejected_views))
+    timings["axis_calibration_s"] = time.perf_counter() - t
+    return {"camera": cam_cal, "plane": plane_cal, "axis": axis_cal,
+            "object_from_camera": _object_frame(axis_cal, motion, cam),
+            "warnings": warnings, "timings": timings}
+
+
+def _calibrate_plane(cap, prep, cam, cfg, warnings):
+    jpath = prep["jpath"]
+    li, lc = prep["calib"]["laser_plane"]
     roles = lc.get("image_roles", ["laser_off", "laser_on"])
     off_i, on_i = roles.index("laser_off"), roles.index("laser_on")
     pairs, pnames = [], []
@@ -191,9 +259,11 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
         if not isinstance(pair, list) or len(pair) != 2:
             raise InputError("expected [laser_off, laser_on] image pairs", path=jpath,
                              field=f"calibration[{li}].images[{j}]")
-        pairs.append((_read(cap.path(pair[off_i])), _read(cap.path(pair[on_i]), channel)))
+        pairs.append((_read(cap.path(pair[off_i])),
+                      _read(cap.path(pair[on_i]), prep["channel"])))
         pnames.append(pair[on_i])
-    plane_cal = calibrate_laser_plane(cam, pairs, _target(lc, jpath, li), stripe=sopt,
+    plane_cal = calibrate_laser_plane(cam, pairs, _target(lc, jpath, li),
+                                      stripe=cfg.stripe_options(prep["bit_depth"]),
                                       names=pnames)
     plane = plane_cal.plane
     _check_calibration("laser-plane calibration", plane_cal.rms, cfg.max_plane_rms_m, "m",
@@ -208,55 +278,49 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
                            "the camera's optical axis (it nearly contains the camera): no "
                            "triangulation is possible; check the laser-plane captures "
                            + ", ".join(pnames))
-    timings["laser_calibration_s"] = time.perf_counter() - t
-    # -- axis / stage -----------------------------------------------------------------------
+    return plane_cal
+
+
+def _extract(cap, prep, cfg) -> dict:
+    """Stage ``extract``: the sub-pixel stripe of every frame, and the peak error model."""
     t = time.perf_counter()
-    if motion == "turntable":
-        ai, ac = calib["axis"]
-        axis_cal = calibrate_turntable_axis(cam, [_read(cap.path(p)) for p in ac["images"]],
-                                            _readings(ac, "angles_deg", jpath, ai),
-                                            _target(ac, jpath, ai), names=ac["images"])
-    else:
-        ai, ac = calib["stage"]
-        axis_cal = calibrate_stage(cam, [_read(cap.path(p)) for p in ac["images"]],
-                                   _readings(ac, "positions_m", jpath, ai),
-                                   _target(ac, jpath, ai), names=ac["images"])
-    _check_calibration(f"{'axis' if motion == 'turntable' else 'stage'} calibration",
-                       axis_cal.rms_px, cfg.max_axis_rms_px, "px", None, None, warnings)
-    if axis_cal.rejected_views:
-        warnings.append(f"{'axis' if motion == 'turntable' else 'stage'} calibration: "
-                        "target not detected in "
-                        + ", ".join(ac["images"][i] for i in axis_cal.rejected_views))
-    timings["axis_calibration_s"] = time.perf_counter() - t
-    # -- stripes ----------------------------------------------------------------------------
-    t = time.perf_counter()
-    W, H = cam.width, cam.height
-    cols = np.full((len(frames), H), np.nan)
-    n_sat = np.zeros(len(frames), int)
+    frames, jpath = prep["frames"], prep["jpath"]
+    sopt = cfg.stripe_options(prep["bit_depth"])
     peak_model = PeakErrorAccumulator(cap.data.get("sensor") or _DEFAULT_SENSOR, sopt,
                                       speckle=cfg.speckle)
+    cols, n_sat, size = None, np.zeros(len(frames), int), None
     for k, fr in enumerate(track(frames, "stripe extraction")):
-        img = _read(cap.path(fr["image"]), channel)
-        if img.shape[:2] != (H, W):
-            raise InputError(f"image is {img.shape[1]}x{img.shape[0]}, the calibration "
-                             f"images are {W}x{H}", path=jpath, field=f"frames[{k}].image")
+        img = _read(cap.path(fr["image"]), prep["channel"])
+        if size is None:
+            size = img.shape[:2]
+            cols = np.full((len(frames), size[0]), np.nan)
+        if img.shape[:2] != size:
+            raise InputError(f"image is {img.shape[1]}x{img.shape[0]}, the first frame is "
+                             f"{size[1]}x{size[0]}", path=jpath, field=f"frames[{k}].image")
         c, s = extract_frames([img], sopt)
         cols[k], n_sat[k] = c[0], s[0]
         peak_model.add(img, cols[k])
-    timings["stripe_extraction_s"] = time.perf_counter() - t
+    timings = {"stripe_extraction_s": time.perf_counter() - t}
+    return {"cols": cols, "n_sat": n_sat, "size": size, "peak_model": peak_model,
+            "warnings": _stripe_warnings(frames, cols, n_sat, cfg.min_stripe_fraction),
+            "timings": timings}
+
+
+def _stripe_warnings(frames, cols, n_sat, min_fraction) -> list[str]:
     per_frame = np.count_nonzero(np.isfinite(cols), axis=1)
     empty = [frames[k]["image"] for k in np.flatnonzero(per_frame == 0)]
     if len(empty) == len(frames):
         raise RuntimeError("no laser stripe found in any frame (laser off, too dark, or "
                            "thresholds too high)")
+    warnings = []
     if empty:
         warnings.append(f"no stripe in {len(empty)} frames: " + ", ".join(empty[:20])
                         + (" ..." if len(empty) > 20 else ""))
     med = float(np.median(per_frame))
     sparse = [frames[k]["image"] for k in np.flatnonzero(
-        (per_frame > 0) & (per_frame < cfg.min_stripe_fraction * med))]
+        (per_frame > 0) & (per_frame < min_fraction * med))]
     if sparse:
-        warnings.append(f"stripe covers fewer than {cfg.min_stripe_fraction:.0%} of the median "
+        warnings.append(f"stripe covers fewer than {min_fraction:.0%} of the median "
                         f"frame's {med:.0f} rows in {len(sparse)} frames: "
                         + ", ".join(sparse[:20]) + (" ..." if len(sparse) > 20 else ""))
     saturated = [frames[k]["image"] for k in np.flatnonzero(n_sat > 0.5 * np.maximum(
@@ -264,12 +328,22 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     if saturated:
         warnings.append(f"stripe saturated in {len(saturated)} frames (peaks located by "
                         "their half-level midpoint): " + ", ".join(saturated[:20]))
-    # -- triangulation ----------------------------------------------------------------------
+    return warnings
+
+
+def _triangulate(cap, prep, calib, stripes, cfg) -> dict:
+    """Stage ``triangulate``: pixel rays meet the laser plane; every frame's points move into
+    the object frame."""
     t = time.perf_counter()
+    cam, plane, axis_cal = calib["camera"].camera, calib["plane"].plane, calib["axis"]
+    cols = stripes["cols"]
+    if tuple(stripes["size"]) != (cam.height, cam.width):
+        raise InputError(f"the frames are {stripes['size'][1]}x{stripes['size'][0]}, the "
+                         f"calibration images {cam.width}x{cam.height}", path=prep["jpath"],
+                         field="frames")
     kk, rr = np.nonzero(np.isfinite(cols))
     uu = cols[kk, rr]
-    sig_total, sig_noise, sig_tex = peak_model.sigma_peak()
-    sp = sig_total[kk, rr]
+    sp = stripes["peak_model"].sigma_peak()[0][kk, rr]
     px = np.stack([uu, rr.astype(float)], axis=1)
     pc = intersect_rays_plane(pixel_rays(cam, px), plane)
     good = np.all(np.isfinite(pc), axis=1) & (pc[:, 2] > 0)
@@ -278,12 +352,11 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
                            "points fall behind the camera or parallel to the laser plane: the "
                            "laser-plane calibration does not match the scan")
     kk, rr, uu, px, pc, sp = kk[good], rr[good], uu[good], px[good], pc[good], sp[good]
-    obj_from_cam = _object_frame(axis_cal, motion, cam)
-    P = np.empty_like(pc)
-    V = np.empty_like(pc)
+    obj_from_cam, readings = calib["object_from_camera"], prep["readings"]
+    P, V = np.empty_like(pc), np.empty_like(pc)
     for k in np.unique(kk):
         sel = kk == k
-        if motion == "turntable":
+        if prep["motion"] == "turntable":
             M = rotation_about(axis_cal.direction, -np.radians(readings[k]), axis_cal.point)
         else:
             M = np.eye(4)
@@ -291,16 +364,45 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
         T = obj_from_cam @ M
         P[sel] = pc[sel] @ T[:3, :3].T + T[:3, 3]
         V[sel] = T[:3, 3]  # the camera centre seen from the object at that reading
-    if cfg.max_range > 0 and motion == "turntable":
+    if cfg.max_range > 0 and prep["motion"] == "turntable":
         keep = np.linalg.norm(P[:, :2], axis=1) < cfg.max_range
         P, V, kk, rr, uu, px, pc, sp = (a[keep] for a in (P, V, kk, rr, uu, px, pc, sp))
-    timings["triangulation_s"] = time.perf_counter() - t
-    # -- meshing ----------------------------------------------------------------------------
-    t = time.perf_counter()
-    m = points_to_mesh(P, V, cfg.meshing)
-    mesh = m["mesh"]
-    timings["meshing_s"] = time.perf_counter() - t
-    sigma_peak_jitter = estimate_peak_sigma(cols)
+    return {"P": P, "V": V, "kk": kk, "rr": rr, "uu": uu, "px": px, "pc": pc, "sp": sp,
+            "timings": {"triangulation_s": time.perf_counter() - t}}
+
+
+def _mesh(points, viewpoints, meshing) -> dict:
+    """Stage ``mesh``: outliers, normals toward the sensor, screened Poisson, trimming. The
+    mesh is stored as arrays (Open3D meshes do not pickle)."""
+    m = points_to_mesh(points, viewpoints, meshing)
+    mesh = m.pop("mesh")
+    m["mesh_arrays"] = {
+        "vertices": np.asarray(mesh.vertices).copy(),
+        "triangles": np.asarray(mesh.triangles).copy(),
+        "vertex_normals": np.asarray(mesh.vertex_normals).copy()
+        if mesh.has_vertex_normals() else None,
+        "vertex_colors": np.asarray(mesh.vertex_colors).copy()
+        if mesh.has_vertex_colors() else None}
+    return m
+
+
+def _with_mesh(m: dict) -> dict:
+    from core.meshes import make_mesh
+
+    a = m["mesh_arrays"]
+    mesh = make_mesh(a["vertices"], a["triangles"], vertex_normals=a["vertex_normals"],
+                     vertex_colors=a["vertex_colors"], compute_normals=False)
+    return {**m, "mesh": mesh}
+
+
+def _report(cap, prep, calib, stripes, tri, m, cfg) -> dict:
+    """Stage ``evaluate``: the error model and, with ground truth, the scores."""
+    cam_cal, plane_cal, axis_cal = calib["camera"], calib["plane"], calib["axis"]
+    cam, plane, mesh = cam_cal.camera, plane_cal.plane, m["mesh"]
+    pc, px, sp = tri["pc"], tri["px"], tri["sp"]
+    timings = {**calib["timings"], **stripes["timings"], **tri["timings"]}
+    _, sig_noise, sig_tex = stripes["peak_model"].sigma_peak()
+    sigma_peak_jitter = estimate_peak_sigma(stripes["cols"])
     sp = np.where(np.isfinite(sp), sp, np.nanmedian(sp) if np.isfinite(sp).any() else 0.0)
     sigma_peak = float(np.sqrt(np.mean(sp ** 2))) if len(sp) else float("nan")
     sz_peak = depth_sigma(cam, plane, px, sp)
@@ -313,23 +415,27 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
     sz = np.sqrt(sz_peak ** 2 + sz_cal ** 2)
     tri_angle = _triangulation_angle(plane, pc)
     fin = np.isfinite(sig_noise)
+    per_frame = np.count_nonzero(np.isfinite(stripes["cols"]), axis=1)
+    motion = prep["motion"]
     report = {
         "kind": "laser",
         "capture": str(cap.root),
         "config": {**asdict(cfg), "meshing": asdict(cfg.meshing)},
-        "counts": {"frames": len(frames), "frames_with_stripe": int(np.count_nonzero(per_frame)),
-                   "stripe_points": int(len(P)), "points_after_outliers": int(len(m["kept"])),
+        "counts": {"frames": len(prep["frames"]),
+                   "frames_with_stripe": int(np.count_nonzero(per_frame)),
+                   "stripe_points": int(len(tri["P"])),
+                   "points_after_outliers": int(len(m["kept"])),
                    "mesh_vertices": len(mesh.vertices), "mesh_triangles": len(mesh.triangles)},
         "calibration": {"camera": cam_cal.to_dict(), "laser_plane": plane_cal.to_dict(),
                         motion if motion == "stage" else "axis": axis_cal.to_dict(),
-                        "object_from_camera": obj_from_cam.tolist()},
+                        "object_from_camera": calib["object_from_camera"].tolist()},
         "error_model": {
             "sigma_peak_px": sigma_peak,
             "sigma_peak_noise_px": float(np.sqrt(np.mean(sig_noise[fin] ** 2)))
             if fin.any() else None,
             "sigma_peak_texture_px": float(np.sqrt(np.mean(sig_tex[fin] ** 2)))
             if fin.any() else None,
-            "log_albedo_gradient_sigma_per_px": peak_model.sigma_g,
+            "log_albedo_gradient_sigma_per_px": stripes["peak_model"].sigma_g,
             "sigma_peak_jitter_px": sigma_peak_jitter,
             "sigma_z_peak_pred_rms_m": float(np.sqrt(np.mean(sz_peak ** 2))) if len(sz) else None,
             "sigma_z_plane_pred_rms_m": _rms(sz_plane),
@@ -344,29 +450,21 @@ def run(config: LaserReconConfig, capture_dir, out_dir) -> Path:
             "triangulation_angle_deg": float(np.degrees(tri_angle)),
             "median_depth_m": float(np.median(pc[:, 2])) if len(pc) else None,
         },
-        "warnings": warnings,
+        "warnings": calib["warnings"] + stripes["warnings"],
+        "timings": timings,
     }
-    timings["total_s"] = time.perf_counter() - t_all
-    report["timings"] = timings
-    out_dir = Path(out_dir)
-    with atomic_dir(out_dir) as tmp:
-        write_points(tmp / "points.ply", m["points"], normals=m["normals"])
-        write_mesh(tmp / "mesh.ply", mesh)
-        if cfg.evaluate and cap.ground_truth:
-            from reconstruct.laser_eval import evaluate_laser
+    if cfg.evaluate and cap.ground_truth:
+        from reconstruct.laser_eval import evaluate_laser
 
-            t = time.perf_counter()
-            report["evaluation"] = evaluate_laser(
-                cap, cam_cal, plane, axis_cal, obj_from_cam, mesh,
-                {"frame": kk, "row": rr, "col": uu, "points_cam": pc, "sigma_z": sz,
-                 "sigma_z_peak": sz_peak, "sigma_z_plane": sz_plane,
-                 "sigma_z_intrinsics": sz_intr},
-                tau=cfg.tau)
-            report["timings"]["evaluation_s"] = time.perf_counter() - t
-        for w in warnings:
-            log.warning("%s", w)
-        write_json(tmp / "report.json", report)
-    return out_dir
+        t = time.perf_counter()
+        report["evaluation"] = evaluate_laser(
+            cap, cam_cal, plane, axis_cal, calib["object_from_camera"], mesh,
+            {"frame": tri["kk"], "row": tri["rr"], "col": tri["uu"], "points_cam": pc,
+             "sigma_z": sz, "sigma_z_peak": sz_peak, "sigma_z_plane": sz_plane,
+             "sigma_z_intrinsics": sz_intr},
+            tau=cfg.tau)
+        report["timings"]["evaluation_s"] = time.perf_counter() - t
+    return report
 
 
 _DEFAULT_SENSOR = {"gain": 1.0, "full_well": 20000.0, "read_noise": 2.0, "bit_depth": 8,

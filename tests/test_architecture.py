@@ -77,7 +77,6 @@ def _is_numba_kernel(fn: ast.FunctionDef) -> bool:
 # fails, one that grew fails, and one that was split must leave the list.
 LONG_FUNCTION_LIMIT = 80
 KNOWN_LONG = {
-    "reconstruct/laser.py::run": 236,
     "reconstruct/sfm.py::run": 152,
     "acquire/capture_laser.py::capture": 123,
     "acquire/capture_stereo.py::capture": 99,

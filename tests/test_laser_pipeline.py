@@ -159,3 +159,23 @@ def test_output_config_reproduces_the_run(laser_scan, tmp_path):
                 str(a / "config.toml")]) == 0
     assert (b / "config.toml").read_text() == text
     assert (b / "mesh.ply").read_bytes() == (a / "mesh.ply").read_bytes()
+
+
+def test_stages_rerun_only_what_changed(laser_scan, tmp_path):
+    """Issue 14: a new Poisson depth re-runs mesh and evaluate only, and gives the bytes a
+    fresh run gives; --from forces a stage and the later ones."""
+    cap, _, _ = laser_scan
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    base = ["-q", "reconstruct", "laser", str(cap), "--no-evaluate"]
+    assert cli([*base, "--out", str(out)]) == 0
+    assert cli([*base, "--out", str(out), "--overwrite", "--meshing.depth", "7"]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["stages"] == {"ran": ["mesh", "evaluate"],
+                             "reused": ["calibrate", "extract", "triangulate"]}
+    assert cli([*base, "--out", str(fresh), "--meshing.depth", "7"]) == 0
+    assert (fresh / "mesh.ply").read_bytes() == (out / "mesh.ply").read_bytes()
+    assert cli([*base, "--out", str(out), "--overwrite", "--meshing.depth", "7",
+                "--from", "triangulate"]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["stages"]["ran"] == ["triangulate", "mesh", "evaluate"]
+    assert (fresh / "mesh.ply").read_bytes() == (out / "mesh.ply").read_bytes()

@@ -1,10 +1,13 @@
-"""scanamp reconstruct laser CAPTURE --out DIR"""
+"""scanamp reconstruct laser CAPTURE --out DIR [--overwrite [--from STAGE]]
+
+Run again into the same folder with ``--overwrite``, only the stages whose options or
+inputs changed are recomputed; ``--from STAGE`` forces that stage and the later ones."""
 
 import json
 import logging
 from pathlib import Path
 
-from reconstruct.laser import LaserReconConfig
+from reconstruct.laser import STAGES, LaserReconConfig
 from reconstruct.laser import run as run_laser
 
 GROUP = "reconstruct"
@@ -18,11 +21,18 @@ log = logging.getLogger("scanamp")
 def add_arguments(p):
     p.add_argument("capture", help="capture folder written by 'scanamp capture laser'")
     p.add_argument("--out", required=True, help="reconstruction folder to write")
+    p.add_argument("--from", dest="from_stage", choices=STAGES, default=None,
+                   help="re-run from this stage on (" + " -> ".join(STAGES) + "); without it "
+                        "a stage whose options and inputs are unchanged is reused from --out")
 
 
 def run(args, config: LaserReconConfig):
-    out = run_laser(config, args.capture, args.out)
+    out = run_laser(config, args.capture, args.out, from_stage=args.from_stage)
     rep = json.loads((Path(out) / "report.json").read_text())
+    st = rep.get("stages", {})
+    if st.get("reused"):
+        log.info("stages reused: %s; ran: %s", ", ".join(st["reused"]),
+                 ", ".join(st["ran"]) or "none")
     c = rep["counts"]
     log.info("%d stripe points from %d frames -> %d triangles; camera RMS %.3f px -> %s",
              c["stripe_points"], c["frames"], c["mesh_triangles"],

@@ -1,0 +1,136 @@
+"""Named pipeline stages that are skipped when their inputs and options have not changed.
+
+A pipeline is a short list of stages. Each stage's result is stored in the output folder
+(``stages/NAME.pkl``, with ``stages/NAME.json`` holding the key it was computed for); the
+key hashes what the stage depends on: its options, the files it reads, and the keys of
+the stages before it. Running the pipeline again into the same folder recomputes only the
+stages whose key changed and those after them; ``from_stage`` forces a stage and the
+ones after it to run. A user who changes the Poisson depth re-runs the meshing, not the
+calibration.
+
+The stored results are Python pickles: a cache for this version of scanamp, never an
+exchange format (the outputs the user reads are the pipeline's own files). A cache that
+cannot be read, or was written by another version, is recomputed.
+
+>>> import tempfile, pathlib
+>>> folder = pathlib.Path(tempfile.mkdtemp())
+>>> calls = []
+>>> def double(x):
+...     calls.append(x)
+...     return 2 * x
+>>> runner = Stages(folder, ["a", "b"])
+>>> runner.run("a", double, 21, depends={"x": 21})
+42
+>>> Stages(folder, ["a", "b"]).run("a", double, 21, depends={"x": 21})  # from the cache
+42
+>>> calls
+[21]
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import pickle
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from core.validate import check_choice
+
+__all__ = ["Stages", "files_key"]
+
+log = logging.getLogger(__name__)
+
+
+def _version() -> str:
+    from core.outputs import version
+
+    return version()
+
+
+def files_key(paths: Iterable[str | os.PathLike]) -> list:
+    """What identifies input files cheaply: name, size and modification time of each."""
+    out = []
+    for p in paths:
+        st = Path(p).stat()
+        out.append([str(p), st.st_size, st.st_mtime_ns])
+    return out
+
+
+class Stages:
+    """Runs named stages in ``folder/stages`` (see the module docstring).
+
+    Parameters
+    ----------
+    folder : path
+        Where the cache lives (the pipeline's output folder, or its temporary twin).
+    order : sequence of str
+        The stages' names in pipeline order.
+    from_stage : str, optional
+        Run this stage and every later one even if cached.
+    reuse : path, optional
+        An earlier output folder whose ``stages/`` cache may be used (read only).
+    """
+
+    def __init__(self, folder: str | os.PathLike, order: Sequence[str], *,
+                 from_stage: str | None = None, reuse: str | os.PathLike | None = None):
+        self.folder = Path(folder) / "stages"
+        self.order = list(order)
+        if from_stage is not None:
+            check_choice(from_stage, "from_stage", self.order)
+        self.forced = set(self.order[self.order.index(from_stage):]) if from_stage else set()
+        self.reuse = None if reuse is None else Path(reuse) / "stages"
+        self.keys: dict[str, str] = {}
+        self.ran: list[str] = []
+        self.skipped: list[str] = []
+
+    def _key(self, name: str, depends: Any) -> str:
+        upstream = {n: self.keys[n] for n in self.order[:self.order.index(name)]
+                    if n in self.keys}
+        text = json.dumps({"stage": name, "version": _version(), "depends": depends,
+                           "upstream": upstream}, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def _load(self, name: str, key: str):
+        for base in (self.folder, self.reuse):
+            if base is None:
+                continue
+            try:
+                meta = json.loads((base / f"{name}.json").read_text())
+                if meta.get("key") != key:
+                    continue
+                with open(base / f"{name}.pkl", "rb") as fh:
+                    return True, pickle.load(fh), base
+            except (OSError, ValueError, pickle.UnpicklingError, EOFError, AttributeError,
+                    ImportError):
+                continue
+        return False, None, None
+
+    def run(self, name: str, fn: Callable, *args, depends: Any = None, **kwargs):
+        """``fn(*args, **kwargs)``, or its stored result when ``depends`` (JSON-able: the
+        options and input files it reads) and the earlier stages are unchanged."""
+        check_choice(name, "stage", self.order)
+        key = self._key(name, depends)
+        self.keys[name] = key
+        if name not in self.forced:
+            found, value, base = self._load(name, key)
+            if found:
+                if base != self.folder:
+                    self._store(name, key, value)
+                self.skipped.append(name)
+                log.debug("stage %s: unchanged, reused", name)
+                return value
+        value = fn(*args, **kwargs)
+        self._store(name, key, value)
+        self.ran.append(name)
+        return value
+
+    def _store(self, name: str, key: str, value) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        with open(self.folder / f"{name}.pkl", "wb") as fh:
+            pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        (self.folder / f"{name}.json").write_text(json.dumps({"stage": name, "key": key},
+                                                             indent=2) + "\n")
