@@ -43,6 +43,7 @@ import numpy as np
 from core.files import atomic_dir, write_json
 from core.meshes import surface_distance
 from core.validate import check_choice
+from scanamp.methods import METHODS as ACQUISITION
 
 log = logging.getLogger(__name__)
 
@@ -262,13 +263,10 @@ class _Method:
 
 
 def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.capture_laser import capture
     from acquire.laser_rig import LaserRig
-    from core.files import read_json
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
     from reconstruct.laser import LaserReconConfig
-    from reconstruct.laser import run as run_laser
     from reconstruct.meshing import MeshingOptions
 
     m = _Method("laser", "laser triangulation (turntable)", root / "captures" / "laser",
@@ -280,19 +278,18 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
                    camera_elevation_deg=30.0, laser_elevation_deg=35.0, camera_views=cv,
                    laser_views=lv, axis_views=av,
                    calib_supersample=st.laser_calib_supersample, target=dict(_BOARD))
+    laser = ACQUISITION["laser"]
     t = time.perf_counter()
-    capture(bundle.render_scene, rig, m.capture_dir, np.random.default_rng(seed),
-            scene_info={"path": "demo", "name": bundle.name, "seed": bundle.seed}, seed=seed,
-            gt_mesh=bundle.gt_mesh())
+    laser.capture(bundle, rig, m.capture_dir, rng=np.random.default_rng(seed), seed=seed,
+                  scene_path="demo")
     m.seconds["capture"] = time.perf_counter() - t
     t = time.perf_counter()
     # The laser's own stripe thresholds: its profile test rejects the ambient-lit plateaus
     # and edges of this scene that a 20/12 pin once had to keep out.
     cfg = LaserReconConfig(meshing=MeshingOptions(depth=st.poisson_depth, density_quantile=0.03,
                                                   trim_distance=0.005), evaluate=False)
-    run_laser(cfg, m.capture_dir, m.recon_dir)
+    rep = laser.run(cfg, m.capture_dir, m.recon_dir).report
     m.seconds["reconstruct"] = time.perf_counter() - t
-    rep = read_json(m.recon_dir / "report.json")
     # the reconstruction is in the calibrated turntable frame; the true camera pose
     # (evaluation only) carries it into the world: world <- camera <- turntable
     obj_from_cam = np.asarray(rep["calibration"]["object_from_camera"])
@@ -305,12 +302,9 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 
 def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.capture_stereo import capture
     from acquire.stereo_rig import load_rig
-    from core.files import read_json
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
-    from reconstruct.stereo_recon import StereoOptions, run_capture
 
     m = _Method("stereo", "active stereo (random dots, turntable)",
                 root / "captures" / "stereo", root / "recon" / "stereo")
@@ -319,15 +313,14 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
                    calib_views=st.stereo_calib[0], axis_views=st.stereo_calib[1],
                    stage_angles_deg=tuple(st.stereo_angles_deg), supersample=st.stereo_supersample,
                    distance=0.42, aim_height=0.03, working_range=(0.28, 0.6))
+    active = ACQUISITION["active-stereo"]
     t = time.perf_counter()
-    capture(bundle.render_scene, rig, m.capture_dir, np.random.default_rng(seed),
-            scene_info={"path": "demo", "name": bundle.name, "seed": bundle.seed}, seed=seed,
-            object_name="object")
+    active.capture(bundle, rig, m.capture_dir, rng=np.random.default_rng(seed), seed=seed,
+                   scene_path="demo")
     m.seconds["capture"] = time.perf_counter() - t
     t = time.perf_counter()
-    run_capture(m.capture_dir, m.recon_dir, StereoOptions(mode="active", compare=False))
+    rep = active.run(active.recon_config(), m.capture_dir, m.recon_dir).report
     m.seconds["reconstruct"] = time.perf_counter() - t
-    rep = read_json(m.recon_dir / "report.json")
     mesh = read_mesh(m.recon_dir / "mesh.ply")
     if rep["calibration"]["axis"].get("method") == "mount":
         # the axis board sits in a known jig on the platter: the calibrated turntable frame
@@ -344,28 +337,25 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 
 def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.capture_sfm import PathConfig, capture
-    from core.files import read_json
+    from acquire.capture_sfm import PathConfig
     from core.mesh_io import read_mesh
     from reconstruct.sfm import SfmConfig
-    from reconstruct.sfm import run as run_sfm
 
     m = _Method("sfm", "structure from motion (orbit, pycolmap + dense TSDF)",
                 root / "captures" / "sfm", root / "recon" / "sfm")
     w, h = st.sfm_size
     cfg = PathConfig(kind="orbit", views=st.sfm_views, elevations_deg=[30.0, 50.0], width=w,
                      height=h, supersample=st.sfm_supersample)
+    sfm = ACQUISITION["sfm"]
     t = time.perf_counter()
-    capture(bundle.render_scene, cfg, m.capture_dir, rng=np.random.default_rng(seed),
-            scene_ref={"name": bundle.name, "seed": bundle.seed, "path": None},
-            gt_mesh=bundle.gt_mesh(), seed=seed)
+    sfm.capture(bundle, cfg, m.capture_dir, rng=np.random.default_rng(seed), seed=seed)
     m.seconds["capture"] = time.perf_counter() - t
     t = time.perf_counter()
-    res = run_sfm(SfmConfig(seed=seed, num_threads=st.sfm_threads), m.capture_dir, m.recon_dir)
+    res = sfm.run(SfmConfig(seed=seed, num_threads=st.sfm_threads), m.capture_dir, m.recon_dir)
     m.seconds["reconstruct"] = time.perf_counter() - t
     if not res.ok:
         raise RuntimeError(f"SfM failed: {res.message}")
-    rep = read_json(m.recon_dir / "report.json")
+    rep = res.report
     # with ground truth, the dense stage already works in the aligned scene frame
     m.mesh = read_mesh(m.recon_dir / "mesh.ply")
     m.points = int(rep["sparse"]["num_points"])

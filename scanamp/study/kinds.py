@@ -193,104 +193,47 @@ def _scene(scene: str):
     return bundle, info
 
 
-def _object_name(bundle) -> str | None:
-    names = [o.name for o in bundle.render_scene.objects]
-    return "object" if "object" in names else None
+def _scene_path(scene: str) -> str | None:
+    """The scene's file, None for a built-in name."""
+    return scene if "/" in scene or scene.endswith(".toml") else None
 
 
-def _read_report(folder: Path) -> dict:
-    from core.files import read_json
+def _execute(name: str):
+    """A study run of acquisition method ``name`` (:data:`scanamp.methods.METHODS`)."""
+    from scanamp.methods import METHODS
 
-    return read_json(Path(folder) / "report.json")
+    method = METHODS[name]
 
+    def execute(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
+        bundle, _ = _scene(scene)
+        if name == "sfm":  # pycolmap's seed follows the run's
+            rec_cfg = dataclasses.replace(rec_cfg, seed=seed)
+        cap = method.capture(bundle, cap_cfg, work / "capture", rng=np.random.default_rng(seed),
+                             seed=seed, scene_path=_scene_path(scene))
+        res = method.run(rec_cfg, cap, work / "reconstruction")
+        if not res.ok:
+            raise RunFailed(res.message or f"{name} failed", res.report)
+        return res.report
 
-def _laser_capture(path: Path):
-    from acquire.laser_rig import load_rig
-
-    return load_rig(path)
-
-
-def _laser_recon():
-    from reconstruct.laser import LaserReconConfig
-
-    return LaserReconConfig()
-
-
-def _run_laser(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
-    from acquire.capture_laser import capture
-    from reconstruct.laser import run
-
-    bundle, info = _scene(scene)
-    cap = capture(bundle.render_scene, cap_cfg, work / "capture", np.random.default_rng(seed),
-                  scene_info=info, seed=seed, gt_mesh=bundle.gt_mesh())
-    return _read_report(run(rec_cfg, cap, work / "reconstruction"))
+    return execute
 
 
-def _stereo_capture(path: Path):
-    from acquire.stereo_rig import load_rig
+def _load(name: str):
+    def load(path: Path):
+        from scanamp.methods import METHODS
 
-    return load_rig(path)
+        return METHODS[name].load_capture(path)
 
-
-def _stereo_recon():
-    from reconstruct.stereo_recon import StereoOptions
-
-    return StereoOptions()
+    return load
 
 
-def _run_stereo(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
-    from acquire.capture_stereo import capture
-    from reconstruct.stereo_recon import run_capture
+def _recon(name: str):
+    def default():
+        from scanamp.methods import METHODS
 
-    bundle, info = _scene(scene)
-    info["textureless"] = False
-    cap = capture(bundle.render_scene, cap_cfg, work / "capture", np.random.default_rng(seed),
-                  scene_info=info, seed=seed, object_name=_object_name(bundle))
-    return _read_report(run_capture(cap, work / "reconstruction", rec_cfg))
+        return METHODS[name].recon_config()
 
-
-def _sl_recon():
-    from reconstruct.sl_recon import SLOptions
-
-    return SLOptions()
-
-
-def _run_sl(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
-    from acquire.capture_sl import capture
-    from reconstruct.sl_recon import run_capture
-
-    bundle, info = _scene(scene)
-    cap = capture(bundle.render_scene, cap_cfg, work / "capture", np.random.default_rng(seed),
-                  scene_info=info, seed=seed, object_name=_object_name(bundle))
-    return _read_report(run_capture(cap, work / "reconstruction", rec_cfg))
-
-
-def _sfm_capture(path: Path):
-    from acquire.capture_sfm import path_config_from_toml
-
-    return path_config_from_toml(read_toml(path), path=path)
-
-
-def _sfm_recon():
-    from reconstruct.sfm import SfmConfig
-
-    return SfmConfig()
-
-
-def _run_sfm(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
-    from acquire.capture_sfm import capture
-    from reconstruct.sfm import run
-
-    bundle, _ = _scene(scene)
-    ref = {"name": bundle.name, "seed": bundle.seed,
-           "path": None if "/" not in scene else scene}
-    cap = capture(bundle.render_scene, cap_cfg, work / "capture",
-                  rng=np.random.default_rng(seed), scene_ref=ref, gt_mesh=bundle.gt_mesh(),
-                  seed=seed)
-    res = run(dataclasses.replace(rec_cfg, seed=seed), cap, work / "reconstruction")
-    if not res.ok:
-        raise RunFailed(res.message or "SfM failed", res.report)
-    return res.report
+    return default
 
 
 class RunFailed(RuntimeError):
@@ -423,17 +366,18 @@ def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work:
 _LASER_METRICS = ("evaluation.depth_error.rms_m", "evaluation.surface.fscore",
                   "evaluation.surface.recall", "evaluation.surface.precision")
 KINDS: dict[str, Kind] = {
-    "laser": Kind("laser", _laser_capture, _laser_recon, _run_laser, _LASER_METRICS),
-    "stereo": Kind("stereo", _stereo_capture, _stereo_recon, _run_stereo,
+    "laser": Kind("laser", _load("laser"), _recon("laser"), _execute("laser"), _LASER_METRICS),
+    "stereo": Kind("stereo", _load("stereo"), _recon("stereo"), _execute("stereo"),
                    ("results.active.evaluation.accuracy_mean",
                     "results.active.evaluation.fscore",
                     "results.active.disparity_mean.avgerr")),
-    "structured-light": Kind("structured-light", _stereo_capture, _sl_recon, _run_sl,
+    "structured-light": Kind("structured-light", _load("structured-light"),
+                             _recon("structured-light"), _execute("structured-light"),
                              ("evaluation.accuracy_mean", "evaluation.fscore")),
-    "sfm": Kind("sfm", _sfm_capture, _sfm_recon, _run_sfm,
+    "sfm": Kind("sfm", _load("sfm"), _recon("sfm"), _execute("sfm"),
                 ("registered_fraction", "metrics.poses.rotation_error_deg.mean",
                  "metrics.poses.ate_fraction_of_scene", "metrics.mesh.fscore")),
-    "peak-detector": Kind("peak-detector", _laser_capture, _laser_recon, _run_peaks,
+    "peak-detector": Kind("peak-detector", _load("laser"), _recon("laser"), _run_peaks,
                           ("peak_error.rms_px", "peak_error.detection_rate",
                            "peak_error.outlier_rate")),
     "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",)),

@@ -1,0 +1,208 @@
+"""The acquisition methods, one row each: how a scene is captured and how the capture is
+reconstructed, behind two entry points with one signature for every method.
+
+``capture(scene, config, out_dir, *, rng, seed=0, scene_path=None) -> Path`` renders a
+virtual capture of ``scene`` (a :class:`data_synth.scenes.SceneBundle`) with the rig
+``config`` (what ``scanamp capture KIND --config`` reads, :attr:`Method.load_capture`).
+
+``run(config, capture_dir, out_dir) -> Result`` reconstructs a capture folder with the
+reconstruction ``config`` (:attr:`Method.recon_config`, the dataclass ``scanamp
+reconstruct KIND`` fills from its flags).
+
+The studies (:mod:`scanamp.study.kinds`) and the demo call these; adding a method means
+adding a row to :data:`METHODS`.
+
+>>> sorted(METHODS)
+['active-stereo', 'laser', 'sfm', 'stereo', 'structured-light']
+>>> METHODS["active-stereo"].recon_config().mode
+'active'
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Method", "Result", "METHODS", "get_method"]
+
+
+@dataclass(frozen=True)
+class Result:
+    """A reconstruction: its folder and ``report.json``; ``ok`` False when the algorithm
+    failed but still wrote a report (SfM registering too few images)."""
+
+    out_dir: Path
+    report: dict
+    ok: bool = True
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Method:
+    """One acquisition method (see the module docstring)."""
+
+    name: str
+    title: str
+    load_capture: Callable[[str | os.PathLike | None], Any]
+    recon_config: Callable[[], Any]
+    capture: Callable[..., Path]
+    run: Callable[[Any, Path, Path], Result]
+
+
+def _scene_info(scene, scene_path) -> dict:
+    return {"path": str(scene_path) if scene_path is not None else scene.name,
+            "name": scene.name, "seed": scene.seed}
+
+
+def _object_name(scene) -> str | None:
+    names = [o.name for o in scene.render_scene.objects]
+    return "object" if "object" in names else None
+
+
+def _report(out_dir) -> dict:
+    from core.files import read_json
+
+    return read_json(Path(out_dir) / "report.json")
+
+
+# -- laser ---------------------------------------------------------------------------------
+def _laser_load(path):
+    from acquire.laser_rig import load_rig
+
+    return load_rig(path)
+
+
+def _laser_config():
+    from reconstruct.laser import LaserReconConfig
+
+    return LaserReconConfig()
+
+
+def _laser_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
+                   scene_path=None) -> Path:
+    from acquire.capture_laser import capture
+
+    return capture(scene.render_scene, config, out_dir, rng,
+                   scene_info=_scene_info(scene, scene_path), seed=seed,
+                   gt_mesh=scene.gt_mesh())
+
+
+def _laser_run(config, capture_dir, out_dir) -> Result:
+    from reconstruct.laser import run
+
+    out = run(config, capture_dir, out_dir)
+    return Result(Path(out), _report(out))
+
+
+# -- stereo, active stereo, structured light -------------------------------------------------
+def _stereo_load(path):
+    from acquire.stereo_rig import load_rig
+
+    return load_rig(path)
+
+
+def _stereo_config():
+    from reconstruct.stereo_recon import StereoOptions
+
+    return StereoOptions()
+
+
+def _active_stereo_config():
+    return dataclasses.replace(_stereo_config(), mode="active", compare=False)
+
+
+def _stereo_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
+                    scene_path=None) -> Path:
+    from acquire.capture_stereo import capture
+
+    info = {**_scene_info(scene, scene_path), "textureless": False}
+    return capture(scene.render_scene, config, out_dir, rng, scene_info=info, seed=seed,
+                   object_name=_object_name(scene))
+
+
+def _stereo_run(config, capture_dir, out_dir) -> Result:
+    from reconstruct.stereo_recon import run_capture
+
+    out = run_capture(capture_dir, out_dir, config)
+    return Result(Path(out), _report(out))
+
+
+def _sl_config():
+    from reconstruct.sl_recon import SLOptions
+
+    return SLOptions()
+
+
+def _sl_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
+                scene_path=None) -> Path:
+    from acquire.capture_sl import capture
+
+    return capture(scene.render_scene, config, out_dir, rng,
+                   scene_info=_scene_info(scene, scene_path), seed=seed,
+                   object_name=_object_name(scene))
+
+
+def _sl_run(config, capture_dir, out_dir) -> Result:
+    from reconstruct.sl_recon import run_capture
+
+    out = run_capture(capture_dir, out_dir, config)
+    return Result(Path(out), _report(out))
+
+
+# -- structure from motion -------------------------------------------------------------------
+def _sfm_load(path):
+    from acquire.capture_sfm import PathConfig, path_config_from_toml
+    from core.files import read_toml
+
+    return PathConfig() if path is None else path_config_from_toml(read_toml(path), path=path)
+
+
+def _sfm_config():
+    from reconstruct.sfm import SfmConfig
+
+    return SfmConfig()
+
+
+def _sfm_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
+                 scene_path=None) -> Path:
+    from acquire.capture_sfm import capture
+
+    ref = {"name": scene.name, "seed": scene.seed,
+           "path": None if scene_path is None else str(scene_path)}
+    return capture(scene.render_scene, config, out_dir, rng=rng, scene_ref=ref,
+                   gt_mesh=scene.gt_mesh(), seed=seed)
+
+
+def _sfm_run(config, capture_dir, out_dir) -> Result:
+    from reconstruct.sfm import run
+
+    res = run(config, capture_dir, out_dir)
+    return Result(Path(res.out_dir), res.report, res.ok, res.message)
+
+
+METHODS: dict[str, Method] = {
+    "laser": Method("laser", "laser triangulation (turntable or stage)", _laser_load,
+                    _laser_config, _laser_capture, _laser_run),
+    "stereo": Method("stereo", "stereo (passive, and active when the rig projects)",
+                     _stereo_load, _stereo_config, _stereo_capture, _stereo_run),
+    "active-stereo": Method("active-stereo", "active stereo (random-dot projector)",
+                            _stereo_load, _active_stereo_config, _stereo_capture,
+                            _stereo_run),
+    "structured-light": Method("structured-light", "structured light (Gray code + phase)",
+                               _stereo_load, _sl_config, _sl_capture, _sl_run),
+    "sfm": Method("sfm", "structure from motion (pycolmap + dense surface)", _sfm_load,
+                  _sfm_config, _sfm_capture, _sfm_run),
+}
+
+
+def get_method(name: str) -> Method:
+    """The row of ``name``; ValueError listing the methods otherwise."""
+    from core.validate import check_choice
+
+    return METHODS[check_choice(name, "method", METHODS)]
