@@ -241,6 +241,21 @@ def _reconstruct_mode(cap, calib, rect, table_from_left, key, opts, lo, num, gt_
     return depths, cams, pts_all, metrics, t_match
 
 
+def _mode_result(mesh, depths, pts, metrics, timings) -> dict:
+    """One mode's entry of the report: counts, timings, disparity metrics and their means."""
+    res = {"frames": len(depths), "timings_s": timings,
+           "points": int(sum(len(p) for p in pts)), "mesh_vertices": len(mesh.vertices),
+           "mesh_triangles": len(mesh.triangles)}
+    if metrics:
+        res["disparity_metrics"] = metrics
+        ok = [m for m in metrics if "error" not in m]
+        if ok:
+            keys = ("bad1.0", "bad2.0", "avgerr", "invalid", "density", "bad2.0_sparse",
+                    "rectification_dy_px", "depth_rms_m", "depth_median_abs_m")
+            res["disparity_mean"] = {k: float(np.mean([m[k] for m in ok])) for k in keys}
+    return res
+
+
 def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> Path:
     """Reconstruct a stereo capture folder into ``out_dir`` (points.ply, mesh.ply,
     report.json, disparity/ maps)."""
@@ -282,17 +297,8 @@ def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> 
         t0 = time.perf_counter()
         mesh = fuse_depth_maps(depths, cams, voxel_size=voxel, sdf_trunc=4 * voxel,
                                depth_max=far)
-        t_fuse = time.perf_counter() - t0
-        res = {"frames": len(depths), "timings_s": {"match": t_match, "fuse": t_fuse},
-               "points": int(sum(len(p) for p in pts)), "mesh_vertices": len(mesh.vertices),
-               "mesh_triangles": len(mesh.triangles)}
-        if metrics:
-            res["disparity_metrics"] = metrics
-            ok = [m for m in metrics if "error" not in m]
-            if ok:
-                keys = ("bad1.0", "bad2.0", "avgerr", "invalid", "density", "bad2.0_sparse",
-                        "rectification_dy_px", "depth_rms_m", "depth_median_abs_m")
-                res["disparity_mean"] = {k: float(np.mean([m[k] for m in ok])) for k in keys}
+        res = _mode_result(mesh, depths, pts, metrics,
+                           {"match": t_match, "fuse": time.perf_counter() - t0})
         if ref is not None:
             res["evaluation"] = score_mesh(mesh, ref, visible, size)
         results[md] = res

@@ -82,7 +82,6 @@ KNOWN_LONG = {
     "acquire/capture_stereo.py::capture": 99,
     "reconstruct/laser_eval.py::evaluate_laser": 97,
     "reconstruct/colmap_runner.py::run_colmap": 93,
-    "reconstruct/stereo_recon.py::run_capture": 81,
 }
 
 
