@@ -104,14 +104,18 @@ def visible_lit_mask(points: np.ndarray, mesh, cam0: Camera, laser0: LaserSheet,
 def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict, *,
                    tau: float) -> dict:
     """Evaluation figures of one reconstruction (see the module docstring)."""
-    from core.mesh_io import read_mesh
-    from reconstruct.evaluate import evaluate
-
     gt = cap.ground_truth
     motion = cap.rig["motion"]
     cam_gt = Camera.from_dict(gt["camera"])
+    out, plane_gt = _calibration_errors(gt, motion, cam_gt, cam_cal.camera, plane, axis_cal)
+    out.update(_stripe_errors(cap, gt, cam_cal.camera, cam_gt, plane_gt, meas))
+    out["surface"] = _surface_score(cap, gt, motion, cam_gt, obj_from_cam, mesh, tau)
+    return out
+
+
+def _calibration_errors(gt, motion, cam_gt, cam, plane, axis_cal) -> tuple[dict, np.ndarray]:
+    """Intrinsics, laser-plane and axis (or stage) errors; and the true plane (camera frame)."""
     R, t = cam_gt.cam_from_world[:3, :3], cam_gt.cam_from_world[:3, 3]
-    cam = cam_cal.camera
     out: dict = {}
     out["intrinsics_error"] = {
         "fx_px": cam.fx - cam_gt.fx, "fy_px": cam.fy - cam_gt.fy,
@@ -134,7 +138,13 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
     else:
         out["stage_error"] = {"direction_deg": _angle_deg(axis_cal.direction, a_gt),
                               "scale": axis_cal.scale - 1.0}
-    # -- peaks and depth against the true stripe -------------------------------------------
+    return out, plane_gt
+
+
+def _stripe_errors(cap, gt, cam, cam_gt, plane_gt, meas) -> dict:
+    """Peak errors against the true stripe, and the depth errors they and the calibration
+    make (with the error model's predictions beside them)."""
+    out: dict = {}
     st = np.load(cap.path(gt["stripe"]))
     H = cam.height
     kk, rr, uu = meas["frame"], meas["row"], meas["col"]
@@ -186,11 +196,17 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
                               "ratio_to_prediction": noise / pred_peak
                               if noise and pred_peak else None,
                               "total_ratio_to_prediction": rms / pred if rms and pred else None}
-    # -- surface -------------------------------------------------------------------------
+    return out
+
+
+def _surface_score(cap, gt, motion, cam_gt, obj_from_cam, mesh, tau) -> dict:
+    """The mesh against the scene's, in the world frame, over the surface the rig lit."""
+    from core.mesh_io import read_mesh
+    from core.meshes import transform_mesh
+    from reconstruct.evaluate import evaluate
+
     ref = read_mesh(cap.path(gt["mesh"]))
     world_from_obj = cam_gt.world_from_cam @ np.linalg.inv(obj_from_cam)
-    from core.meshes import transform_mesh
-
     recon_w = transform_mesh(mesh, world_from_obj)
     readings = np.asarray([f["angle_deg" if motion == "turntable" else "position_m"]
                            for f in cap.frames], float)
@@ -198,5 +214,4 @@ def evaluate_laser(cap, cam_cal, plane, axis_cal, obj_from_cam, mesh, meas: dict
     laser0 = LaserSheet.from_dict(gt["laser"])
     res = evaluate(recon_w, ref, tau=tau, reference_mask=lambda p: visible_lit_mask(
         p, ref, cam_gt, laser0, readings, gt, motion, step))
-    out["surface"] = res.to_dict() if hasattr(res, "to_dict") else dict(vars(res))
-    return out
+    return res.to_dict() if hasattr(res, "to_dict") else dict(vars(res))
