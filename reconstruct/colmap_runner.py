@@ -208,77 +208,15 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     sparse.mkdir(parents=True, exist_ok=True)
     pycolmap.set_random_seed(int(opt.seed))
     seed = int(opt.seed)
-    cpu = pycolmap.Device.cpu
-
-    def extract():
-        reader = pycolmap.ImageReaderOptions()
-        reader.camera_model = opt.camera_model
-        if opt.camera_params is not None:
-            reader.camera_params = opt.camera_params
-        extraction = pycolmap.FeatureExtractionOptions()
-        extraction.num_threads = opt.num_threads
-        extraction.sift.max_num_features = opt.max_features
-        pycolmap.extract_features(str(database), str(image_dir), image_names=list(image_names),
-                                  camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                                  extraction_options=extraction, device=cpu)
-        if position_priors:
-            _write_position_priors(database, position_priors, prior_sigma)
-        if opt.matcher == "spatial" and _num_pose_priors(database) == 0:
-            raise ValueError("matcher: 'spatial' needs camera position priors (EXIF GPS or a "
-                             "rig), and none of the images has one; use 'exhaustive' or "
-                             "'sequential'")
-
-    def match():
-        matching = pycolmap.FeatureMatchingOptions()
-        matching.num_threads = opt.num_threads
-        verification = pycolmap.TwoViewGeometryOptions()
-        verification.ransac.random_seed = seed
-        if opt.matcher == "exhaustive":
-            pycolmap.match_exhaustive(str(database), matching_options=matching,
-                                      verification_options=verification, device=cpu)
-        elif opt.matcher == "sequential":
-            pairing = pycolmap.SequentialPairingOptions()
-            pairing.overlap = opt.sequential_overlap
-            pairing.quadratic_overlap = True
-            pairing.num_threads = opt.num_threads
-            pycolmap.match_sequential(str(database), matching_options=matching,
-                                      pairing_options=pairing, verification_options=verification,
-                                      device=cpu)
-        else:
-            pairing = pycolmap.SpatialPairingOptions()
-            pairing.ignore_z = False
-            pairing.max_num_neighbors = opt.spatial_neighbors
-            pairing.max_distance = 1e30
-            pairing.num_threads = opt.num_threads
-            pycolmap.match_spatial(str(database), matching_options=matching,
-                                   pairing_options=pairing, verification_options=verification,
-                                   device=cpu)
-
-    def mapping():
-        if opt.mapper == "incremental":
-            mopt = pycolmap.IncrementalPipelineOptions()
-            mopt.num_threads = opt.num_threads
-            mopt.random_seed = seed
-            mopt.mapper.random_seed = seed
-            mopt.mapper.num_threads = opt.num_threads
-            return pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
-                                                options=mopt)
-        mopt = pycolmap.GlobalPipelineOptions()
-        mopt.num_threads = opt.num_threads
-        mopt.random_seed = seed
-        mopt.mapper.num_threads = opt.num_threads
-        mopt.mapper.random_seed = seed
-        mopt.mapper.rotation_averaging.random_seed = seed
-        mopt.mapper.global_positioning.random_seed = seed
-        mopt.mapper.global_positioning.use_gpu = False
-        mopt.mapper.bundle_adjustment.ceres.use_gpu = False
-        return pycolmap.global_mapping(str(database), str(image_dir), str(sparse), options=mopt)
 
     timings, models = {}, {}
     # glog: INFO when verbose, else errors only (its warnings, e.g. about SIFT threads
     # and RAM, are advice for GPU boxes and would garble the CLI's one-line output)
     with _quiet_colmap(0 if verbose else 2):
-        stages = (("extract", extract), ("match", match), ("map", mapping))
+        stages = (("extract", lambda: _extract(opt, database, image_dir, image_names,
+                                                position_priors, prior_sigma)),
+                  ("match", lambda: _match(opt, database, seed)),
+                  ("map", lambda: _map(opt, database, image_dir, sparse, seed)))
         for name, fn in track(stages, "sparse SfM (pycolmap: extract, match, map)",
                               total=len(stages)):
             t = time.perf_counter()
@@ -290,6 +228,83 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     if models:
         best = max(models.values(), key=lambda r: (r.num_reg_images(), r.num_points3D()))
     return ColmapResult(best, len(models), timings, database)
+
+
+def _extract(opt, database: Path, image_dir, image_names, position_priors,
+             prior_sigma: float) -> None:
+    """Stage extract: SIFT features of every image into the database."""
+    import pycolmap
+
+    cpu = pycolmap.Device.cpu
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = opt.camera_model
+    if opt.camera_params is not None:
+        reader.camera_params = opt.camera_params
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = opt.num_threads
+    extraction.sift.max_num_features = opt.max_features
+    pycolmap.extract_features(str(database), str(image_dir), image_names=list(image_names),
+                              camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                              extraction_options=extraction, device=cpu)
+    if position_priors:
+        _write_position_priors(database, position_priors, prior_sigma)
+    if opt.matcher == "spatial" and _num_pose_priors(database) == 0:
+        raise ValueError("matcher: 'spatial' needs camera position priors (EXIF GPS or a "
+                         "rig), and none of the images has one; use 'exhaustive' or "
+                         "'sequential'")
+
+def _match(opt, database: Path, seed: int) -> None:
+    """Stage match: pairs by the chosen matcher, verified two-view geometry."""
+    import pycolmap
+
+    cpu = pycolmap.Device.cpu
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = opt.num_threads
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = seed
+    if opt.matcher == "exhaustive":
+        pycolmap.match_exhaustive(str(database), matching_options=matching,
+                                  verification_options=verification, device=cpu)
+    elif opt.matcher == "sequential":
+        pairing = pycolmap.SequentialPairingOptions()
+        pairing.overlap = opt.sequential_overlap
+        pairing.quadratic_overlap = True
+        pairing.num_threads = opt.num_threads
+        pycolmap.match_sequential(str(database), matching_options=matching,
+                                  pairing_options=pairing, verification_options=verification,
+                                  device=cpu)
+    else:
+        pairing = pycolmap.SpatialPairingOptions()
+        pairing.ignore_z = False
+        pairing.max_num_neighbors = opt.spatial_neighbors
+        pairing.max_distance = 1e30
+        pairing.num_threads = opt.num_threads
+        pycolmap.match_spatial(str(database), matching_options=matching,
+                               pairing_options=pairing, verification_options=verification,
+                               device=cpu)
+
+def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
+    """Stage map: the incremental or global mapper; the models it found."""
+    import pycolmap
+
+    if opt.mapper == "incremental":
+        mopt = pycolmap.IncrementalPipelineOptions()
+        mopt.num_threads = opt.num_threads
+        mopt.random_seed = seed
+        mopt.mapper.random_seed = seed
+        mopt.mapper.num_threads = opt.num_threads
+        return pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
+                                            options=mopt)
+    mopt = pycolmap.GlobalPipelineOptions()
+    mopt.num_threads = opt.num_threads
+    mopt.random_seed = seed
+    mopt.mapper.num_threads = opt.num_threads
+    mopt.mapper.random_seed = seed
+    mopt.mapper.rotation_averaging.random_seed = seed
+    mopt.mapper.global_positioning.random_seed = seed
+    mopt.mapper.global_positioning.use_gpu = False
+    mopt.mapper.bundle_adjustment.ceres.use_gpu = False
+    return pycolmap.global_mapping(str(database), str(image_dir), str(sparse), options=mopt)
 
 
 # -- camera conversions ---------------------------------------------------------------

@@ -80,7 +80,6 @@ KNOWN_LONG = {
     "reconstruct/sfm.py::run": 152,
     "acquire/capture_laser.py::capture": 123,
     "acquire/capture_stereo.py::capture": 99,
-    "reconstruct/colmap_runner.py::run_colmap": 93,
 }
 
 
