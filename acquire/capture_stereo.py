@@ -39,6 +39,65 @@ __all__ = ["capture"]
 _log = logging.getLogger(__name__)
 
 
+def _calibration_views(rig, left, right, lamp, sensor, rng, tmp: Path):
+    """The board seen by both cameras (stereo calibration), then on the turntable (axis)."""
+    # -- calibration: board seen by both cameras ---------------------------------
+    cal_pairs, cal_gt = [], []
+    for i, T in enumerate(track(calibration_board_poses(rig, rig.calib_views, rng),
+                                "stereo calibration views", total=rig.calib_views)):
+        sc = board_scene(rig, T, [lamp], rig.ambient)
+        pair = []
+        for name, cam in (("L", left), ("R", right)):
+            (rad,), _ = render_light_sets(sc, cam, [[lamp]], supersample=rig.supersample,
+                                          ambient=rig.ambient)
+            rel = f"images/cal_{i:03d}_{name}.png"
+            write_image(tmp / rel, sensor.apply(rad, rng))
+            pair.append(rel)
+        cal_pairs.append(pair)
+        cal_gt.append(T)
+    # -- calibration: board on the turntable (axis) --------------------------------
+    axis_imgs = []
+    poses, angles = axis_board_poses(rig, rig.axis_views)
+    for i, T in enumerate(poses):
+        sc = board_scene(rig, T, [lamp], rig.ambient)
+        (rad,), _ = render_light_sets(sc, left, [[lamp]], supersample=rig.supersample,
+                                      ambient=rig.ambient)
+        rel = f"images/axis_{i:03d}_L.png"
+        write_image(tmp / rel, sensor.apply(rad, rng))
+        axis_imgs.append(rel)
+    return cal_pairs, cal_gt, axis_imgs, poses, angles
+
+
+def _object_frames(scene, rig, left, right, lamps, proj, sensor, rng, tmp: Path):
+    """The object at every stage angle, with and without the dot projector."""
+    # -- object frames ------------------------------------------------------------
+    frames, gt_frames = [], []
+    sets = [lamps] + ([lamps + [proj]] if proj is not None else [])
+    for i, ang in enumerate(track(rig.stage_angles_deg, "stereo frames",
+                                  total=len(rig.stage_angles_deg))):
+        sc = turntable_scene(scene, np.radians(ang))
+        fr = {"stage_angle_deg": float(ang), "images": [], "camera": "left"}
+        if proj is not None:
+            fr["active_images"] = []
+        gt = {"depth": []}
+        for name, cam in (("L", left), ("R", right)):
+            rads, depth = render_light_sets(sc, cam, sets, supersample=rig.supersample,
+                                            ambient=rig.ambient)
+            rel = f"images/pose_{i:03d}_{name}.png"
+            write_image(tmp / rel, sensor.apply(rads[0], rng))
+            fr["images"].append(rel)
+            if proj is not None:
+                rel = f"images/pose_{i:03d}_{name}_dots.png"
+                write_image(tmp / rel, sensor.apply(rads[1], rng))
+                fr["active_images"].append(rel)
+            drel = f"gt/pose_{i:03d}_{name}_depth.npy"
+            np.save(tmp / drel, depth)
+            gt["depth"].append(drel)
+        frames.append(fr)
+        gt_frames.append(gt)
+    return frames, gt_frames
+
+
 def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generator, *,
             scene_info: dict | None = None, seed: int | None = None,
             object_name: str | None = None) -> Path:
@@ -76,55 +135,10 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
     with atomic_dir(out_dir) as tmp:
         (tmp / "images").mkdir()
         (tmp / "gt").mkdir()
-        # -- calibration: board seen by both cameras ---------------------------------
-        cal_pairs, cal_gt = [], []
-        for i, T in enumerate(track(calibration_board_poses(rig, rig.calib_views, rng),
-                                    "stereo calibration views", total=rig.calib_views)):
-            sc = board_scene(rig, T, [lamp], rig.ambient)
-            pair = []
-            for name, cam in (("L", left), ("R", right)):
-                (rad,), _ = render_light_sets(sc, cam, [[lamp]], supersample=rig.supersample,
-                                              ambient=rig.ambient)
-                rel = f"images/cal_{i:03d}_{name}.png"
-                write_image(tmp / rel, sensor.apply(rad, rng))
-                pair.append(rel)
-            cal_pairs.append(pair)
-            cal_gt.append(T)
-        # -- calibration: board on the turntable (axis) --------------------------------
-        axis_imgs = []
-        poses, angles = axis_board_poses(rig, rig.axis_views)
-        for i, T in enumerate(poses):
-            sc = board_scene(rig, T, [lamp], rig.ambient)
-            (rad,), _ = render_light_sets(sc, left, [[lamp]], supersample=rig.supersample,
-                                          ambient=rig.ambient)
-            rel = f"images/axis_{i:03d}_L.png"
-            write_image(tmp / rel, sensor.apply(rad, rng))
-            axis_imgs.append(rel)
-        # -- object frames ------------------------------------------------------------
-        frames, gt_frames = [], []
-        sets = [lamps] + ([lamps + [proj]] if proj is not None else [])
-        for i, ang in enumerate(track(rig.stage_angles_deg, "stereo frames",
-                                      total=len(rig.stage_angles_deg))):
-            sc = turntable_scene(scene, np.radians(ang))
-            fr = {"stage_angle_deg": float(ang), "images": [], "camera": "left"}
-            if proj is not None:
-                fr["active_images"] = []
-            gt = {"depth": []}
-            for name, cam in (("L", left), ("R", right)):
-                rads, depth = render_light_sets(sc, cam, sets, supersample=rig.supersample,
-                                                ambient=rig.ambient)
-                rel = f"images/pose_{i:03d}_{name}.png"
-                write_image(tmp / rel, sensor.apply(rads[0], rng))
-                fr["images"].append(rel)
-                if proj is not None:
-                    rel = f"images/pose_{i:03d}_{name}_dots.png"
-                    write_image(tmp / rel, sensor.apply(rads[1], rng))
-                    fr["active_images"].append(rel)
-                drel = f"gt/pose_{i:03d}_{name}_depth.npy"
-                np.save(tmp / drel, depth)
-                gt["depth"].append(drel)
-            frames.append(fr)
-            gt_frames.append(gt)
+        cal_pairs, cal_gt, axis_imgs, poses, angles = _calibration_views(
+            rig, left, right, lamp, sensor, rng, tmp)
+        frames, gt_frames = _object_frames(scene, rig, left, right, lamps, proj, sensor, rng,
+                                           tmp)
         data = {
             "kind": "stereo",
             "seed": seed,

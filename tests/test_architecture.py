@@ -79,7 +79,6 @@ LONG_FUNCTION_LIMIT = 80
 KNOWN_LONG = {
     "reconstruct/sfm.py::run": 152,
     "acquire/capture_laser.py::capture": 123,
-    "acquire/capture_stereo.py::capture": 99,
 }
 
 
