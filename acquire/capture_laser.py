@@ -126,6 +126,85 @@ def _calib_image(target, world_from_target, cam_hi, dirs_hi, s, laser, ambient, 
     return sensor.apply(rad, rng)
 
 
+def _scan_frames(scene, rig, cam0, laser0, sensor, positions, gt_depth, rng, tmp: Path):
+    """The scan: one frame per stage reading, and the true stripe (for evaluation)."""
+    # -- scan frames --------------------------------------------------------------------
+    renderer = LaserRenderer(scene, cam0)
+    frames, stripes, lit_counts = [], [], []
+    key = "angle_deg" if rig.motion == "turntable" else "position_m"
+    for k, pos in enumerate(track(positions, "laser scan")):
+        W = rig.world_from_object(pos)
+        fr = renderer.frame(cam0.cam_from_world @ W, laser0.transformed(np.linalg.inv(W)),
+                            rng=rng)
+        img = sensor.apply(fr.radiance, rng)
+        rel = f"images/scan_{k:04d}.png"
+        _write_png(tmp / rel, img)
+        entry = {"image": rel, "camera": "cam0", key: float(pos)}
+        if gt_depth:
+            np.save(tmp / "gt" / f"depth_{k:04d}.npy", fr.depth)
+            entry["gt_depth"] = f"gt/depth_{k:04d}.npy"
+        frames.append(entry)
+        if len(fr.stripe):
+            stripes.append(np.column_stack([np.full(len(fr.stripe), k), fr.stripe]))
+        lit_counts.append(fr.lit)
+    stripe = np.concatenate(stripes) if stripes else np.zeros((0, 3))
+    np.save(tmp / "gt" / "stripe.npy", stripe.astype(np.float64))
+    return frames, stripe, lit_counts, key
+
+
+def _calibration_captures(rig, cam0, laser0, sensor, target, positions, rng, tmp: Path):
+    """The camera, laser-plane and axis (or stage) calibration captures."""
+    # -- calibration captures -------------------------------------------------------------
+    s = rig.calib_supersample
+    cam_hi = _hires(cam0, s)
+    dirs_hi = camera_directions(cam_hi)
+    calib, gt_calib = [], {}
+    # a little nearer than the object: the board fills more of the image, which pins
+    # the focal length and principal point down better (measured: 0.8x halves their std)
+    cam_poses = board_poses_camera(cam0, target, rig.camera_views, rng,
+                                   0.8 * rig.working_distance)
+    names = []
+    for i, T in enumerate(track(cam_poses, "camera calibration")):
+        img = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
+        rel = f"images/calib_camera_{i:02d}.png"
+        _write_png(tmp / rel, img)
+        names.append(rel)
+    calib.append({"kind": "camera", "camera": "cam0", "images": names,
+                  "target": target.to_dict()})
+    gt_calib["camera_target_poses"] = [(cam0.cam_from_world @ T).tolist() for T in cam_poses]
+    pairs = []
+    laser_poses = board_poses_laser(rig, target, cam0, rig.laser_views, rng)
+    for i, T in enumerate(track(laser_poses, "laser-plane calibration")):
+        off = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
+        on = _calib_image(target, T, cam_hi, dirs_hi, s, laser0, rig.ambient, sensor, rng)
+        pair = [f"images/calib_laser_{i:02d}_off.png", f"images/calib_laser_{i:02d}_on.png"]
+        _write_png(tmp / pair[0], off)
+        _write_png(tmp / pair[1], on)
+        pairs.append(pair)
+    calib.append({"kind": "laser_plane", "camera": "cam0", "images": pairs,
+                  "image_roles": ["laser_off", "laser_on"], "target": target.to_dict()})
+    gt_calib["laser_target_poses"] = [(cam0.cam_from_world @ T).tolist()
+                                      for T in laser_poses]
+    obj_from_target = board_pose_axis(rig, target, cam0)
+    if rig.motion == "turntable":
+        readings = np.linspace(-rig.axis_span_deg / 2, rig.axis_span_deg / 2, rig.axis_views)
+        kind, rkey = "axis", "angles_deg"
+    else:
+        travel = min(abs(positions[-1] - positions[0]), 0.06)
+        readings = np.linspace(-travel / 2, travel / 2, rig.stage_views)
+        kind, rkey = "stage", "positions_m"
+    names = []
+    for i, r in enumerate(track(readings, f"{kind} calibration")):
+        T = rig.world_from_object(r) @ obj_from_target
+        img = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
+        rel = f"images/calib_{kind}_{i:02d}.png"
+        _write_png(tmp / rel, img)
+        names.append(rel)
+    calib.append({"kind": kind, "camera": "cam0", "images": names,
+                  rkey: [float(r) for r in readings], "target": target.to_dict()})
+    return calib, gt_calib
+
+
 def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator, *,
             scene_info: dict | None = None, seed: int | None = None, gt_depth: bool = False,
             gt_mesh=None) -> Path:
@@ -168,75 +247,10 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
     with atomic_dir(out_dir) as tmp:
         (tmp / "images").mkdir()
         (tmp / "gt").mkdir()
-        # -- scan frames --------------------------------------------------------------------
-        renderer = LaserRenderer(scene, cam0)
-        frames, stripes, lit_counts = [], [], []
-        key = "angle_deg" if rig.motion == "turntable" else "position_m"
-        for k, pos in enumerate(track(positions, "laser scan")):
-            W = rig.world_from_object(pos)
-            fr = renderer.frame(cam0.cam_from_world @ W, laser0.transformed(np.linalg.inv(W)),
-                                rng=rng)
-            img = sensor.apply(fr.radiance, rng)
-            rel = f"images/scan_{k:04d}.png"
-            _write_png(tmp / rel, img)
-            entry = {"image": rel, "camera": "cam0", key: float(pos)}
-            if gt_depth:
-                np.save(tmp / "gt" / f"depth_{k:04d}.npy", fr.depth)
-                entry["gt_depth"] = f"gt/depth_{k:04d}.npy"
-            frames.append(entry)
-            if len(fr.stripe):
-                stripes.append(np.column_stack([np.full(len(fr.stripe), k), fr.stripe]))
-            lit_counts.append(fr.lit)
-        stripe = np.concatenate(stripes) if stripes else np.zeros((0, 3))
-        np.save(tmp / "gt" / "stripe.npy", stripe.astype(np.float64))
-        # -- calibration captures -------------------------------------------------------------
-        s = rig.calib_supersample
-        cam_hi = _hires(cam0, s)
-        dirs_hi = camera_directions(cam_hi)
-        calib, gt_calib = [], {}
-        # a little nearer than the object: the board fills more of the image, which pins
-        # the focal length and principal point down better (measured: 0.8x halves their std)
-        cam_poses = board_poses_camera(cam0, target, rig.camera_views, rng,
-                                       0.8 * rig.working_distance)
-        names = []
-        for i, T in enumerate(track(cam_poses, "camera calibration")):
-            img = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
-            rel = f"images/calib_camera_{i:02d}.png"
-            _write_png(tmp / rel, img)
-            names.append(rel)
-        calib.append({"kind": "camera", "camera": "cam0", "images": names,
-                      "target": target.to_dict()})
-        gt_calib["camera_target_poses"] = [(cam0.cam_from_world @ T).tolist() for T in cam_poses]
-        pairs = []
-        laser_poses = board_poses_laser(rig, target, cam0, rig.laser_views, rng)
-        for i, T in enumerate(track(laser_poses, "laser-plane calibration")):
-            off = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
-            on = _calib_image(target, T, cam_hi, dirs_hi, s, laser0, rig.ambient, sensor, rng)
-            pair = [f"images/calib_laser_{i:02d}_off.png", f"images/calib_laser_{i:02d}_on.png"]
-            _write_png(tmp / pair[0], off)
-            _write_png(tmp / pair[1], on)
-            pairs.append(pair)
-        calib.append({"kind": "laser_plane", "camera": "cam0", "images": pairs,
-                      "image_roles": ["laser_off", "laser_on"], "target": target.to_dict()})
-        gt_calib["laser_target_poses"] = [(cam0.cam_from_world @ T).tolist()
-                                          for T in laser_poses]
-        obj_from_target = board_pose_axis(rig, target, cam0)
-        if rig.motion == "turntable":
-            readings = np.linspace(-rig.axis_span_deg / 2, rig.axis_span_deg / 2, rig.axis_views)
-            kind, rkey = "axis", "angles_deg"
-        else:
-            travel = min(abs(positions[-1] - positions[0]), 0.06)
-            readings = np.linspace(-travel / 2, travel / 2, rig.stage_views)
-            kind, rkey = "stage", "positions_m"
-        names = []
-        for i, r in enumerate(track(readings, f"{kind} calibration")):
-            T = rig.world_from_object(r) @ obj_from_target
-            img = _calib_image(target, T, cam_hi, dirs_hi, s, None, _CALIB_AMBIENT, sensor, rng)
-            rel = f"images/calib_{kind}_{i:02d}.png"
-            _write_png(tmp / rel, img)
-            names.append(rel)
-        calib.append({"kind": kind, "camera": "cam0", "images": names,
-                      rkey: [float(r) for r in readings], "target": target.to_dict()})
+        frames, stripe, lit_counts, key = _scan_frames(scene, rig, cam0, laser0, sensor,
+                                                       positions, gt_depth, rng, tmp)
+        calib, gt_calib = _calibration_captures(rig, cam0, laser0, sensor, target, positions,
+                                                rng, tmp)
         # -- ground truth (evaluation only) ---------------------------------------------------
         if gt_mesh is None:
             gt_mesh = merge_meshes([transform_mesh(o.mesh, o.world_from_object)

@@ -78,7 +78,6 @@ def _is_numba_kernel(fn: ast.FunctionDef) -> bool:
 LONG_FUNCTION_LIMIT = 80
 KNOWN_LONG = {
     "reconstruct/sfm.py::run": 152,
-    "acquire/capture_laser.py::capture": 123,
 }
 
 
