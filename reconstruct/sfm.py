@@ -347,26 +347,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     import pycolmap  # noqa: F401
     t_imports = time.perf_counter() - t
     t_sparse = time.perf_counter() - t_check  # the image checks belong to the sparse stage
-    if config.camera:
-        model, params = parse_camera(config.camera)
-        intr_source = "--camera"
-        if Path(config.camera).suffix.lower() in (".yaml", ".yml", ".xml"):
-            cam = read_camera_yaml(config.camera)
-            if (cam.width, cam.height) != (width, height):
-                raise InputError(f"calibrated for {cam.width}x{cam.height} images, the images "
-                                 f"are {width}x{height}", path=config.camera,
-                                 field="image_width")
-            intr_source = f"--camera {config.camera}"
-    elif inp.nominal is not None:
-        if (inp.nominal.width, inp.nominal.height) != (width, height):
-            raise InputError(f"cameras: nominal size {inp.nominal.width}x{inp.nominal.height} "
-                             f"differs from the images ({width}x{height})",
-                             path=input_path / "capture.json")
-        model, params = colmap_params_from_camera(inp.nominal)
-        intr_source = "capture.json nominal camera (refined by bundle adjustment)"
-    else:
-        model, params = "SIMPLE_RADIAL", None
-        intr_source = None  # EXIF or COLMAP's guess: known after extraction
+    model, params, intr_source = _intrinsics(config, inp, width, height, input_path)
     matcher = _choose_matcher(config, inp)
     opts = ColmapOptions(camera_model=model, camera_params=params, matcher=matcher,
                          mapper=config.mapper, num_threads=config.num_threads, seed=config.seed,
@@ -405,86 +386,128 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
             if diagnosis:
                 report["diagnosis"] = diagnosis
         if ok:
-            sparse = tmp / "sparse" / "0"
-            (sparse / "text").mkdir(parents=True)
-            rec.write(str(sparse))
-            rec.write_text(str(sparse / "text"))
-            report["sparse"] = {
-                "num_points": rec.num_points3D(),
-                "mean_reprojection_error_px": rec.compute_mean_reprojection_error(),
-                "mean_track_length": rec.compute_mean_track_length(),
-                "cameras": {int(cid): {"model": c.model_name, "params": list(map(float, c.params)),
-                                       "has_prior_focal_length": bool(c.has_prior_focal_length)}
-                            for cid, c in rec.cameras.items()}}
-            images = sorted((im for im in rec.images.values() if im.has_pose),
-                            key=lambda im: inp.names.index(im.name))
-            cams = [camera_from_colmap(im.camera, image_cam_from_world(im)) for im in images]
-            ids = sorted(rec.points3D.keys())
-            index = {p: i for i, p in enumerate(ids)}
-            pts = np.array([rec.points3D[p].xyz for p in ids]).reshape(-1, 3)
-            cols = np.array([rec.points3D[p].color for p in ids]).reshape(-1, 3) / 255.0
-            visible = [np.array([index[p.point3D_id] for p in im.points2D if p.has_point3D()],
-                                np.int64) for im in images]
-            gt = inp.capture.ground_truth if inp.capture is not None else None
-            true_cams = None
-            if gt and "cameras" in gt:
-                true_cams = {n: Camera.from_dict(c) for n, c in gt["cameras"].items()}
-                est = {im.name: c.cam_from_world for im, c in zip(images, cams, strict=True)}
-                errs = align_cameras(est, {n: c.cam_from_world for n, c in true_cams.items()})
-                report["metrics"] = {"poses": errs.summary(gt.get("scene_size")),
-                                     "frame": "aligned to the true cameras by Sim(3)"}
-                sim = errs.alignment
-                pts = sim.apply(pts)
-                cams = [c.with_pose(sim.apply_cam_from_world(c.cam_from_world)) for c in cams]
-                report["alignment_scene_from_sfm"] = sim.matrix.tolist()
-            report["frame"] = "scene (aligned)" if true_cams else "SfM (arbitrary similarity)"
-            write_points(tmp / "points.ply", pts, colors=cols)
-            write_transforms(tmp / "transforms.json", cams,
-                             [os.path.relpath(inp.image_dir / im.name, Path(out_dir))
-                              for im in images])
+            images, cams, pts, visible, true_cams, gt = _sparse_outputs(
+                rec, inp, tmp, Path(out_dir), report)
             report["timings"]["sparse_total"] = time.perf_counter() - t_sparse
             report["timings"]["sparse_overhead"] = (report["timings"]["sparse_total"]
                                                     - report["timings"]["pycolmap"])
             if config.dense:
-                t = time.perf_counter()
-                grays = [cv2.imread(str(inp.image_dir / im.name), cv2.IMREAD_GRAYSCALE)
-                         for im in images]
-                colors = [cv2.imread(str(inp.image_dir / im.name))[..., ::-1] for im in images]
-                depths, neighbors = depth_maps(grays, cams, visible, pts,
-                                               options=config.dense_options)
-                lo, hi = np.percentile(pts, [2, 98], axis=0)
-                extent = float(np.linalg.norm(hi - lo))
-                zmax = max(float(np.max(d)) for d in depths) if depths else 0.0
-                mesh = None
-                if zmax > 0:
-                    from reconstruct.tsdf import fuse_depth_maps
-
-                    voxel = extent * config.voxel_fraction
-                    mesh = fuse_depth_maps(depths, cams, voxel_size=voxel,
-                                           depth_max=1.5 * zmax, colors=colors)
-                    mesh = _clean_mesh(mesh)
-                    if len(mesh.triangles):
-                        write_mesh(tmp / "mesh.ply", mesh)
-                report["timings"]["dense"] = time.perf_counter() - t
-                report["dense"] = {"depth_pixels": [int((d > 0).sum()) for d in depths],
-                                   "stereo_partner": {
-                                       im.name: images[nb[0]].name if nb else None
-                                       for im, nb in zip(images, neighbors, strict=True)},
-                                   "voxel_size": extent * config.voxel_fraction,
-                                   "triangles": 0 if mesh is None else len(mesh.triangles)}
-                if mesh is None or len(mesh.triangles) == 0:
-                    ok = False
-                    message = "the dense surface is empty (no consistent depth in any view)"
-                elif true_cams and gt.get("mesh"):
-                    t = time.perf_counter()
-                    report["metrics"]["mesh"] = _score_mesh(
-                        mesh, inp.capture.path(gt["mesh"]), list(true_cams.values()),
-                        gt.get("scene_size"))
-                    report["timings"]["evaluate_mesh"] = time.perf_counter() - t
+                ok, message = _dense(config, inp, tmp, images, cams, visible, pts, true_cams,
+                                     gt, report, ok, message)
         report["timings"]["total"] = time.perf_counter() - t_all
         report["ok"], report["message"] = ok, message
         write_json(tmp / "report.json", report)
     return SfmResult(Path(out_dir), ok, message, report)
+
+
+def _intrinsics(config, inp, width: int, height: int, input_path: Path):
+    """COLMAP model and parameters, and where they came from: --camera (a string or a
+    camera.yaml), the capture's nominal camera, else EXIF or COLMAP's guess (None)."""
+    if config.camera:
+        model, params = parse_camera(config.camera)
+        intr_source = "--camera"
+        if Path(config.camera).suffix.lower() in (".yaml", ".yml", ".xml"):
+            cam = read_camera_yaml(config.camera)
+            if (cam.width, cam.height) != (width, height):
+                raise InputError(f"calibrated for {cam.width}x{cam.height} images, the images "
+                                 f"are {width}x{height}", path=config.camera,
+                                 field="image_width")
+            intr_source = f"--camera {config.camera}"
+    elif inp.nominal is not None:
+        if (inp.nominal.width, inp.nominal.height) != (width, height):
+            raise InputError(f"cameras: nominal size {inp.nominal.width}x{inp.nominal.height} "
+                             f"differs from the images ({width}x{height})",
+                             path=input_path / "capture.json")
+        model, params = colmap_params_from_camera(inp.nominal)
+        intr_source = "capture.json nominal camera (refined by bundle adjustment)"
+    else:
+        model, params = "SIMPLE_RADIAL", None
+        intr_source = None  # EXIF or COLMAP's guess: known after extraction
+    return model, params, intr_source
+
+
+def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict):
+    """The sparse model (binary and text), points.ply and transforms.json; with ground
+    truth, everything aligned to the true cameras by Sim(3) and the pose errors."""
+    sparse = tmp / "sparse" / "0"
+    (sparse / "text").mkdir(parents=True)
+    rec.write(str(sparse))
+    rec.write_text(str(sparse / "text"))
+    report["sparse"] = {
+        "num_points": rec.num_points3D(),
+        "mean_reprojection_error_px": rec.compute_mean_reprojection_error(),
+        "mean_track_length": rec.compute_mean_track_length(),
+        "cameras": {int(cid): {"model": c.model_name, "params": list(map(float, c.params)),
+                               "has_prior_focal_length": bool(c.has_prior_focal_length)}
+                    for cid, c in rec.cameras.items()}}
+    images = sorted((im for im in rec.images.values() if im.has_pose),
+                    key=lambda im: inp.names.index(im.name))
+    cams = [camera_from_colmap(im.camera, image_cam_from_world(im)) for im in images]
+    ids = sorted(rec.points3D.keys())
+    index = {p: i for i, p in enumerate(ids)}
+    pts = np.array([rec.points3D[p].xyz for p in ids]).reshape(-1, 3)
+    cols = np.array([rec.points3D[p].color for p in ids]).reshape(-1, 3) / 255.0
+    visible = [np.array([index[p.point3D_id] for p in im.points2D if p.has_point3D()],
+                        np.int64) for im in images]
+    gt = inp.capture.ground_truth if inp.capture is not None else None
+    true_cams = None
+    if gt and "cameras" in gt:
+        true_cams = {n: Camera.from_dict(c) for n, c in gt["cameras"].items()}
+        est = {im.name: c.cam_from_world for im, c in zip(images, cams, strict=True)}
+        errs = align_cameras(est, {n: c.cam_from_world for n, c in true_cams.items()})
+        report["metrics"] = {"poses": errs.summary(gt.get("scene_size")),
+                             "frame": "aligned to the true cameras by Sim(3)"}
+        sim = errs.alignment
+        pts = sim.apply(pts)
+        cams = [c.with_pose(sim.apply_cam_from_world(c.cam_from_world)) for c in cams]
+        report["alignment_scene_from_sfm"] = sim.matrix.tolist()
+    report["frame"] = "scene (aligned)" if true_cams else "SfM (arbitrary similarity)"
+    write_points(tmp / "points.ply", pts, colors=cols)
+    write_transforms(tmp / "transforms.json", cams,
+                     [os.path.relpath(inp.image_dir / im.name, out_dir)
+                      for im in images])
+    return images, cams, pts, visible, true_cams, gt
+
+
+def _dense(config, inp, tmp: Path, images, cams, visible, pts, true_cams, gt, report: dict,
+           ok: bool, message: str) -> tuple[bool, str]:
+    """Depth maps, TSDF fusion, mesh.ply; with ground truth, the mesh's score."""
+    t = time.perf_counter()
+    grays = [cv2.imread(str(inp.image_dir / im.name), cv2.IMREAD_GRAYSCALE)
+             for im in images]
+    colors = [cv2.imread(str(inp.image_dir / im.name))[..., ::-1] for im in images]
+    depths, neighbors = depth_maps(grays, cams, visible, pts,
+                                   options=config.dense_options)
+    lo, hi = np.percentile(pts, [2, 98], axis=0)
+    extent = float(np.linalg.norm(hi - lo))
+    zmax = max(float(np.max(d)) for d in depths) if depths else 0.0
+    mesh = None
+    if zmax > 0:
+        from reconstruct.tsdf import fuse_depth_maps
+
+        voxel = extent * config.voxel_fraction
+        mesh = fuse_depth_maps(depths, cams, voxel_size=voxel,
+                               depth_max=1.5 * zmax, colors=colors)
+        mesh = _clean_mesh(mesh)
+        if len(mesh.triangles):
+            write_mesh(tmp / "mesh.ply", mesh)
+    report["timings"]["dense"] = time.perf_counter() - t
+    report["dense"] = {"depth_pixels": [int((d > 0).sum()) for d in depths],
+                       "stereo_partner": {
+                           im.name: images[nb[0]].name if nb else None
+                           for im, nb in zip(images, neighbors, strict=True)},
+                       "voxel_size": extent * config.voxel_fraction,
+                       "triangles": 0 if mesh is None else len(mesh.triangles)}
+    if mesh is None or len(mesh.triangles) == 0:
+        ok = False
+        message = "the dense surface is empty (no consistent depth in any view)"
+    elif true_cams and gt.get("mesh"):
+        t = time.perf_counter()
+        report["metrics"]["mesh"] = _score_mesh(
+            mesh, inp.capture.path(gt["mesh"]), list(true_cams.values()),
+            gt.get("scene_size"))
+        report["timings"]["evaluate_mesh"] = time.perf_counter() - t
+    return ok, message
 
 
 def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) -> dict:
