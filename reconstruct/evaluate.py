@@ -39,10 +39,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from core.config import Config, option
 from core.sampling import sample_surface, voxel_thin
 from core.validate import check_array, check_choice, check_positive
 
-__all__ = [
+__all__ = ["EvaluateConfig",
     "EvaluationResult",
     "evaluate",
     "fscore_at",
@@ -291,6 +292,27 @@ def default_tau(reference) -> float:
         raise ValueError("reference: expected a non-degenerate bounding box to set tau, "
                          "got a diagonal of 0 (pass tau)")
     return TAU_FRACTION * diag
+
+
+@dataclass
+class EvaluateConfig(Config):
+    """Options of ``scanamp evaluate`` (the keyword arguments of :func:`evaluate`)."""
+
+    tau: float | None = option(None, unit="m", range="(0, inf)",
+                               help="F-score threshold (default: 0.5% of the reference's "
+                                    "bounding-box diagonal)")
+    align: str = option("none", choices=("none", "icp", "global"),
+                        help="align RECON to the reference first: 'icp' from where it is, "
+                             "'global' from any frame (a turntable, SfM or handheld scan: "
+                             "seeded coarse registration, then ICP)")
+    distance: str = option("surface", choices=("surface", "samples"),
+                           help="measure to the other mesh's surface (exact) or to its nearest "
+                                "sample (the Tanks and Temples / DTU protocol)")
+    seed: int = option(0, range="[0, inf)", help="sampling and registration seed")
+    density: float | None = option(None, unit="1/m^2", range="(0, inf)",
+                                   help="samples per square metre (default: 8 / tau^2)")
+    max_samples: int = option(DEFAULT_MAX_SAMPLES, range="[1000, inf)",
+                              help="cap on samples per side")
 
 
 # ----------------------------------------------------------------------------- main

@@ -100,9 +100,16 @@ def config_from_args(cls, args: argparse.Namespace):
 
     Errors are :class:`core.validate.InputError` naming the file (or the flag) and field.
     """
+    from core.validate import InputError
+
     obj = load_config(cls, getattr(args, "config", None))
     given = given_options(args)
     if given:
-        obj = with_options(obj, given, path="command line")
+        try:
+            obj = with_options(obj, given, path="command line")
+        except InputError as exc:  # name the flag the user typed: --meshing.depth
+            if exc.path != "command line" or not exc.field:
+                raise
+            raise InputError(exc.message, field=flag_name(exc.field)) from None
     return obj
 
