@@ -10,11 +10,11 @@ from scanamp.commands._calibrate_common import add_board_arguments, report_path
 GROUP = "calibrate"
 NAME = "camera"
 OUTPUT = "file"
+HELP = "intrinsics and distortion of a real camera from photos of a board"
 
 
 def companions(args):
     return [report_path(args.out)]
-HELP = "intrinsics and distortion of a real camera from photos of a board"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

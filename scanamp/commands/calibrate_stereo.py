@@ -10,11 +10,11 @@ from scanamp.commands._calibrate_common import add_board_arguments, report_path
 GROUP = "calibrate"
 NAME = "stereo"
 OUTPUT = "file"
+HELP = "calibration of a real stereo pair from photo pairs of a board (writes stereo.yaml)"
 
 
 def companions(args):
     return [report_path(args.out)]
-HELP = "calibration of a real stereo pair from photo pairs of a board (writes stereo.yaml)"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

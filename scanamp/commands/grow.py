@@ -9,11 +9,11 @@ from pathlib import Path
 
 NAME = "grow"
 OUTPUT = "file"
+HELP = "grow an L-system grammar (a .lsys file or a shipped example name) into a mesh"
 
 
 def companions(args):
     return [args.lines] if args.lines is not None else []
-HELP = "grow an L-system grammar (a .lsys file or a shipped example name) into a mesh"
 
 
 def add_arguments(p):

@@ -15,13 +15,13 @@ from scanamp.commands._procgen_common import (
 NAME = "hypertexture"
 GROUP = "procgen"
 OUTPUT = "file"
+HELP = "hypertexture a sphere, the fractal egg, a swept polyline or a mesh (marching cubes)"
+
+log = logging.getLogger(__name__)
 
 
 def companions(args):
     return [] if args.no_preview else [preview_path(args.out)]
-HELP = "hypertexture a sphere, the fractal egg, a swept polyline or a mesh (marching cubes)"
-
-log = logging.getLogger(__name__)
 
 
 def add_arguments(p):

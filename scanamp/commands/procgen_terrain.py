@@ -17,13 +17,13 @@ from scanamp.commands._procgen_common import (
 NAME = "terrain"
 GROUP = "procgen"
 OUTPUT = "file"
+HELP = "fractal terrain (diamond-square, fBm or ridged; tileable) as a mesh, with water"
+
+log = logging.getLogger(__name__)
 
 
 def companions(args):
     return [] if args.no_preview else [preview_path(args.out)]
-HELP = "fractal terrain (diamond-square, fBm or ridged; tileable) as a mesh, with water"
-
-log = logging.getLogger(__name__)
 
 
 def add_arguments(p):

@@ -13,12 +13,12 @@ from data_synth.scenes import build_scene
 
 NAME = "render"
 OUTPUT = "file"
+HELP = "render one view of a scene (and its ground-truth depth, normals, ids)"
+log = logging.getLogger("scanamp")
 
 
 def companions(args):
     return [str(args.out)[:-4] + ".gt"] if args.gt else []
-HELP = "render one view of a scene (and its ground-truth depth, normals, ids)"
-log = logging.getLogger("scanamp")
 
 
 def _floats(text, n, flag):
