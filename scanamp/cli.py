@@ -14,7 +14,7 @@ Outputs never destroy (:mod:`core.outputs`). A command whose parser has ``--out`
 every input path among its arguments. ``OUTPUT`` says what ``--out`` is: ``"dir"``
 (default), ``"file"``, or ``"resume"`` (a folder the same command may extend without
 ``--overwrite``: a study); ``OUTPUT_DEST`` names another argument holding the output
-(``"json"``), and ``companions(args)`` lists files or folders written beside a file
+(``"json"``), and ``companions(args, config)`` lists files or folders written beside a file
 output. The output folder gets the manifest that marks it as scanamp's.
 """
 
@@ -146,7 +146,7 @@ def _input_paths(args: argparse.Namespace, dest: str) -> list[Path]:
     return found
 
 
-def _check_outputs(args: argparse.Namespace) -> tuple[Path, str] | None:
+def _check_outputs(args: argparse.Namespace, config=None) -> tuple[Path, str] | None:
     """Refuse an output that would destroy something; the folder to mark as ours, if any."""
     from core.outputs import check_output, check_output_file, read_manifest
 
@@ -161,7 +161,7 @@ def _check_outputs(args: argparse.Namespace) -> tuple[Path, str] | None:
         if out is not None:
             check_output_file(out, inputs=inputs, overwrite=overwrite)
         companions = getattr(mod, "companions", None)
-        for extra in (companions(args) if companions else []):
+        for extra in (companions(args, config) if companions else []):
             extra = Path(extra)
             if extra.is_dir():
                 check_output(extra, command=args._command, inputs=inputs, overwrite=overwrite)
@@ -177,9 +177,9 @@ def _check_outputs(args: argparse.Namespace) -> tuple[Path, str] | None:
 def _run(args: argparse.Namespace) -> int:
     from core import outputs
 
-    declared = _check_outputs(args)
     config = (config_from_args(args._config_cls, args) if args._config_cls is not None
               else None)
+    declared = _check_outputs(args, config)
     with contextlib.ExitStack() as stack:
         if declared is not None:
             stack.enter_context(outputs.writing(*declared, config))

@@ -13,7 +13,7 @@ OUTPUT = "file"
 HELP = "intrinsics and distortion of a real camera from photos of a board"
 
 
-def companions(args):
+def companions(args, config=None):
     return [report_path(args.out)]
 
 

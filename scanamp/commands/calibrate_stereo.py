@@ -13,7 +13,7 @@ OUTPUT = "file"
 HELP = "calibration of a real stereo pair from photo pairs of a board (writes stereo.yaml)"
 
 
-def companions(args):
+def companions(args, config=None):
     return [report_path(args.out)]
 
 

@@ -12,7 +12,7 @@ OUTPUT = "file"
 HELP = "grow an L-system grammar (a .lsys file or a shipped example name) into a mesh"
 
 
-def companions(args):
+def companions(args, config=None):
     return [args.lines] if args.lines is not None else []
 
 

@@ -20,7 +20,7 @@ HELP = "hypertexture a sphere, the fractal egg, a swept polyline or a mesh (marc
 log = logging.getLogger(__name__)
 
 
-def companions(args):
+def companions(args, config=None):
     return [] if args.no_preview else [preview_path(args.out)]
 
 

@@ -22,7 +22,7 @@ HELP = "fractal terrain (diamond-square, fBm or ridged; tileable) as a mesh, wit
 log = logging.getLogger(__name__)
 
 
-def companions(args):
+def companions(args, config=None):
     return [] if args.no_preview else [preview_path(args.out)]
 
 

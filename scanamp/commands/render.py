@@ -1,12 +1,14 @@
 """scanamp render SCENE --out image.png [--view ...]"""
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 
 from acquire.camera import Camera
 from acquire.render import render
 from acquire.sensor import Sensor
+from core.config import Config, option
 from core.files import atomic_dir
 from core.image_io import write_image
 from data_synth.scenes import build_scene
@@ -17,8 +19,8 @@ HELP = "render one view of a scene (and its ground-truth depth, normals, ids)"
 log = logging.getLogger("scanamp")
 
 
-def companions(args):
-    return [str(args.out)[:-4] + ".gt"] if args.gt else []
+def companions(args, config=None):
+    return [str(args.out)[:-4] + ".gt"] if config.gt else []
 
 
 def _floats(text, n, flag):
@@ -31,19 +33,27 @@ def _floats(text, n, flag):
     return vals
 
 
+@dataclass
+class RenderConfig(Config):
+    """Options of ``scanamp render``."""
+
+    view: str | None = option(None, help="camera as 'ex,ey,ez,tx,ty,tz' (eye and target, "
+                                         "metres); default: a view of the whole scene")
+    size: str = option("640x480", unit="px", help="WIDTHxHEIGHT")
+    fov: float = option(50.0, unit="deg", range="(0, 180)", help="horizontal field of view")
+    supersample: int = option(2, range="[1, 8]", help="samples per pixel side")
+    seed: int = option(0, range="[0, inf)", help="sensor noise seed")
+    noise: bool = option(True, help="the sensor's noise (--no-noise: an ideal sensor)")
+    gt: bool = option(False, help="also write NAME.gt/ with depth.npy, normals.npy, ids.npy, "
+                                  "mask.npy")
+
+
+CONFIG = RenderConfig
+
+
 def add_arguments(p):
     p.add_argument("scene", help="scene folder, built-in name or .toml spec")
     p.add_argument("--out", required=True, help="output PNG")
-    p.add_argument("--view", default=None,
-                   help="camera as 'ex,ey,ez,tx,ty,tz' (eye and target, metres); "
-                        "default: a view of the whole scene")
-    p.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
-    p.add_argument("--fov", type=float, default=50.0, help="horizontal field of view, degrees")
-    p.add_argument("--supersample", type=int, default=2)
-    p.add_argument("--seed", type=int, default=0, help="sensor noise seed")
-    p.add_argument("--no-noise", action="store_true", help="an ideal sensor")
-    p.add_argument("--gt", action="store_true",
-                   help="also write NAME.gt/ with depth.npy, normals.npy, ids.npy, mask.npy")
 
 
 def default_view(bounds):
@@ -53,27 +63,27 @@ def default_view(bounds):
     return c + r * np.array([0.35, -0.95, 0.55]), c
 
 
-def run(args):
+def run(args, config: RenderConfig):
     try:
-        w, h = (int(x) for x in args.size.lower().split("x"))
+        w, h = (int(x) for x in config.size.lower().split("x"))
     except ValueError:
-        raise ValueError(f"--size: expected WIDTHxHEIGHT, got {args.size!r}") from None
+        raise ValueError(f"--size: expected WIDTHxHEIGHT, got {config.size!r}") from None
     if not (0 < w <= 16384 and 0 < h <= 16384):
-        raise ValueError(f"--size: expected WIDTHxHEIGHT between 1 and 16384, got {args.size!r}")
+        raise ValueError(f"--size: expected WIDTHxHEIGHT between 1 and 16384, got {config.size!r}")
     if not str(args.out).lower().endswith(".png"):
         raise ValueError(f"--out: expected a .png path, got {args.out!r}")
     bundle = build_scene(args.scene)
-    if args.view:
-        v = _floats(args.view, 6, "--view")
+    if config.view:
+        v = _floats(config.view, 6, "--view")
         eye, target = np.array(v[:3]), np.array(v[3:])
     else:
         eye, target = default_view(bundle.bounds())
-    cam = Camera.look_at(eye, target, width=w, height=h, fov_deg=args.fov)
-    r = render(bundle.render_scene, cam, supersample=args.supersample)
-    sensor = Sensor.ideal() if args.no_noise else Sensor()
-    img = sensor.apply(r.radiance, np.random.default_rng(args.seed))
+    cam = Camera.look_at(eye, target, width=w, height=h, fov_deg=config.fov)
+    r = render(bundle.render_scene, cam, supersample=config.supersample)
+    sensor = Sensor() if config.noise else Sensor.ideal()
+    img = sensor.apply(r.radiance, np.random.default_rng(config.seed))
     write_image(args.out, img)
-    if args.gt:
+    if config.gt:
         from pathlib import Path
 
         gt = Path(str(args.out)[:-4] + ".gt")
