@@ -21,7 +21,7 @@ from scanamp.options import config_from_args
 NOT_YET_DECLARED = {
     "amplify", "calibrate camera", "calibrate stereo", "capture laser", "capture sfm",
     "capture stereo", "capture structured-light", "demo", "grow",
-    "procgen fractal", "procgen hypertexture", "procgen terrain", "scene",
+    "procgen fractal", "procgen hypertexture", "scene",
     "simulate boids", "simulate cloth", "simulate particles", "study",
 }
 

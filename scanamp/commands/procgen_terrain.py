@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 
+from core.config import Config, option
 from scanamp.commands._procgen_common import (
     MESH_OUT,
     add_output,
@@ -23,24 +25,36 @@ log = logging.getLogger(__name__)
 
 
 def companions(args, config=None):
-    return [] if args.no_preview else [preview_path(args.out)]
+    out = args.out
+    water = ([out.with_name(out.stem + ".water" + out.suffix)]
+             if config is not None and config.water is not None else [])
+    return water + ([] if args.no_preview else [preview_path(out)])
+
+
+@dataclass
+class TerrainConfig(Config):
+    """Options of ``scanamp procgen terrain``."""
+
+    size: int = option(257, range="[3, 8193]", help="samples a side, 2**n + 1")
+    method: str = option("diamond_square", choices=("diamond_square", "fbm", "ridged"),
+                         help="generator")
+    tileable: bool = option(False, help="a tile that repeats seamlessly (periodic fBm; "
+                                        "ignores --method)")
+    hurst: float = option(0.8, range="(0, 1)", help="Hurst exponent")
+    extent: float = option(10.0, unit="m", range="(0, inf)", help="side of the square")
+    height: float = option(0.6, unit="m", range="[0, inf)", help="height standard deviation")
+    water: float | None = option(None, unit="m", help="also write a water mesh at this "
+                                                      "elevation as FILE.water.EXT")
+
+
+CONFIG = TerrainConfig
 
 
 def add_arguments(p):
-    p.add_argument("--size", type=int, default=257, help="samples a side, 2**n + 1 (257)")
-    p.add_argument("--method", default="diamond_square",
-                   choices=["diamond_square", "fbm", "ridged"], help="generator")
-    p.add_argument("--tileable", action="store_true",
-                   help="a tile that repeats seamlessly (periodic fBm; ignores --method)")
-    p.add_argument("--hurst", type=float, default=0.8, help="Hurst exponent in (0, 1)")
-    p.add_argument("--extent", type=float, default=10.0, help="side of the square in metres")
-    p.add_argument("--height", type=float, default=0.6, help="height standard deviation (m)")
-    p.add_argument("--water", type=float, default=None, metavar="LEVEL",
-                   help="also write a water mesh at this elevation (m) as FILE.water.EXT")
     add_output(p, kind="mesh")
 
 
-def run(args) -> int:
+def run(args, config: TerrainConfig) -> int:
     from core.mesh_io import write_mesh
     from procgen.terrain import (
         check_grid_size,
@@ -51,25 +65,25 @@ def run(args) -> int:
     )
 
     out = check_out(args.out, MESH_OUT)
-    check_grid_size(args.size, "--size")
-    if not 0 < args.extent < float("inf"):
-        raise ValueError(f"--extent: expected a positive finite length, got {args.extent}")
+    check_grid_size(config.size, "--size")
+    if not 0 < config.extent < float("inf"):
+        raise ValueError(f"--extent: expected a positive finite length, got {config.extent}")
     rng = np.random.default_rng(args.seed)
-    if args.tileable:
-        z = tileable_terrain(args.size, rng=rng, hurst=args.hurst, height=args.height)
+    if config.tileable:
+        z = tileable_terrain(config.size, rng=rng, hurst=config.hurst, height=config.height)
     else:
-        z = fractal_terrain(args.size, rng=rng, method=args.method, hurst=args.hurst,
-                            height=args.height)
-    step = args.extent / (args.size - 1)
-    origin = (-args.extent / 2, -args.extent / 2, 0.0)
+        z = fractal_terrain(config.size, rng=rng, method=config.method, hurst=config.hurst,
+                            height=config.height)
+    step = config.extent / (config.size - 1)
+    origin = (-config.extent / 2, -config.extent / 2, 0.0)
     ground = heightfield_to_mesh(z, spacing=step, origin=origin)
     if out.suffix.lower() == ".ply":  # PLY cannot hold per-corner UVs (OBJ keeps them)
         ground.triangle_uvs.clear()
     write_mesh(out, ground)
     log.info("wrote %s (%d vertices)", out, len(ground.vertices))
     meshes = [(ground, (0.55, 0.5, 0.4))]
-    if args.water is not None:
-        water = water_mesh(z, args.water, spacing=step, origin=origin)
+    if config.water is not None:
+        water = water_mesh(z, config.water, spacing=step, origin=origin)
         if out.suffix.lower() == ".ply":
             water.triangle_uvs.clear()
         wpath = out.with_name(out.stem + ".water" + out.suffix)
@@ -78,7 +92,7 @@ def run(args) -> int:
             log.info("wrote %s (%d triangles)", wpath, len(water.triangles))
             meshes.append((water, (0.2, 0.4, 0.8)))
         else:
-            log.warning("no terrain below the water level %g: no water mesh written", args.water)
+            log.warning("no terrain below the water level %g: no water mesh written", config.water)
     if not args.no_preview:
         log.info("wrote %s", render_preview(meshes, preview_path(out)))
     return 0
