@@ -9,8 +9,11 @@ ones after it to run. A user who changes the Poisson depth re-runs the meshing, 
 calibration.
 
 The stored results are Python pickles: a cache for this version of scanamp, never an
-exchange format (the outputs the user reads are the pipeline's own files). A cache that
-cannot be read, or was written by another version, is recomputed.
+exchange format (the outputs the user reads are the pipeline's own files). A pickle is
+only ever loaded when its HMAC, made with a secret kept in the user's cache folder
+(``~/.cache/scanamp/stage-key``, mode 0600), matches: a cache from another machine or
+user, or one that was edited, is recomputed rather than unpickled. So is one that cannot
+be read, or was written by another version.
 
 >>> import tempfile, pathlib
 >>> folder = pathlib.Path(tempfile.mkdtemp())
@@ -49,6 +52,28 @@ def _version() -> str:
     from core.outputs import version
 
     return version()
+
+
+def _secret() -> bytes:
+    """This user's key for the caches' HMACs (created on first use, readable by them only)."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "scanamp"
+    path = base / "stage-key"
+    try:
+        return path.read_bytes()
+    except OSError:
+        pass
+    base.mkdir(parents=True, exist_ok=True)
+    key = os.urandom(32)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(key)
+    return key
+
+
+def _mac(data: bytes) -> str:
+    import hmac
+
+    return hmac.new(_secret(), data, hashlib.sha256).hexdigest()
 
 
 def files_key(paths: Iterable[str | os.PathLike]) -> list:
@@ -102,8 +127,13 @@ class Stages:
                 meta = json.loads((base / f"{name}.json").read_text())
                 if meta.get("key") != key:
                     continue
-                with open(base / f"{name}.pkl", "rb") as fh:
-                    return True, pickle.load(fh), base
+                data = (base / f"{name}.pkl").read_bytes()
+                import hmac
+
+                if not hmac.compare_digest(str(meta.get("hmac", "")), _mac(data)):
+                    log.debug("stage %s: cache not signed by this user; recomputed", name)
+                    continue
+                return True, pickle.loads(data), base
             except (OSError, ValueError, pickle.UnpicklingError, EOFError, AttributeError,
                     ImportError):
                 continue
@@ -130,7 +160,7 @@ class Stages:
 
     def _store(self, name: str, key: str, value) -> None:
         self.folder.mkdir(parents=True, exist_ok=True)
-        with open(self.folder / f"{name}.pkl", "wb") as fh:
-            pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        (self.folder / f"{name}.json").write_text(json.dumps({"stage": name, "key": key},
-                                                             indent=2) + "\n")
+        data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        (self.folder / f"{name}.pkl").write_bytes(data)
+        (self.folder / f"{name}.json").write_text(json.dumps(
+            {"stage": name, "key": key, "hmac": _mac(data)}, indent=2) + "\n")

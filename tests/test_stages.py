@@ -42,3 +42,23 @@ def test_reuse_reads_an_earlier_folder_and_corrupt_caches_are_recomputed(tmp_pat
     assert _pipeline(tmp_path / "new", calls)[0] == 12 and calls == ["second"]
     with pytest.raises(ValueError, match="from_stage"):
         Stages(tmp_path, ["first"], from_stage="third")
+
+
+def test_a_cache_not_signed_by_this_user_is_never_unpickled(tmp_path):
+    import json
+    import pickle
+
+    calls = []
+    _pipeline(tmp_path, calls)
+    calls.clear()
+
+    class Boom:
+        def __reduce__(self):  # would run on unpickling
+            return (calls.append, ("unpickled!",))
+
+    pkl = tmp_path / "stages" / "first.pkl"
+    pkl.write_bytes(pickle.dumps(Boom()))  # same key in first.json, foreign bytes
+    meta = json.loads((tmp_path / "stages" / "first.json").read_text())
+    assert meta["hmac"]
+    assert _pipeline(tmp_path, calls)[0] == 12
+    assert "unpickled!" not in calls and calls == ["first"]  # recomputed, not loaded
