@@ -135,7 +135,7 @@ x = [{xs}]
 """
 
 
-def test_resume_after_kill_9_runs_every_run_exactly_once(tmp_path):
+def test_resume_after_kill_9_runs_every_run_exactly_once(tmp_path, capsys):
     """Kill the whole study (process group, SIGKILL) once the first run is recorded, then
     resume: no recorded run is executed again, every other run is, and none is lost.
 
@@ -164,8 +164,12 @@ def test_resume_after_kill_9_runs_every_run_exactly_once(tmp_path):
     n_killed = len(recorded)
     assert 1 <= n_killed < len(xs), "the kill should leave a partial study"
     assert not (out / "results.csv").exists()
-    res = run_study(load_study(spec), out, workers=2)
-    assert res["done_before"] == n_killed and res["executed"] == len(xs) - n_killed
+    assert (out / ".scanamp.json").is_file()  # marked as ours before the first run
+    from scanamp.cli import main
+
+    assert main(["study", str(spec), "--out", str(out), "--workers", "2"]) == 0  # resumes
+    assert (f"({n_killed} recorded before, {len(xs) - n_killed} run now"
+            in capsys.readouterr().out)
     done = Counter(float(p.name.split("-x")[1][:-5]) for p in markers.iterdir())
     assert set(done) == set(map(float, xs))  # every run executed
     assert all(done[x] == 1 for x in recorded)  # a recorded run is never executed again

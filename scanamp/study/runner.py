@@ -37,6 +37,7 @@ import traceback
 from pathlib import Path
 
 from core.files import read_json, write_json
+from core.outputs import read_manifest, write_declared
 from core.progress import track
 from core.validate import InputError
 
@@ -220,6 +221,8 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
         client = own_client = connect(scheduler, timeout=timeout)
     out = Path(out_dir)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    if read_manifest(out) is None:  # ours from the first run on, so a killed study resumes
+        write_declared(out, out)
     if study.path is not None:
         spec_copy = out / "study.toml"
         if not spec_copy.exists():
