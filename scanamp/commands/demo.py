@@ -1,6 +1,9 @@
 """``scanamp demo --out DIR [--full] [--seed N]``: the end-to-end demo (``make demo``)."""
 
 import logging
+from dataclasses import dataclass
+
+from core.config import Config, option
 
 NAME = "demo"
 HELP = ("the whole pipeline in about a minute: a procedural scene captured by the laser "
@@ -9,32 +12,40 @@ HELP = ("the whole pipeline in about a minute: a procedural scene captured by th
 log = logging.getLogger("scanamp")
 
 
+@dataclass
+class DemoOptions(Config):
+    """Options of ``scanamp demo``."""
+
+    seed: int = option(0, range="[0, inf)",
+                       help="seeds the scene, captures, evaluation and animation")
+    scale: str = option("default", choices=("default", "full", "test"),
+                        help="a size preset ('test' is the smallest)")
+    full: bool = option(False, help="the heavier capture and reconstruction defaults (several "
+                                    "minutes); the same as --scale full")
+    methods: tuple[str, ...] = option(("laser", "stereo", "sfm"),
+                                      help="comma-separated subset of laser, stereo, sfm")
+
+
+CONFIG = DemoOptions
+
+
 def add_arguments(p):
     p.add_argument("--out", required=True, help="output folder (replaced atomically)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="seeds the scene, captures, evaluation and animation (default 0)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--full", action="store_true",
-                   help="the heavier capture and reconstruction defaults (several minutes)")
-    g.add_argument("--scale", choices=("default", "full", "test"), default=None,
-                   help="a size preset (--full is --scale full; 'test' is the smallest)")
-    p.add_argument("--methods", default="laser,stereo,sfm",
-                   help="comma-separated subset of laser, stereo, sfm (default: all)")
 
 
-def run(args):
+def run(args, config: DemoOptions):
     from scanamp.demo import METHODS
     from scanamp.demo import run as demo
 
-    if args.seed < 0:
-        raise ValueError(f"--seed: expected an integer >= 0, got {args.seed}")
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    methods = [m.strip() for m in config.methods if m.strip()]
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
         raise ValueError(f"--methods: expected a comma-separated subset of "
-                         f"{', '.join(METHODS)}, got {args.methods!r}")
-    scale = "full" if args.full else (args.scale or "default")
-    rep = demo(args.out, seed=args.seed, scale=scale, methods=methods)
+                         f"{', '.join(METHODS)}, got {','.join(config.methods)!r}")
+    if config.full and config.scale not in ("default", "full"):
+        raise ValueError(f"--full contradicts --scale {config.scale}")
+    scale = "full" if config.full else config.scale
+    rep = demo(args.out, seed=config.seed, scale=scale, methods=methods)
     tau_mm = rep["tau"] * 1e3
     lines = [f"{'method':<8}{'points':>9}{'F@' + format(tau_mm, '.2f') + 'mm':>11}"
              f"{'acc mm':>9}{'comp mm':>9}{'Chamfer':>9}{'time s':>8}"]
