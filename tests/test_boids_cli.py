@@ -28,8 +28,8 @@ def test_cli_writes_series_metrics_animation_report(tmp_path):
                     "--frame-every", "4", "--size", "96x64", "--out", str(out)])
     assert code == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == [".scanamp.json", "animation.mp4", "frames", "metrics.csv", "metrics.png",
-                     "report.json", "series.pvd"]
+    assert names == [".scanamp.json", "animation.mp4", "config.toml", "frames", "metrics.csv",
+                     "metrics.png", "report.json", "series.pvd"]
     assert len(list((out / "frames").glob("*.vtp"))) == 4  # steps 0, 4, 8, 12
     rows = (out / "metrics.csv").read_text().splitlines()
     assert rows[0] == "step,time,polarization,milling,nearest_neighbour,groups"

@@ -21,7 +21,7 @@ from scanamp.options import config_from_args
 NOT_YET_DECLARED = {
     "amplify", "calibrate camera", "calibrate stereo", "capture laser", "capture sfm",
     "capture stereo", "capture structured-light", "grow", "procgen fractal",
-    "procgen hypertexture", "simulate boids", "simulate cloth", "simulate particles",
+    "procgen hypertexture",
 }
 
 

@@ -6,10 +6,29 @@ Also the shared options and runner of ``scanamp simulate cloth``.
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
+
+from core.config import Config, option
 
 GROUP = "simulate"
 NAME = "particles"
 HELP = "run a particles recipe (shipped name or TOML) and write VTP/.pvd, PLY, MP4 and report.json"
+
+
+@dataclass
+class SimulationOptions(Config):
+    """Options of ``scanamp simulate particles`` and ``scanamp simulate cloth`` (the physics
+    is the recipe's)."""
+
+    frames: int | None = option(None, range="[1, inf)",
+                                help="frame count (default: the recipe's)")
+    seed: int | None = option(None, range="[0, inf)", help="random seed (default: the recipe's)")
+    render: bool = option(True, help="render the animation (--no-render: skip it)")
+    gif: bool = option(False, help="animation.gif instead of .mp4")
+    size: str = option("480x360", unit="px", help="video size WxH")
+
+
+CONFIG = SimulationOptions
 
 
 def add_arguments(p):
@@ -19,34 +38,27 @@ def add_arguments(p):
     p.add_argument("--mesh", help="collider / emitter mesh (e.g. a scan); default: a "
                    "procedural stand-in")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--frames", type=int, help="override the recipe's frame count")
-    p.add_argument("--seed", type=int, help="override the recipe's seed")
-    p.add_argument("--no-render", action="store_true", help="skip the animation")
-    p.add_argument("--gif", action="store_true", help="animation.gif instead of .mp4")
-    p.add_argument("--size", default="480x360", help="video size WxH (default 480x360)")
 
 
-def run_kind(kind: str, args) -> int:
+def run_kind(kind: str, args, config: SimulationOptions) -> int:
     """Run ``args`` as a ``kind`` (particles / cloth) simulation; 1 when it blew up."""
     from scanamp.simulation_run import run_simulation
 
     try:
-        w, h = (int(s) for s in args.size.lower().split("x"))
+        w, h = (int(s) for s in config.size.lower().split("x"))
         if w < 16 or h < 16:
             raise ValueError
     except ValueError:
-        raise ValueError(f"--size: expected WxH with sides >= 16, got {args.size!r}") from None
-    if args.frames is not None and args.frames < 1:
-        raise ValueError(f"--frames: expected an integer >= 1, got {args.frames}")
+        raise ValueError(f"--size: expected WxH with sides >= 16, got {config.size!r}") from None
     report = run_simulation(kind, args.recipe, args.out, mesh_path=args.mesh,
-                            frames=args.frames, render=not args.no_render, width=w, height=h,
-                            seed=args.seed,
-                            animation="animation.gif" if args.gif else "animation.mp4")
+                            frames=config.frames, render=config.render, width=w, height=h,
+                            seed=config.seed,
+                            animation="animation.gif" if config.gif else "animation.mp4")
     if report["status"] != "ok":
         sys.stderr.write(f"error: {report['error']} (frames so far in {args.out})\n")
         return 1
     return 0
 
 
-def run(args) -> int:
-    return run_kind("particles", args)
+def run(args, config: SimulationOptions) -> int:
+    return run_kind("particles", args, config)
