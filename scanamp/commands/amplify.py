@@ -3,12 +3,26 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
+
+from core.config import Config, option
 
 NAME = "amplify"
 HELP = ("amplify a (reconstructed) mesh with a recipe: displace, refine-terrain, scatter, "
         "sweep, hypertexture, animate")
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class AmplifyOptions(Config):
+    """Options of ``scanamp amplify`` (the steps and their parameters are the recipe's)."""
+
+    seed: int | None = option(None, range="[0, inf)",
+                              help="random seed (default: the recipe's seed, else 0)")
+
+
+CONFIG = AmplifyOptions
 
 
 def add_arguments(p):
@@ -18,15 +32,11 @@ def add_arguments(p):
     p.add_argument("--recipe", required=True,
                    help=f"shipped recipe ({', '.join(recipe_names())}) or a TOML file")
     p.add_argument("--out", required=True, help="output folder (replaced atomically)")
-    p.add_argument("--seed", type=int, default=None,
-                   help="random seed (default: the recipe's seed, else 0)")
 
 
-def run(args) -> int:
+def run(args, config: AmplifyOptions) -> int:
     from scanamp.amplify import run as amplify_run
 
-    if args.seed is not None and args.seed < 0:
-        raise ValueError(f"--seed: expected an integer >= 0, got {args.seed}")
-    out = amplify_run(args.mesh, args.recipe, args.out, seed=args.seed)
+    out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed)
     log.info("wrote %s", out)
     return 0
