@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import logging
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from core.config import Config, option
 from core.image_io import read_image
 from core.validate import InputError
-from reconstruct.calibrate_camera import CameraCalibration, calibrate_camera, to_gray
+from reconstruct.calibrate_camera import DIST_MODELS, CameraCalibration, calibrate_camera, to_gray
 from reconstruct.stereo import Rectification, StereoCalibration, rectify
 from reconstruct.stereo_calib import calibrate_pair, detect_pair_views
 
@@ -40,7 +42,27 @@ def _names(paths) -> list[str]:
     return [Path(p).name for p in paths]
 
 
-def calibrate_camera_images(paths, target, *, dist_model: str = "k1k2p1p2",
+@dataclass
+class CameraCalibrationOptions(Config):
+    """Options of ``scanamp calibrate camera``."""
+
+    dist_model: str = option("k1k2p1p2", choices=DIST_MODELS,
+                             help="distortion terms estimated (k1k2: radial only; k1k2p1p2: "
+                                  "radial + tangential; full: + k3)")
+
+
+@dataclass
+class StereoCalibrationOptions(Config):
+    """Options of ``scanamp calibrate stereo`` (radial only: a pair has fewer views to
+    spend on each camera's distortion)."""
+
+    dist_model: str = option("k1k2", choices=DIST_MODELS,
+                             help="distortion terms estimated (k1k2: radial only; k1k2p1p2: "
+                                  "radial + tangential; full: + k3)")
+
+
+def calibrate_camera_images(paths, target, *,
+                            dist_model: str = CameraCalibrationOptions.dist_model,
                             min_views: int = 3) -> tuple[CameraCalibration, dict]:
     """Calibrate one camera from image files of ``target``.
 
@@ -85,7 +107,8 @@ def _board_hint(target) -> str:
     return ""
 
 
-def calibrate_stereo_images(left_paths, right_paths, target, *, dist_model: str = "k1k2"
+def calibrate_stereo_images(left_paths, right_paths, target, *,
+                            dist_model: str = StereoCalibrationOptions.dist_model,
                             ) -> tuple[StereoCalibration, dict]:
     """Calibrate a stereo pair from image files of ``target``, paired in order.
 

@@ -19,9 +19,8 @@ from scanamp.options import config_from_args
 
 # hand-written flags still to move onto a config dataclass (issue 14, item 2)
 NOT_YET_DECLARED = {
-    "calibrate camera", "calibrate stereo", "capture laser", "capture sfm",
-    "capture stereo", "capture structured-light", "grow", "procgen fractal",
-    "procgen hypertexture",
+    "capture laser", "capture sfm", "capture stereo", "capture structured-light", "grow",
+    "procgen fractal", "procgen hypertexture",
 }
 
 

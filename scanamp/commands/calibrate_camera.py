@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import argparse
 
+from reconstruct.calibrate_images import CameraCalibrationOptions
 from scanamp.commands._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
 NAME = "camera"
 OUTPUT = "file"
+CONFIG = CameraCalibrationOptions
 HELP = "intrinsics and distortion of a real camera from photos of a board"
 
 
@@ -19,12 +21,12 @@ def companions(args, config=None):
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("images", nargs="+", help="image files, a folder, or a quoted glob")
-    add_board_arguments(p, out_name="camera.yaml", dist_default="k1k2p1p2",
+    add_board_arguments(p, out_name="camera.yaml",
                         out_help="cv2.FileStorage YAML (the keys of OpenCV's calibration "
                                  "sample)")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, config: CameraCalibrationOptions) -> int:
     import logging
 
     from acquire.targets import target_from_spec
@@ -36,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     log = logging.getLogger("scanamp")
     target = target_from_spec(args.board)
     paths = [p for item in args.images for p in sorted_images(item)]
-    cal, report = calibrate_camera_images(paths, target, dist_model=args.dist_model)
+    cal, report = calibrate_camera_images(paths, target, dist_model=config.dist_model)
     model, params = colmap_params_from_camera(cal.camera, "OPENCV")
     report["colmap_camera"] = f"{model}:{params.replace(' ', '')}"
     write_camera_yaml(args.out, cal.camera, rms=cal.rms)

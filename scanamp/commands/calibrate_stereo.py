@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import argparse
 
+from reconstruct.calibrate_images import StereoCalibrationOptions
 from scanamp.commands._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
 NAME = "stereo"
 OUTPUT = "file"
+CONFIG = StereoCalibrationOptions
 HELP = "calibration of a real stereo pair from photo pairs of a board (writes stereo.yaml)"
 
 
@@ -21,11 +23,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--left", required=True, help="left images: a folder or a quoted glob")
     p.add_argument("--right", required=True,
                    help="right images, paired with the left ones in sorted order")
-    add_board_arguments(p, out_name="stereo.yaml", dist_default="k1k2",
+    add_board_arguments(p, out_name="stereo.yaml",
                         out_help="the YAML that scanamp reconstruct stereo --calibration reads")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, config: StereoCalibrationOptions) -> int:
     import logging
 
     from acquire.targets import target_from_spec
@@ -36,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     log = logging.getLogger("scanamp")
     target = target_from_spec(args.board)
     calib, report = calibrate_stereo_images(sorted_images(args.left), sorted_images(args.right),
-                                            target, dist_model=args.dist_model)
+                                            target, dist_model=config.dist_model)
     write_stereo_yaml(args.out, calib)
     write_json(report_path(args.out), report)
     log.info("board in both images of %d of %d pairs; RMS left %.3f px, right %.3f px, "
