@@ -169,7 +169,9 @@ def _num_pose_priors(database: Path) -> int:
 def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str | Path, *,
                options: ColmapOptions | None = None,
                position_priors: Mapping[str, Sequence[float]] | None = None,
-               prior_sigma: float = 1.0, verbose: bool = False) -> ColmapResult:
+               prior_sigma: float = 1.0, verbose: bool = False,
+               cameras: Sequence[tuple[Sequence[str], str, str | None]] | None = None,
+               known_poses: Mapping[str, np.ndarray] | None = None) -> ColmapResult:
     """Extract SIFT, match and map with pycolmap on the CPU.
 
     Parameters
@@ -177,7 +179,15 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     image_dir : path
         Folder of the images.
     image_names : sequence of str
-        Image file names relative to ``image_dir`` (all one camera).
+        Image file names relative to ``image_dir``.
+    cameras : sequence of (names, model, params), optional
+        One COLMAP camera per entry, shared by its images, with initial parameters
+        (None: EXIF or COLMAP's guess). Default: all images one camera with
+        ``options.camera_model`` and ``options.camera_params``.
+    known_poses : mapping name -> (4, 4) cam_from_world, optional
+        Poses known beforehand (a calibrated rig, a turntable): the mapper is replaced by
+        triangulation with these poses and the given intrinsics held fixed, so
+        ``reconstruction`` holds exactly these cameras and the points they see.
     work_dir : path
         Existing folder; receives ``database.db`` and the mapper's ``sparse/`` models.
     options : ColmapOptions
@@ -212,17 +222,24 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     timings, models = {}, {}
     # glog: INFO when verbose, else errors only (its warnings, e.g. about SIFT threads
     # and RAM, are advice for GPU boxes and would garble the CLI's one-line output)
+    if cameras is None:
+        cameras = [(list(image_names), opt.camera_model, opt.camera_params)]
+    if known_poses is None:
+        mapping = ("map", lambda: _map(opt, database, image_dir, sparse, seed))
+    else:
+        mapping = ("triangulate", lambda: _triangulate_known(database, image_dir, sparse,
+                                                             known_poses, opt.num_threads))
     with _quiet_colmap(0 if verbose else 2):
-        stages = (("extract", lambda: _extract(opt, database, image_dir, image_names,
+        stages = (("extract", lambda: _extract(opt, database, image_dir, cameras,
                                                 position_priors, prior_sigma)),
                   ("match", lambda: _match(opt, database, seed)),
-                  ("map", lambda: _map(opt, database, image_dir, sparse, seed)))
-        for name, fn in track(stages, "sparse SfM (pycolmap: extract, match, map)",
+                  mapping)
+        for name, fn in track(stages, f"sparse SfM (pycolmap: extract, match, {mapping[0]})",
                               total=len(stages)):
             t = time.perf_counter()
             out = fn()
             timings[name] = time.perf_counter() - t
-            if name == "map":
+            if name in ("map", "triangulate"):
                 models = out or {}
     best = None
     if models:
@@ -230,22 +247,25 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     return ColmapResult(best, len(models), timings, database)
 
 
-def _extract(opt, database: Path, image_dir, image_names, position_priors,
+def _extract(opt, database: Path, image_dir, cameras, position_priors,
              prior_sigma: float) -> None:
-    """Stage extract: SIFT features of every image into the database."""
+    """Stage extract: SIFT features of every image into the database, one camera per
+    entry of ``cameras`` (each extraction call makes its own camera)."""
     import pycolmap
 
     cpu = pycolmap.Device.cpu
-    reader = pycolmap.ImageReaderOptions()
-    reader.camera_model = opt.camera_model
-    if opt.camera_params is not None:
-        reader.camera_params = opt.camera_params
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.num_threads = opt.num_threads
     extraction.sift.max_num_features = opt.max_features
-    pycolmap.extract_features(str(database), str(image_dir), image_names=list(image_names),
-                              camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                              extraction_options=extraction, device=cpu)
+    for names, model, params in cameras:
+        reader = pycolmap.ImageReaderOptions()
+        reader.camera_model = model
+        if params is not None:
+            reader.camera_params = params
+        pycolmap.extract_features(str(database), str(image_dir), image_names=list(names),
+                                  camera_mode=pycolmap.CameraMode.SINGLE,
+                                  reader_options=reader, extraction_options=extraction,
+                                  device=cpu)
     if position_priors:
         _write_position_priors(database, position_priors, prior_sigma)
     if opt.matcher == "spatial" and _num_pose_priors(database) == 0:
@@ -305,6 +325,40 @@ def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
     mopt.mapper.global_positioning.use_gpu = False
     mopt.mapper.bundle_adjustment.ceres.use_gpu = False
     return pycolmap.global_mapping(str(database), str(image_dir), str(sparse), options=mopt)
+
+
+def _triangulate_known(database: Path, image_dir, sparse: Path, known_poses, num_threads):
+    """Stage triangulate: the database's cameras at the known poses (written as a COLMAP
+    text model, which gives each image its rig and frame), then COLMAP's triangulation
+    with poses and intrinsics fixed."""
+    import pycolmap
+
+    db = pycolmap.Database.open(str(database))
+    try:
+        cams, images = db.read_all_cameras(), db.read_all_images()
+    finally:
+        db.close()
+    known = sparse / "known"
+    known.mkdir(parents=True, exist_ok=True)
+    lines = [f"{c.camera_id} {c.model.name} {c.width} {c.height} "
+             + " ".join(repr(float(v)) for v in c.params) for c in cams]
+    (known / "cameras.txt").write_text("\n".join(lines) + "\n")
+    lines = []
+    for im in images:
+        T = np.asarray(known_poses[im.name], float)
+        q = pycolmap.Rotation3d(T[:3, :3]).quat  # x, y, z, w
+        pose = " ".join(f"{float(v):.17g}" for v in (q[3], q[0], q[1], q[2], *T[:3, 3]))
+        lines.append(f"{im.image_id} {pose} {im.camera_id} {im.name}\n\n")
+    (known / "images.txt").write_text("".join(lines))
+    (known / "points3D.txt").write_text("")
+    rec = pycolmap.Reconstruction(str(known))
+    out = sparse / "0"
+    out.mkdir(exist_ok=True)
+    options = pycolmap.IncrementalPipelineOptions()
+    options.num_threads = num_threads
+    rec = pycolmap.triangulate_points(rec, str(database), str(image_dir), str(out),
+                                      options=options, refine_intrinsics=False)
+    return {0: rec}
 
 
 # -- camera conversions ---------------------------------------------------------------

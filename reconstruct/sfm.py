@@ -1,26 +1,36 @@
 """Structure from motion: pycolmap sparse reconstruction on the CPU, our dense surface.
 
 ``run(config, input, out_dir)`` takes an SfM capture folder (capture.json) or a plain
-folder of photos (JPEG/PNG, EXIF or not) and writes:
+folder of photos as cameras write them (JPEG, PNG, TIFF; 8 or 16 bit; grey or colour;
+EXIF orientation applied, mixed sizes and orientations) and writes:
 
 - ``sparse/0/`` the COLMAP model in binary, ``sparse/0/text/`` in text,
-- ``points.ply`` sparse points (coloured), ``mesh.ply`` the dense surface,
+- ``points.ply`` sparse points (coloured), ``fused.ply`` the fused dense points,
+  ``mesh.ply`` the dense surface, ``dense/`` the depth, normal and confidence maps
+  (:mod:`reconstruct.mvs`),
 - ``transforms.json`` the estimated cameras for nerfstudio tools,
-- ``report.json`` counts, timings, failures and, with ground truth, the metrics.
+- ``report.json`` counts, timings, failures, per-view coverage and, with ground truth,
+  the metrics.
 
 Intrinsics: ``--camera MODEL:params`` when given; otherwise the capture's nominal
 camera (what a photographer knows from EXIF: focal length, image size) as a starting
-value that bundle adjustment refines; otherwise COLMAP's guess (EXIF focal length,
-or 1.2 x the larger image side). ``ground_truth`` is read only to score: the Sim(3)
-alignment of the cameras, pose errors, and the mesh F-score; when it exists the
-dense stage works in the aligned (scene) frame so the mesh can be compared. The scene
-size is the bounding-box diagonal of the ground-truth scene.
+value that bundle adjustment refines; otherwise one camera per distinct image size and
+EXIF focal length (``--camera-mode``), starting from the EXIF focal length, or COLMAP's
+guess of 1.2 x the larger side. Known cameras (``--cameras``: a COLMAP model, a
+nerfstudio transforms.json or a Middlebury ``*_par.txt``) replace the mapper: the
+sparse points are triangulated with those poses and intrinsics fixed.
+
+``ground_truth`` is read only to score: the Sim(3) alignment of the cameras, pose
+errors, and the mesh F-score; when it exists the dense stage works in the aligned
+(scene) frame so the mesh can be compared. The scene size is the bounding-box diagonal
+of the ground-truth scene.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,9 +43,11 @@ from acquire.capture_io import load_capture
 from acquire.nerfstudio import write_transforms
 from core.config import Config, option
 from core.files import atomic_dir, write_json
+from core.image_io import read_image, to_uint8
 from core.mesh_io import read_mesh, write_mesh, write_points
 from core.validate import InputError, check_choice
 from reconstruct.calib_io import read_camera_yaml
+from reconstruct.camera_files import read_cameras
 from reconstruct.colmap_runner import (
     CAMERA_MODELS,
     ColmapOptions,
@@ -44,14 +56,20 @@ from reconstruct.colmap_runner import (
     image_cam_from_world,
     run_colmap,
 )
-from reconstruct.dense import DenseOptions, depth_maps
+from reconstruct.mvs import MvsOptions, dense_surface
+from reconstruct.photo_set import (
+    CAMERA_MODES,
+    camera_groups,
+    list_photos,
+    scan_photos,
+    upright_folder,
+)
 from reconstruct.sim3 import align_cameras
 
-__all__ = ["SfmConfig", "SfmResult", "run", "parse_camera", "IMAGE_SUFFIXES"]
+__all__ = ["SfmConfig", "SfmResult", "run", "parse_camera"]
 
 log = logging.getLogger(__name__)
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MATCHER_CHOICES = ("auto", "exhaustive", "sequential", "spatial")
 
 
@@ -64,6 +82,14 @@ class SfmConfig(Config):
                                            "), or a camera.yaml from scanamp calibrate camera; "
                                            "default: the capture's nominal camera, else EXIF, "
                                            "else estimated")
+    camera_mode: str = option("auto", choices=CAMERA_MODES,
+                              help="photos sharing a camera: 'auto' one per distinct size "
+                                   "and EXIF focal length, 'single' one for all, "
+                                   "'per-image' one each")
+    cameras: str | None = option(None, help="known cameras: a COLMAP model (folder, text or "
+                                            "binary), a nerfstudio transforms.json or a "
+                                            "Middlebury *_par.txt; the sparse points are "
+                                            "then triangulated with those poses fixed")
     mapper: str = option("incremental", choices=("incremental", "global"),
                          help="pycolmap's mapper")
     matcher: str = option("auto", choices=MATCHER_CHOICES,
@@ -73,11 +99,8 @@ class SfmConfig(Config):
     num_threads: int = option(-1, range="[-1, 1024]", help="threads (-1 = all cores)")
     seed: int = option(0, range="[0, inf)", help="pycolmap's random seed")
     max_features: int = option(8192, range="[100, 1000000]", help="SIFT features per image")
-    voxel_fraction: float = option(1.0 / 300.0, range="(0, 1)",
-                                   help="TSDF voxel edge as a fraction of the scene extent "
-                                        "(robust sparse-point extent)")
-    dense_options: DenseOptions = option(default_factory=DenseOptions,
-                                         help="the dense stage's options")
+    mvs: MvsOptions = option(default_factory=MvsOptions,
+                             help="the dense stage's options (PatchMatch, fusion, surface)")
     min_keypoints: int = option(30, range="[0, inf)",
                                 help="fewer SIFT features than this marks an image "
                                      "textureless")
@@ -125,6 +148,8 @@ class _Input:
     capture: object = None  # acquire.capture_io.Capture or None
     nominal: Camera | None = None
     order: str = "unknown"
+    infos: dict | None = None  # name -> core.image_io.PhotoInfo
+    known: dict | None = None  # name -> Camera, from --cameras
 
 
 def _resolve_input(path: Path) -> _Input:
@@ -147,33 +172,33 @@ def _resolve_input(path: Path) -> _Input:
         return _Input(cap.root, names, cap, nominal, kind)
     if not path.is_dir():
         raise InputError("expected a capture folder or a folder of images", path=path)
-    names = sorted(p.name for p in path.iterdir()
-                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    names = list_photos(path)
     if not names:
-        raise InputError(f"no images ({', '.join(IMAGE_SUFFIXES)}) and no capture.json",
-                         path=path)
+        raise InputError("no images (JPEG, PNG, TIFF) and no capture.json", path=path)
     return _Input(path, names)
 
 
-def _check_images(inp: _Input) -> tuple[int, int]:
+def _check_images(inp: _Input, cameras_file: str | None) -> None:
+    """Every photo's header (a bad one is named), and the known cameras if any: each
+    must name a photo of the folder, at its size; photos without one are left out."""
+    inp.infos = scan_photos(inp.image_dir, inp.names)
+    if cameras_file:
+        sizes = {n: (i.width, i.height) for n, i in inp.infos.items()}
+        known = read_cameras(cameras_file, sizes=sizes)
+        missing = [n for n in known if n not in sizes]
+        if missing:
+            raise InputError(f"names images that are not in {inp.image_dir}: "
+                             f"{', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''}",
+                             path=cameras_file)
+        extra = [n for n in inp.names if n not in known]
+        if extra:
+            log.warning("%d photos have no camera in %s and are left out: %s", len(extra),
+                        cameras_file, ", ".join(extra[:5]))
+        inp.names = [n for n in inp.names if n in known]
+        inp.known = known
     if len(inp.names) < 3:
         raise InputError(f"structure from motion needs at least 3 images, got {len(inp.names)}",
                          path=inp.image_dir)
-    sizes, bad = {}, []
-    for n in inp.names:
-        img = cv2.imread(str(inp.image_dir / n), cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            bad.append(n)
-            continue
-        sizes.setdefault(img.shape[::-1], []).append(n)
-    if bad:
-        raise InputError(f"unreadable images: {', '.join(bad)}", path=inp.image_dir)
-    if len(sizes) > 1:
-        common = max(sizes, key=lambda s: len(sizes[s]))
-        odd = [f"{n} ({w}x{h})" for (w, h), ns in sizes.items() if (w, h) != common for n in ns]
-        raise InputError(f"mixed image sizes: most are {common[0]}x{common[1]}, but "
-                         f"{', '.join(odd)}", path=inp.image_dir)
-    return next(iter(sizes))
 
 
 def _choose_matcher(config: SfmConfig, inp: _Input) -> str:
@@ -294,22 +319,6 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> tupl
     return out, diagnosis
 
 
-def _guessed_intrinsics_source(database: Path, width: int, height: int) -> str:
-    """Where COLMAP took the focal length from when we gave none (EXIF or a guess)."""
-    import pycolmap
-
-    db = pycolmap.Database.open(str(database))
-    try:
-        cams = db.read_all_cameras()
-    finally:
-        db.close()
-    if cams and cams[0].has_prior_focal_length:
-        return (f"EXIF focal length ({cams[0].focal_length:.1f} px), refined by bundle "
-                f"adjustment")
-    return (f"no EXIF focal length: COLMAP's guess 1.2 x {max(width, height)} px, refined by "
-            f"bundle adjustment")
-
-
 def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.PathLike,
         ) -> SfmResult:
     """Reconstruct cameras, sparse points and a dense mesh from images.
@@ -318,7 +327,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     ----------
     config : SfmConfig
     input_path : path
-        SfM capture folder (capture.json) or a folder of JPEG/PNG images.
+        SfM capture folder (capture.json) or a folder of photos.
     out_dir : path
         Written atomically (report.json is written even when SfM fails).
 
@@ -332,13 +341,14 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     Raises
     ------
     InputError
-        Fewer than 3 images, unreadable or mixed-size images, every image textureless.
+        Fewer than 3 images, a missing, unreadable or truncated image, a cameras file
+        that disagrees with the folder, every image textureless.
     """
     t_all = time.perf_counter()
     input_path = Path(input_path)
     inp = _resolve_input(input_path)
     t_check = time.perf_counter()
-    width, height = _check_images(inp)
+    _check_images(inp, config.cameras)
     t_check = time.perf_counter() - t_check
     # one-off costs of the process (open3d alone takes seconds), kept out of the stage
     # timings so that a stage is compared with the bare pycolmap calls on equal terms
@@ -347,30 +357,37 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     import pycolmap  # noqa: F401
     t_imports = time.perf_counter() - t
     t_sparse = time.perf_counter() - t_check  # the image checks belong to the sparse stage
-    model, params, intr_source = _intrinsics(config, inp, width, height, input_path)
+    groups, intr_source = _intrinsics(config, inp, input_path)
     matcher = _choose_matcher(config, inp)
-    opts = ColmapOptions(camera_model=model, camera_params=params, matcher=matcher,
-                         mapper=config.mapper, num_threads=config.num_threads, seed=config.seed,
-                         max_features=config.max_features)
+    opts = ColmapOptions(matcher=matcher, mapper=config.mapper, num_threads=config.num_threads,
+                         seed=config.seed, max_features=config.max_features)
+    sizes = sorted({(i.width, i.height) for i in inp.infos.values()})
     report = {"input": str(input_path), "kind": "sfm", "num_images": len(inp.names),
-              "image_size": [width, height], "intrinsics_source": intr_source,
+              "image_sizes": [list(sz) for sz in sizes],
+              "exif_rotated": sorted(n for n in inp.names if inp.infos[n].orientation != 1),
+              "intrinsics_source": intr_source,
+              "cameras_file": config.cameras,
               "colmap": {k: v for k, v in asdict(opts).items()}, "options": {
                   "mapper": config.mapper, "matcher": matcher, "dense": config.dense,
-                  "seed": config.seed, "num_threads": config.num_threads}}
+                  "camera_mode": config.camera_mode, "seed": config.seed,
+                  "num_threads": config.num_threads}}
     with atomic_dir(out_dir) as tmp:
         work = tmp / "colmap"
         work.mkdir()
-        res = run_colmap(inp.image_dir, inp.names, work, options=opts)
+        with tempfile.TemporaryDirectory(prefix="scanamp-upright-") as upright:
+            image_dir = upright_folder(inp.image_dir, inp.names, inp.infos, upright)
+            known = None if inp.known is None else {
+                n: c.cam_from_world for n, c in inp.known.items() if n in inp.names}
+            res = run_colmap(image_dir, inp.names, work, options=opts, cameras=groups,
+                             known_poses=known)
         rec = res.reconstruction
         report["timings"] = dict(res.timings, imports=t_imports)
         report["timings"]["pycolmap"] = sum(res.timings.values())
-        if intr_source is None:
-            report["intrinsics_source"] = _guessed_intrinsics_source(res.database, width, height)
         registered = sorted(im.name for im in rec.images.values() if im.has_pose) if rec else []
         failures, diagnosis = _failures(res.database, inp.names, set(registered),
                                         config.min_keypoints)
         textureless = [n for n, why in failures.items() if why.startswith("no texture")]
-        if len(inp.names) - len(textureless) < 3:
+        if len(inp.names) - len(textureless) < 3 and inp.known is None:
             raise InputError("images with no texture (too few SIFT features): "
                              + ", ".join(textureless), path=inp.image_dir)
         report["registered"] = len(registered)
@@ -400,30 +417,58 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     return SfmResult(Path(out_dir), ok, message, report)
 
 
-def _intrinsics(config, inp, width: int, height: int, input_path: Path):
-    """COLMAP model and parameters, and where they came from: --camera (a string or a
-    camera.yaml), the capture's nominal camera, else EXIF or COLMAP's guess (None)."""
+def _intrinsics(config, inp, input_path: Path) -> tuple[list, str]:
+    """COLMAP cameras ``[(names, model, params)]`` and where their intrinsics came from:
+    known cameras (--cameras), --camera (a string or a camera.yaml), the capture's
+    nominal camera, else one camera per group of photos (--camera-mode) from EXIF."""
+    sizes = {(i.width, i.height) for n, i in inp.infos.items() if n in inp.names}
+    if inp.known is not None:
+        groups = [([n], *colmap_params_from_camera(inp.known[n])) for n in inp.names]
+        return groups, f"--cameras {config.cameras} (held fixed)"
+    one = None
+    if config.camera or inp.nominal is not None:
+        if len(sizes) > 1:
+            what = "--camera" if config.camera else "the capture's nominal camera"
+            raise InputError(f"{what} is one camera, but the images have "
+                             f"{len(sizes)} sizes: " + ", ".join(f"{w}x{h}" for w, h in
+                                                                  sorted(sizes)),
+                             path=inp.image_dir)
+        width, height = next(iter(sizes))
     if config.camera:
         model, params = parse_camera(config.camera)
-        intr_source = "--camera"
+        one = (model, params, "--camera")
         if Path(config.camera).suffix.lower() in (".yaml", ".yml", ".xml"):
             cam = read_camera_yaml(config.camera)
             if (cam.width, cam.height) != (width, height):
                 raise InputError(f"calibrated for {cam.width}x{cam.height} images, the images "
                                  f"are {width}x{height}", path=config.camera,
                                  field="image_width")
-            intr_source = f"--camera {config.camera}"
+            one = (model, params, f"--camera {config.camera}")
     elif inp.nominal is not None:
         if (inp.nominal.width, inp.nominal.height) != (width, height):
             raise InputError(f"cameras: nominal size {inp.nominal.width}x{inp.nominal.height} "
                              f"differs from the images ({width}x{height})",
                              path=input_path / "capture.json")
         model, params = colmap_params_from_camera(inp.nominal)
-        intr_source = "capture.json nominal camera (refined by bundle adjustment)"
-    else:
-        model, params = "SIMPLE_RADIAL", None
-        intr_source = None  # EXIF or COLMAP's guess: known after extraction
-    return model, params, intr_source
+        one = (model, params, "capture.json nominal camera (refined by bundle adjustment)")
+    if one is not None:
+        return [(list(inp.names), one[0], one[1])], one[2]
+    try:
+        groups = camera_groups({n: inp.infos[n] for n in inp.names}, config.camera_mode)
+    except ValueError as e:
+        raise InputError(str(e), path=inp.image_dir) from None
+    out, sources = [], []
+    for g in groups:
+        if g.focal_px is not None:
+            params = f"{g.focal_px!r}, {g.width / 2!r}, {g.height / 2!r}, 0.0"
+            sources.append(f"EXIF focal length {g.focal_px:.1f} px")
+        else:
+            params = None
+            sources.append(f"no EXIF focal length: 1.2 x {max(g.width, g.height)} px")
+        out.append((g.names, "SIMPLE_RADIAL", params))
+    kinds = sorted(set(sources))
+    return out, (f"{len(groups)} camera(s) ({config.camera_mode}): " + "; ".join(kinds)
+                 + ", refined by bundle adjustment")
 
 
 def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict):
@@ -471,33 +516,18 @@ def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict):
 
 def _dense(config, inp, tmp: Path, images, cams, visible, pts, true_cams, gt, report: dict,
            ok: bool, message: str) -> tuple[bool, str]:
-    """Depth maps, TSDF fusion, mesh.ply; with ground truth, the mesh's score."""
+    """Depth maps, fusion, mesh.ply (:mod:`reconstruct.mvs`); with ground truth, the
+    mesh's score."""
     t = time.perf_counter()
-    grays = [cv2.imread(str(inp.image_dir / im.name), cv2.IMREAD_GRAYSCALE)
-             for im in images]
-    colors = [cv2.imread(str(inp.image_dir / im.name))[..., ::-1] for im in images]
-    depths, neighbors = depth_maps(grays, cams, visible, pts,
-                                   options=config.dense_options)
-    lo, hi = np.percentile(pts, [2, 98], axis=0)
-    extent = float(np.linalg.norm(hi - lo))
-    zmax = max(float(np.max(d)) for d in depths) if depths else 0.0
-    mesh = None
-    if zmax > 0:
-        from reconstruct.tsdf import fuse_depth_maps
-
-        voxel = extent * config.voxel_fraction
-        mesh = fuse_depth_maps(depths, cams, voxel_size=voxel,
-                               depth_max=1.5 * zmax, colors=colors)
+    names = [im.name for im in images]
+    pixels = [to_uint8(read_image(inp.image_dir / n)) for n in names]
+    mesh, dense = dense_surface(names, pixels, cams, visible, pts, tmp, config.mvs)
+    if mesh is not None:
         mesh = _clean_mesh(mesh)
         if len(mesh.triangles):
             write_mesh(tmp / "mesh.ply", mesh)
     report["timings"]["dense"] = time.perf_counter() - t
-    report["dense"] = {"depth_pixels": [int((d > 0).sum()) for d in depths],
-                       "stereo_partner": {
-                           im.name: images[nb[0]].name if nb else None
-                           for im, nb in zip(images, neighbors, strict=True)},
-                       "voxel_size": extent * config.voxel_fraction,
-                       "triangles": 0 if mesh is None else len(mesh.triangles)}
+    report["dense"] = dense
     if mesh is None or len(mesh.triangles) == 0:
         ok = False
         message = "the dense surface is empty (no consistent depth in any view)"

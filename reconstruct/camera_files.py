@@ -1,0 +1,145 @@
+"""Known cameras from the files other tools write: a COLMAP model, a nerfstudio
+``transforms.json``, a Middlebury ``*_par.txt``.
+
+:func:`read_cameras` gives ``{image name: Camera}`` in scanamp's (OpenCV) convention,
+whatever the source: turntables, robot arms and calibrated rigs know their poses, and
+textureless objects that SIFT cannot register need them.
+
+Formats
+-------
+COLMAP model
+    A folder with ``cameras.bin``/``images.bin`` (binary) or ``cameras.txt``/
+    ``images.txt`` (text), or one of those files. Models: those of
+    :data:`reconstruct.colmap_runner.CAMERA_MODELS`.
+nerfstudio ``transforms.json``
+    Read by :func:`acquire.nerfstudio.read_transforms` (OpenGL camera axes).
+Middlebury ``*_par.txt``
+    A count, then one line per image: ``name k11..k33 r11..r33 t1 t2 t3`` with the
+    projection ``K [R | t]`` (``x_cam = R X + t``), pixel centres at integers.
+
+>>> import tempfile, pathlib
+>>> p = pathlib.Path(tempfile.mkdtemp()) / "toy_par.txt"
+>>> _ = p.write_text("1\\nimg.png 500 0 319.5 0 500 239.5 0 0 1 1 0 0 0 1 0 0 0 1 0 0 2\\n")
+>>> cams = read_cameras(p, sizes={"img.png": (640, 480)})
+>>> cams["img.png"].center.round(3).tolist(), cams["img.png"].fx
+([0.0, 0.0, -2.0], 500.0)
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from acquire.camera import Camera
+from core.validate import InputError
+
+__all__ = ["read_cameras", "CAMERA_FILE_FORMATS"]
+
+log = logging.getLogger(__name__)
+
+CAMERA_FILE_FORMATS = ("COLMAP model (folder, cameras.txt/.bin)", "transforms.json",
+                       "Middlebury *_par.txt")
+
+
+def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]]
+                 | None = None) -> dict[str, Camera]:
+    """``{image name: Camera}`` from a COLMAP model, transforms.json or ``*_par.txt``.
+
+    Parameters
+    ----------
+    path : path
+    sizes : mapping name -> (width, height), optional
+        The images' sizes, for formats that do not store them (Middlebury); a camera
+        whose stored size differs from its image is an error.
+
+    Raises
+    ------
+    InputError
+        Unknown format, a malformed line or field (named), or a size disagreement.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("cameras file not found", path=path)
+    if path.is_dir() or path.name in ("cameras.txt", "cameras.bin", "images.txt",
+                                      "images.bin"):
+        cams = _read_colmap(path if path.is_dir() else path.parent)
+    elif path.suffix.lower() == ".json":
+        from acquire.nerfstudio import read_transforms
+
+        cameras, files = read_transforms(path)
+        cams = {Path(f).name: c for c, f in zip(cameras, files, strict=True)}
+    elif path.suffix.lower() == ".txt":
+        cams = _read_middlebury(path, sizes or {})
+    else:
+        raise InputError("unknown cameras format: expected " + ", ".join(CAMERA_FILE_FORMATS),
+                         path=path)
+    if not cams:
+        raise InputError("no cameras in the file", path=path)
+    for name, cam in cams.items():
+        size = (sizes or {}).get(name)
+        if size is not None and (cam.width, cam.height) != tuple(size):
+            raise InputError(f"camera of {name} is {cam.width}x{cam.height}, the image is "
+                             f"{size[0]}x{size[1]}", path=path, field=name)
+    return cams
+
+
+def _read_colmap(folder: Path) -> dict[str, Camera]:
+    import cv2  # noqa: F401  (before pycolmap)
+    import pycolmap
+
+    from reconstruct.colmap_runner import camera_from_colmap, image_cam_from_world
+
+    if not any((folder / f).is_file() for f in ("cameras.bin", "cameras.txt")):
+        raise InputError("expected a COLMAP model (cameras.bin or cameras.txt)", path=folder)
+    try:
+        rec = pycolmap.Reconstruction(str(folder))
+    except Exception as e:  # pycolmap raises its own types for unreadable models
+        raise InputError(f"unreadable COLMAP model ({str(e).splitlines()[0]})",
+                         path=folder) from None
+    out = {}
+    for im in rec.images.values():
+        if not im.has_pose:
+            continue
+        try:
+            out[im.name] = camera_from_colmap(im.camera, image_cam_from_world(im))
+        except ValueError as e:
+            raise InputError(str(e), path=folder, field=im.name) from None
+    return out
+
+
+def _read_middlebury(path: Path, sizes: Mapping[str, tuple[int, int]]) -> dict[str, Camera]:
+    lines = [ln.split() for ln in path.read_text().splitlines() if ln.strip()]
+    if lines and len(lines[0]) == 1:  # the count
+        lines = lines[1:]
+    out = {}
+    for i, parts in enumerate(lines, start=1):
+        if len(parts) != 22:
+            raise InputError(f"expected 'name' and 21 numbers (K, R, t), got {len(parts)} "
+                             f"fields", path=path, field=f"line {i + 1}")
+        name = parts[0]
+        try:
+            v = np.array([float(x) for x in parts[1:]])
+        except ValueError:
+            raise InputError("expected numbers after the name", path=path,
+                             field=f"line {i + 1}") from None
+        K, R, t = v[:9].reshape(3, 3), v[9:18].reshape(3, 3), v[18:]
+        if name not in sizes:
+            raise InputError(f"image {name} is not in the photo folder", path=path,
+                             field=f"line {i + 1}")
+        w, h = sizes[name]
+        U, S, Vt = np.linalg.svd(R)
+        if np.any(np.abs(S - 1.0) > 1e-3) or np.linalg.det(R) < 0:
+            raise InputError("R is not a rotation", path=path, field=f"line {i + 1}")
+        R = U @ Vt  # the file's rounding, removed
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, t
+        try:
+            out[name] = Camera(int(w), int(h), K[0, 0], K[1, 1], K[0, 2], K[1, 2],
+                               np.zeros(5), T)
+        except ValueError as e:
+            raise InputError(str(e), path=path, field=f"line {i + 1}") from None
+    return out

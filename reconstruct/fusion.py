@@ -1,0 +1,199 @@
+"""Depth maps -> fused points -> a surface that never balloons beyond what was seen.
+
+:func:`fuse_points` keeps a pixel's point only where at least ``min_views`` other views
+agree with it after reprojection: their depth map, at the pixel the point projects
+to, gives back a point that reprojects within ``max_reprojection`` px, at a depth within
+``depth_tol`` (relative), with a normal within ``max_normal_deg``. Each kept point carries
+its normal, colour and the number of views that saw it (its visibility).
+
+:func:`poisson_surface` meshes the fused points (screened Poisson, open3d) and trims it
+three ways: by Poisson density (where the points were sparse), by distance to the
+nearest fused point, and by visibility: a vertex that lies in front of a surface that
+views saw through it (free space) is removed.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from acquire.camera import Camera
+from core.config import Config, option
+from core.progress import track
+
+__all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class FusionOptions(Config):
+    """Options of depth-map fusion and the fused points' surface."""
+
+    min_views: int = option(2, range="[1, 64]",
+                            help="other views that must agree with a depth to keep it")
+    depth_tol: float = option(0.01, range="(0, 1)", help="relative depth agreement")
+    max_reprojection: float = option(2.0, unit="px", range="(0, inf)",
+                                     help="forward-backward reprojection agreement")
+    max_normal_deg: float = option(30.0, unit="deg", range="(0, 180]",
+                                   help="normal agreement")
+    poisson_depth: int = option(9, range="[5, 12]", help="screened Poisson octree depth")
+    density_quantile: float = option(0.05, range="[0, 1)",
+                                     help="Poisson vertices below this quantile of the "
+                                          "density are trimmed")
+    max_distance: float = option(3.0, range="(0, inf)",
+                                 help="vertices farther than this many point spacings "
+                                      "from a fused point are trimmed")
+
+
+@dataclass
+class FusedPoints:
+    """Fused points in the world frame, and which pixels of each view they came from."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    colors: np.ndarray
+    visibility: np.ndarray
+    masks: list
+
+    @property
+    def coverage(self) -> list[float]:
+        """Fraction of each view's pixels that carry a fused depth."""
+        return [float(m.mean()) for m in self.masks]
+
+
+def _backproject(cam: Camera, depth: np.ndarray):
+    v, u = np.nonzero(depth > 0)
+    z = depth[v, u].astype(np.float64)
+    x = (u - cam.cx) / cam.fx * z
+    y = (v - cam.cy) / cam.fy * z
+    pc = np.stack([x, y, z], 1)
+    return u, v, pc
+
+
+def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
+                normals: Sequence[np.ndarray], colors: Sequence[np.ndarray],
+                neighbours: Sequence[Sequence[int]],
+                options: FusionOptions | None = None) -> FusedPoints:
+    """Points of every view kept where ``min_views`` of its ``neighbours`` agree.
+
+    ``cameras`` are pinhole (no distortion) at the depth maps' resolution; ``normals``
+    are in each camera's frame; ``colors`` (H, W, 3) uint8.
+    """
+    opt = options or FusionOptions()
+    cos_max = np.cos(np.radians(opt.max_normal_deg))
+    P, Nn, Cc, V, masks = [], [], [], [], []
+    for i in track(range(len(cameras)), "fusion", total=len(cameras)):
+        cam = cameras[i]
+        u, v, pc = _backproject(cam, depths[i])
+        count = np.zeros(len(u), np.int32)
+        R_wc = cam.world_from_cam[:3, :3]
+        X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
+        n_ref = normals[i][v, u].astype(np.float64) @ R_wc.T
+        for j in neighbours[i]:
+            if j == i:
+                continue
+            count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
+                            opt, cos_max)
+        keep = count >= opt.min_views
+        mask = np.zeros(depths[i].shape, bool)
+        mask[v[keep], u[keep]] = True
+        masks.append(mask)
+        P.append(X[keep])
+        Nn.append(n_ref[keep])
+        Cc.append(colors[i][v[keep], u[keep], :3].astype(np.float64) / 255.0)
+        V.append(count[keep] + 1)
+    def cat(a, d):
+        return np.concatenate(a) if a else np.zeros((0, d))
+
+    return FusedPoints(cat(P, 3), cat(Nn, 3), cat(Cc, 3),
+                       np.concatenate(V) if V else np.zeros(0, np.int32), masks)
+
+
+def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
+    """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
+    Y = other.to_camera(X)
+    z = Y[:, 2]
+    ok = z > 1e-12
+    zs = np.where(ok, z, 1.0)
+    uo = np.rint(other.fx * Y[:, 0] / zs + other.cx).astype(np.int64)
+    vo = np.rint(other.fy * Y[:, 1] / zs + other.cy).astype(np.int64)
+    ok &= (uo >= 0) & (vo >= 0) & (uo < other.width) & (vo < other.height)
+    out = np.zeros(len(X), np.int32)
+    idx = np.nonzero(ok)[0]
+    uo, vo = uo[idx], vo[idx]
+    d = depth[vo, uo].astype(np.float64)
+    has = d > 0
+    idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
+    # the other view's point at that pixel, back in the reference image
+    pc = np.stack([(uo - other.cx) / other.fx * d, (vo - other.cy) / other.fy * d, d], 1)
+    W = pc @ other.world_from_cam[:3, :3].T + other.world_from_cam[:3, 3]
+    Z = cam.to_camera(W)
+    zr = np.maximum(Z[:, 2], 1e-12)
+    pu = cam.fx * Z[:, 0] / zr + cam.cx
+    pv = cam.fy * Z[:, 1] / zr + cam.cy
+    err = np.hypot(pu - u[idx], pv - v[idx])
+    rel = np.abs(z[idx] - d) / d
+    n_other = normal[vo, uo].astype(np.float64) @ other.world_from_cam[:3, :3].T
+    cosang = np.sum(n_other * n_ref[idx], 1)
+    good = (err <= opt.max_reprojection) & (rel <= opt.depth_tol) & (cosang >= cos_max)
+    out[idx[good]] = 1
+    return out
+
+
+def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
+                    depths: Sequence[np.ndarray], options: FusionOptions | None = None,
+                    *, max_points: int = 2_000_000, seed: int = 0):
+    """Screened Poisson mesh of the fused points, trimmed by density, distance to the
+    points and free space (an open3d TriangleMesh with vertex colours)."""
+    import open3d as o3d
+
+    opt = options or FusionOptions()
+    pts, nrm, col = fused.points, fused.normals, fused.colors
+    if len(pts) > max_points:  # seeded subsample keeps Poisson's memory bounded
+        keep = np.sort(np.random.default_rng(seed).choice(len(pts), max_points,
+                                                          replace=False))
+        pts, nrm, col = pts[keep], nrm[keep], col[keep]
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    pcd.normals = o3d.utility.Vector3dVector(nrm)
+    pcd.colors = o3d.utility.Vector3dVector(col)
+    mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+        pcd, depth=opt.poisson_depth, n_threads=1)
+    dens = np.asarray(dens)
+    if len(dens) == 0:
+        return mesh
+    V = np.asarray(mesh.vertices)
+    drop = dens < np.quantile(dens, opt.density_quantile)
+    # distance to the nearest fused point, in units of the points' own spacing
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(pts)
+    sample = np.random.default_rng(seed).choice(len(pts), min(5000, len(pts)), replace=False)
+    spacing = float(np.median(tree.query(pts[sample], k=2)[0][:, 1])) if len(pts) > 1 else 0
+    dist = tree.query(V, k=1)[0]
+    drop |= dist > opt.max_distance * max(spacing, 1e-12)
+    drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
+    mesh.remove_vertices_by_mask(drop)
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
+def _free_space(V: np.ndarray, cameras: Sequence[Camera], depths: Sequence[np.ndarray],
+                tol: float) -> np.ndarray:
+    """How many views saw a surface behind each vertex (the vertex is in free space)."""
+    votes = np.zeros(len(V), np.int32)
+    for cam, depth in zip(cameras, depths, strict=True):
+        Y = cam.to_camera(V)
+        z = Y[:, 2]
+        ok = z > 1e-12
+        zs = np.where(ok, z, 1.0)
+        u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
+        v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
+        ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
+        idx = np.nonzero(ok)[0]
+        d = depth[v[idx], u[idx]]
+        votes[idx[(d > 0) & (z[idx] < d * (1.0 - 5.0 * tol))]] += 1
+    return votes
