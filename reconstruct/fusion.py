@@ -40,6 +40,10 @@ class FusionOptions(Config):
                                      help="forward-backward reprojection agreement")
     max_normal_deg: float = option(30.0, unit="deg", range="(0, 180]",
                                    help="normal agreement")
+    edge_erosion: int = option(3, unit="px", range="[0, 20]",
+                               help="depths this close to the edge of a depth map's valid "
+                                    "region are not fused (windows straddling an occlusion "
+                                    "edge fatten the foreground)")
     poisson_depth: int = option(9, range="[5, 12]", help="screened Poisson octree depth")
     density_quantile: float = option(0.05, range="[0, 1)",
                                      help="Poisson vertices below this quantile of the "
@@ -65,8 +69,14 @@ class FusedPoints:
         return [float(m.mean()) for m in self.masks]
 
 
-def _backproject(cam: Camera, depth: np.ndarray):
-    v, u = np.nonzero(depth > 0)
+def _backproject(cam: Camera, depth: np.ndarray, erosion: int = 0):
+    valid = depth > 0
+    if erosion > 0:
+        import cv2
+
+        valid = cv2.erode(valid.astype(np.uint8), np.ones((3, 3), np.uint8),
+                          iterations=erosion).astype(bool)
+    v, u = np.nonzero(valid)
     z = depth[v, u].astype(np.float64)
     x = (u - cam.cx) / cam.fx * z
     y = (v - cam.cy) / cam.fy * z
@@ -88,7 +98,7 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     P, Nn, Cc, V, masks = [], [], [], [], []
     for i in track(range(len(cameras)), "fusion", total=len(cameras)):
         cam = cameras[i]
-        u, v, pc = _backproject(cam, depths[i])
+        u, v, pc = _backproject(cam, depths[i], opt.edge_erosion)
         count = np.zeros(len(u), np.int32)
         R_wc = cam.world_from_cam[:3, :3]
         X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
