@@ -44,7 +44,8 @@ class PhotoInfo:
         EXIF orientation tag, 1 (as stored) to 8; 1 without EXIF.
     focal_px : float or None
         Focal length in pixels of the upright image, from ``FocalLengthIn35mmFilm``
-        (``f35 / 36 mm * max(width, height)``) or from ``FocalLength`` with the focal
+        (``f35 * diagonal / 43.27 mm``, the diagonal of 36 x 24 mm film, as COLMAP
+        reads it) or from ``FocalLength`` with the focal
         plane resolution; None when the EXIF block gives neither.
     """
 
@@ -79,8 +80,8 @@ def _focal_px(exif, stored_size: tuple[int, int], upright: tuple[int, int]) -> f
     sub = exif.get_ifd(_EXIF_IFD)
     try:
         f35 = float(sub.get(_FOCAL_35MM) or 0)
-        if f35 > 0:
-            return f35 / 36.0 * max(upright)
+        if f35 > 0:  # equivalent focal length: by the diagonal of 36 x 24 mm film
+            return f35 * float(np.hypot(*upright)) / float(np.hypot(36.0, 24.0))
         fmm = float(sub.get(_FOCAL_MM) or 0)
         xres = float(sub.get(_FOCAL_PLANE_XRES) or 0)
         unit = {2: 25.4, 3: 10.0, 4: 1.0}.get(int(sub.get(_FOCAL_PLANE_UNIT) or 2), 25.4)

@@ -44,13 +44,17 @@ class FusionOptions(Config):
                                help="depths this close to the edge of a depth map's valid "
                                     "region are not fused (windows straddling an occlusion "
                                     "edge fatten the foreground)")
-    poisson_depth: int = option(9, range="[5, 12]", help="screened Poisson octree depth")
+    poisson_depth: int = option(0, range="[0, 12]",
+                                help="screened Poisson octree depth; 0 chooses it: cells "
+                                     "of about two pixel footprints (median depth / focal "
+                                     "length), depth 8 to 11")
     density_quantile: float = option(0.05, range="[0, 1)",
                                      help="Poisson vertices below this quantile of the "
                                           "density are trimmed")
-    max_distance: float = option(3.0, range="(0, inf)",
-                                 help="vertices farther than this many point spacings "
-                                      "from a fused point are trimmed")
+    max_distance: float = option(2.0, range="(0, inf)",
+                                 help="vertices farther than this many Poisson cells (the "
+                                      "octree's finest, or the points' median spacing if "
+                                      "larger) from a fused point are trimmed")
 
 
 @dataclass
@@ -170,21 +174,32 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
     pcd.normals = o3d.utility.Vector3dVector(nrm)
     pcd.colors = o3d.utility.Vector3dVector(col)
-    mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-        pcd, depth=opt.poisson_depth, n_threads=1)
-    dens = np.asarray(dens)
-    if len(dens) == 0:
-        return mesh
-    V = np.asarray(mesh.vertices)
-    drop = dens < np.quantile(dens, opt.density_quantile)
-    # distance to the nearest fused point, in units of the points' own spacing
     from scipy.spatial import cKDTree
 
     tree = cKDTree(pts)
     sample = np.random.default_rng(seed).choice(len(pts), min(5000, len(pts)), replace=False)
     spacing = float(np.median(tree.query(pts[sample], k=2)[0][:, 1])) if len(pts) > 1 else 0
+    extent = float(np.max(np.ptp(pts, axis=0))) * 1.1  # Poisson's bounding cube
+    # a pixel's footprint on the surface: the fused cloud repeats each surface once per
+    # view, so its own spacing understates how finely the surface was sampled
+    foot = [float(np.median(d[d > 0])) / c.fx for c, d in zip(cameras, depths, strict=True)
+            if np.any(d > 0)]
+    footprint = float(np.median(foot)) if foot else spacing
+    depth = opt.poisson_depth or int(np.clip(np.ceil(np.log2(extent / max(2 * footprint,
+                                                                        1e-12))), 8, 11))
+    mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+        pcd, depth=depth, n_threads=1)
+    dens = np.asarray(dens)
+    if len(dens) == 0:
+        return mesh
+    V = np.asarray(mesh.vertices)
+    drop = dens < np.quantile(dens, opt.density_quantile)
+    # distance to the nearest fused point, in Poisson cells (or point spacings)
+    cell = extent / 2 ** depth
+    log.info("Poisson surface: %d points, octree depth %d (cell %.3g, pixel footprint %.3g)",
+             len(pts), depth, cell, footprint)
     dist = tree.query(V, k=1)[0]
-    drop |= dist > opt.max_distance * max(spacing, 1e-12)
+    drop |= dist > opt.max_distance * max(spacing, cell, 1e-12)
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()

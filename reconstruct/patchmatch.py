@@ -130,16 +130,17 @@ def prepare_views(names: Sequence[str], images: Sequence[np.ndarray],
 
 def depth_range(camera: Camera, points: np.ndarray, visible: np.ndarray,
                 margin: float) -> tuple[float, float]:
-    """Depths of a view's sparse points (2nd to 98th percentile), widened by ``margin``;
-    all points in front of the view when it sees fewer than 10."""
+    """Depths of a view's sparse points, from the 1st percentile to the farthest, widened
+    by ``margin`` (near / (1 + margin), far * (1 + margin)); all points in front of the
+    view when it sees fewer than 10. Planes are drawn uniformly in inverse depth, so a
+    far bound set by a distant background costs the near surfaces little."""
     pts = points[visible] if len(visible) >= 10 else points
     z = camera.to_camera(pts)[:, 2]
     z = z[z > 0]
     if len(z) == 0:
         return 0.0, 0.0
-    lo, hi = np.percentile(z, [2, 98]) if len(z) >= 10 else (z.min(), z.max())
-    return float(lo * (1 - margin) if margin < 1 else lo / (1 + margin)), \
-        float(hi * (1 + margin))
+    lo = np.percentile(z, 1) if len(z) >= 10 else z.min()
+    return float(lo / (1 + margin)), float(z.max() * (1 + margin))
 
 
 def _relative(ref: Camera, src: Camera) -> tuple[np.ndarray, np.ndarray]:

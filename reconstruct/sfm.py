@@ -550,7 +550,9 @@ def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) 
     tau = 0.01 * scene_size
     mask = _visible_mask(ref, true_cams, tol=0.5 * tau)
     r = evaluate(mesh, ref, tau=tau, reference_mask=mask)
+    half = evaluate(mesh, ref, tau=0.5 * tau, reference_mask=mask)
     return {"tau": tau, "tau_definition": "1% of the scene's bounding-box diagonal",
             "fscore": r.fscore, "precision": r.precision, "recall": r.recall,
+            "fscore_half_tau": half.fscore,
             "accuracy_median": r.accuracy_median, "completeness_median": r.completeness_median,
             "reference": "ground-truth surface seen by at least one true camera"}

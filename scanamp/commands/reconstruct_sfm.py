@@ -1,5 +1,6 @@
-"""``scanamp reconstruct sfm CAPTURE_OR_IMAGE_FOLDER --out DIR``: pycolmap on the CPU, then a
-dense surface from rectified SGBM depth maps fused in a TSDF.
+"""``scanamp reconstruct sfm CAPTURE_OR_IMAGE_FOLDER --out DIR``: pycolmap on the CPU (or
+known cameras, ``--cameras``), then PatchMatch multi-view stereo, fusion and a trimmed
+Poisson surface (:mod:`reconstruct.mvs`).
 
 Options are :class:`reconstruct.sfm.SfmConfig`'s (flags, or ``--config FILE.toml``)."""
 
@@ -12,15 +13,17 @@ from reconstruct.sfm import SfmConfig
 
 GROUP = "reconstruct"
 NAME = "sfm"
-HELP = ("structure from motion on a capture or a folder of photos (pycolmap, CPU) with a "
-        "dense surface; writes the COLMAP model, points.ply, mesh.ply and report.json")
+HELP = ("structure from motion on a capture or a folder of photos (pycolmap, CPU; or known "
+        "cameras) with PatchMatch multi-view stereo; writes the COLMAP model, points.ply, "
+        "dense/ depth maps, fused.ply, mesh.ply and report.json")
 CONFIG = SfmConfig
 
 log = logging.getLogger(__name__)
 
 
 def add_arguments(p):
-    p.add_argument("input", type=Path, help="SfM capture folder (capture.json) or image folder")
+    p.add_argument("input", type=Path, help="SfM capture folder (capture.json) or a folder of "
+                                            "photos (JPEG, PNG, TIFF; EXIF orientation applied)")
     p.add_argument("--out", required=True, type=Path, help="reconstruction folder to write")
 
 
@@ -38,6 +41,10 @@ def run(args, config: SfmConfig) -> int:
     if poses:
         line += (f"; rotation error {poses['rotation_error_deg']['mean']:.4f} deg, "
                  f"ATE {100 * poses.get('ate_fraction_of_scene', float('nan')):.4f}% of scene")
+    dense = rep.get("dense")
+    if dense and dense.get("views"):
+        line += (f"; fused depth on {100 * dense['min_fused_coverage']:.0f}% or more of each "
+                 f"view's pixels")
     mesh = rep.get("metrics", {}).get("mesh")
     if mesh:
         line += f"; mesh F-score {mesh['fscore']:.3f}"

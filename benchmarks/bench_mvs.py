@@ -1,0 +1,158 @@
+"""Multi-view stereo: PatchMatch (the dense stage) against rectified-pair SGBM (the stage
+it replaced), side by side on the same inputs, in one run.
+
+1. Renders: the SfM capture of the 'object' scene (24 views at 640x480, as in
+   bench_sfm). Target: dense mesh F at tau = 1 % of the scene >= 0.95; F at 0.5 % too.
+2. monstree (../shared/data/real/monstree/images: 23 phone photos, 2016x1512, 19 of them
+   portrait by their EXIF orientation): all 23 registered; >= 60 % of the pixels of every
+   registered view carry a fused depth; dense stage <= 3x the sparse stage; megapixel-
+   views per second on this machine.
+3. dinoSparseRing from its given cameras (--cameras dinoSR_par.txt): silhouettes by a
+   threshold on the black background, dilated 2 px. Of the mesh drawn into every view
+   >= 97 % of the pixels fall inside the silhouette, and it covers >= 85 % of the
+   silhouette pixels.
+
+The real sets are read from ../shared/data/real when it is there; otherwise those parts
+say so and are skipped (a fresh clone has no ../shared).
+"""
+
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+import cv2  # noqa: E402,F401  (before pycolmap)
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL = Path(os.environ.get("SCANAMP_REAL_DATA") or ROOT.parent / "shared" / "data" / "real")
+SIL_THRESHOLD = 30  # grey level (of 255) separating the dino from its black background
+
+
+def _check(name, value, bound, higher=True, fmt="{:.3f}"):
+    ok = value >= bound if higher else value <= bound
+    print(f"   {name}: {fmt.format(value)} (target {'>=' if higher else '<='} "
+          f"{fmt.format(bound)}) {'PASS' if ok else 'MISS'}", flush=True)
+    return ok
+
+
+def _run(config, inp, out):
+    from reconstruct.sfm import run
+
+    t = time.perf_counter()
+    res = run(config, inp, out)
+    rep = res.report
+    rep["wall"] = time.perf_counter() - t
+    return res, rep
+
+
+def _config(method, **kw):
+    from reconstruct.mvs import MvsOptions
+    from reconstruct.sfm import SfmConfig
+
+    return SfmConfig(mvs=MvsOptions(method=method), **kw)
+
+
+def _side_by_side(label, reps):
+    for method, rep in reps.items():
+        d = rep.get("dense", {})
+        covs = [v["fused_coverage"] for v in d.get("views", {}).values()] or [0.0]
+        m = rep.get("metrics", {}).get("mesh", {})
+        f = (f", F@1% {m['fscore']:.3f}, F@0.5% {m['fscore_half_tau']:.3f}" if m else "")
+        print(f"   {label} {method:>10}: dense {rep['timings'].get('dense', 0):6.1f} s, sparse "
+              f"{rep['timings'].get('sparse_total', 0):6.1f} s, fused coverage mean "
+              f"{np.mean(covs):.2f} min {np.min(covs):.2f}{f}", flush=True)
+
+
+def renders(root: Path):
+    from bench_sfm import _capture
+
+    cap = _capture(root)
+    reps = {m: _run(_config(m), cap, root / f"render_{m}")[1] for m in ("patchmatch", "sgbm")}
+    _side_by_side("renders", reps)
+    return _check("renders: PatchMatch mesh F at 1 % of the scene",
+                  reps["patchmatch"]["metrics"]["mesh"]["fscore"], 0.95)
+
+
+def monstree(root: Path):
+    images = REAL / "monstree" / "images"
+    if not images.is_dir():
+        print(f"   monstree: {images} not found, skipped (a fresh clone has no ../shared)")
+        return True
+    reps = {}
+    for m in ("patchmatch", "sgbm"):
+        res, reps[m] = _run(_config(m), images, root / f"monstree_{m}")
+        print(f"   monstree {m}: {res.message}", flush=True)
+    _side_by_side("monstree", reps)
+    rep = reps["patchmatch"]
+    ok = _check("monstree: registered", rep["registered"], 23, fmt="{:.0f}")
+    ok &= _check("monstree: fused coverage of the worst view",
+                 rep["dense"]["min_fused_coverage"], 0.60)
+    ratio = rep["timings"]["dense"] / rep["timings"]["sparse_total"]
+    ok &= _check("monstree: dense stage / sparse stage", ratio, 3.0, higher=False,
+                 fmt="{:.2f}")
+    print(f"   monstree: {rep['dense']['megapixel_views_per_s']:.3f} megapixel-views/s on "
+          f"{os.cpu_count()} cores (working size {max(rep['dense']['working_size'].values())})")
+    return ok
+
+
+def silhouette_scores(mesh_path: Path, images: Path, cameras: dict) -> tuple[float, float]:
+    """Mean over views of (mesh pixels inside the silhouette, silhouette pixels covered)."""
+    import open3d as o3d
+
+    from core.image_io import read_image
+    from core.mesh_io import read_mesh
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(read_mesh(mesh_path)))
+    inside, covers = [], []
+    for name, cam in cameras.items():
+        grey = read_image(images / name, grayscale=True)
+        sil = cv2.dilate((grey > SIL_THRESHOLD).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        rays = o3d.t.geometry.RaycastingScene.create_rays_pinhole(
+            o3d.core.Tensor(cam.K), o3d.core.Tensor(cam.cam_from_world), cam.width, cam.height)
+        hit = np.isfinite(scene.cast_rays(rays)["t_hit"].numpy())
+        inside.append((hit & sil).sum() / max(hit.sum(), 1))
+        covers.append((hit & sil).sum() / max(sil.sum(), 1))
+    return float(np.mean(inside)), float(np.mean(covers))
+
+
+def dino(root: Path):
+    from reconstruct.camera_files import read_cameras
+
+    base = REAL / "dinoSparseRing"
+    if not (base / "dinoSR_par.txt").is_file():
+        print(f"   dinoSparseRing: {base} not found, skipped (a fresh clone has no ../shared)")
+        return True
+    par = base / "dinoSR_par.txt"
+    cams = read_cameras(par, sizes={p.name: (640, 480) for p in (base / "images").glob("*.png")})
+    ok = True
+    for m in ("patchmatch", "sgbm"):
+        res, rep = _run(_config(m, cameras=str(par)), base / "images", root / f"dino_{m}")
+        if not res.ok:
+            print(f"   dino {m}: {res.message}")
+            ok &= m != "patchmatch"
+            continue
+        inside, covers = silhouette_scores(res.out_dir / "mesh.ply", base / "images", cams)
+        print(f"   dino {m:>10}: inside {inside:.3f}, covers {covers:.3f}, dense "
+              f"{rep['timings']['dense']:.1f} s", flush=True)
+        if m == "patchmatch":
+            ok &= _check("dino: mesh pixels inside the silhouette", inside, 0.97)
+            ok &= _check("dino: silhouette pixels covered by the mesh", covers, 0.85)
+    return ok
+
+
+def main():
+    root = Path(os.environ.get("MVS_BENCH_DIR") or tempfile.mkdtemp(prefix="bench_mvs_"))
+    print(f"   outputs in {root}; real data from {REAL}", flush=True)
+    parts = sys.argv[1:] or ["renders", "monstree", "dino"]
+    ok = True
+    for name in parts:
+        ok &= {"renders": renders, "monstree": monstree, "dino": dino}[name](root)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
