@@ -133,7 +133,8 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
                      "--no-dense", "--num-threads", "1")
     assert code == 0, err
     rep = json.loads((tmp_path / "r1" / "report.json").read_text())
-    assert "EXIF focal length 342.0 px" in rep["intrinsics_source"]
+    # 37 x 400 / 43.27 = 342.07 px (COLMAP's own rule, which we now apply ourselves)
+    assert "EXIF focal length 342.1 px" in rep["intrinsics_source"]
     assert rep["registered"] == 6
     assert rep["sparse"]["cameras"]["1"]["has_prior_focal_length"] is True
     # --camera wins over EXIF, in COLMAP's pixel convention (centre of pixel 0 at 0.5)
