@@ -85,6 +85,18 @@ def files_key(paths: Iterable[str | os.PathLike]) -> list:
     return out
 
 
+def _copy_files(src: Path, dst: Path, files: Sequence[str]) -> None:
+    import shutil
+
+    for f in files:
+        a, b = src / f, dst / f
+        b.parent.mkdir(parents=True, exist_ok=True)
+        if a.is_dir():
+            shutil.copytree(a, b, dirs_exist_ok=True)
+        else:
+            shutil.copy2(a, b)
+
+
 class Stages:
     """Runs named stages in ``folder/stages`` (see the module docstring).
 
@@ -139,16 +151,25 @@ class Stages:
                 continue
         return False, None, None
 
-    def run(self, name: str, fn: Callable, *args, depends: Any = None, **kwargs):
+    def run(self, name: str, fn: Callable, *args, depends: Any = None,
+            files: Sequence[str] = (), **kwargs):
         """``fn(*args, **kwargs)``, or its stored result when ``depends`` (JSON-able: the
-        options and input files it reads) and the earlier stages are unchanged."""
+        options and input files it reads) and the earlier stages are unchanged.
+
+        ``files`` are the paths (relative to the pipeline's folder; files or folders) the
+        stage writes: a stored result is used only when they are all there, and taken
+        from an earlier output folder they are copied along with it."""
         check_choice(name, "stage", self.order)
         key = self._key(name, depends)
         self.keys[name] = key
         if name not in self.forced:
             found, value, base = self._load(name, key)
+            if found and not all((base.parent / f).exists() for f in files):
+                log.debug("stage %s: its files are gone; recomputed", name)
+                found = False
             if found:
                 if base != self.folder:
+                    _copy_files(base.parent, self.folder.parent, files)
                     self._store(name, key, value)
                 self.skipped.append(name)
                 log.debug("stage %s: unchanged, reused", name)

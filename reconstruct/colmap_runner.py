@@ -31,7 +31,8 @@ from acquire.camera import Camera
 from core.progress import track
 from core.validate import check_choice
 
-__all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "colmap_params_from_camera",
+__all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "extract", "match", "reconstruct",
+           "colmap_params_from_camera",
            "camera_from_colmap", "MATCHERS", "MAPPERS", "CAMERA_MODELS"]
 
 log = logging.getLogger(__name__)
@@ -208,43 +209,77 @@ def run_colmap(image_dir: str | Path, image_names: Sequence[str], work_dir: str 
     ValueError
         ``matcher='spatial'`` and no image has a position prior.
     """
-    import pycolmap
-
     opt = options or ColmapOptions()
     work_dir = Path(work_dir)
     database = work_dir / "database.db"
     database.unlink(missing_ok=True)
-    sparse = work_dir / "sparse"
-    sparse.mkdir(parents=True, exist_ok=True)
-    pycolmap.set_random_seed(int(opt.seed))
-    seed = int(opt.seed)
-
-    timings, models = {}, {}
-    # glog: INFO when verbose, else errors only (its warnings, e.g. about SIFT threads
-    # and RAM, are advice for GPU boxes and would garble the CLI's one-line output)
     if cameras is None:
         cameras = [(list(image_names), opt.camera_model, opt.camera_params)]
-    if known_poses is None:
-        mapping = ("map", lambda: _map(opt, database, image_dir, sparse, seed))
-    else:
-        mapping = ("triangulate", lambda: _triangulate_known(database, image_dir, sparse,
-                                                             known_poses, opt.num_threads))
+    last = "map" if known_poses is None else "triangulate"
+    steps = (("extract", lambda: extract(database, image_dir, cameras, opt,
+                                         position_priors=position_priors,
+                                         prior_sigma=prior_sigma, verbose=verbose)),
+             ("match", lambda: match(database, opt, verbose=verbose)),
+             (last, lambda: reconstruct(database, image_dir, work_dir / "sparse", opt,
+                                        known_poses=known_poses, verbose=verbose)))
+    timings, out = {}, (None, 0)
+    for name, fn in track(steps, f"sparse SfM (pycolmap: extract, match, {last})",
+                          total=len(steps)):
+        t = time.perf_counter()
+        out = fn()
+        timings[name] = time.perf_counter() - t
+    return ColmapResult(out[0], out[1], timings, database)
+
+
+def extract(database: str | Path, image_dir: str | Path,
+            cameras: Sequence[tuple[Sequence[str], str, str | None]],
+            options: ColmapOptions | None = None, *,
+            position_priors: Mapping[str, Sequence[float]] | None = None,
+            prior_sigma: float = 1.0, verbose: bool = False) -> None:
+    """SIFT features of every image into a new ``database``, one camera per entry of
+    ``cameras`` ``(names, model, params)`` (params None: EXIF or COLMAP's guess)."""
+    import pycolmap
+
+    opt = options or ColmapOptions()
+    pycolmap.set_random_seed(int(opt.seed))
     with _quiet_colmap(0 if verbose else 2):
-        stages = (("extract", lambda: _extract(opt, database, image_dir, cameras,
-                                                position_priors, prior_sigma)),
-                  ("match", lambda: _match(opt, database, seed)),
-                  mapping)
-        for name, fn in track(stages, f"sparse SfM (pycolmap: extract, match, {mapping[0]})",
-                              total=len(stages)):
-            t = time.perf_counter()
-            out = fn()
-            timings[name] = time.perf_counter() - t
-            if name in ("map", "triangulate"):
-                models = out or {}
-    best = None
-    if models:
-        best = max(models.values(), key=lambda r: (r.num_reg_images(), r.num_points3D()))
-    return ColmapResult(best, len(models), timings, database)
+        _extract(opt, Path(database), image_dir, cameras, position_priors, prior_sigma)
+
+
+def match(database: str | Path, options: ColmapOptions | None = None, *,
+          verbose: bool = False) -> None:
+    """Match the database's images by ``options.matcher``, with verified geometry."""
+    import pycolmap
+
+    opt = options or ColmapOptions()
+    pycolmap.set_random_seed(int(opt.seed))
+    with _quiet_colmap(0 if verbose else 2):
+        _match(opt, Path(database), int(opt.seed))
+
+
+def reconstruct(database: str | Path, image_dir: str | Path, sparse_dir: str | Path,
+                options: ColmapOptions | None = None, *,
+                known_poses: Mapping[str, np.ndarray] | None = None,
+                verbose: bool = False) -> tuple[object, int]:
+    """Map (or, with ``known_poses``, triangulate at those poses); the largest model
+    (None when nothing registered) and how many models the mapper made."""
+    import pycolmap
+
+    opt = options or ColmapOptions()
+    sparse = Path(sparse_dir)
+    sparse.mkdir(parents=True, exist_ok=True)
+    pycolmap.set_random_seed(int(opt.seed))
+    with _quiet_colmap(0 if verbose else 2):
+        if known_poses is None:
+            models = _map(opt, Path(database), image_dir, sparse, int(opt.seed))
+        else:
+            models = _triangulate_known(Path(database), image_dir, sparse, known_poses,
+                                        opt.num_threads)
+    models = models or {}
+    if not models:
+        return None, 0
+    best = max(models.values(), key=lambda r: (r.num_reg_images(), r.num_points3D()))
+    return best, len(models)
 
 
 def _extract(opt, database: Path, image_dir, cameras, position_priors,

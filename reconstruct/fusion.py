@@ -33,14 +33,14 @@ log = logging.getLogger(__name__)
 class FusionOptions(Config):
     """Options of depth-map fusion and the fused points' surface."""
 
-    min_views: int = option(2, range="[1, 64]",
+    min_views: int = option(1, range="[1, 64]",
                             help="other views that must agree with a depth to keep it")
     depth_tol: float = option(0.01, range="(0, 1)", help="relative depth agreement")
     max_reprojection: float = option(2.0, unit="px", range="(0, inf)",
                                      help="forward-backward reprojection agreement")
     max_normal_deg: float = option(30.0, unit="deg", range="(0, 180]",
                                    help="normal agreement")
-    edge_erosion: int = option(3, unit="px", range="[0, 20]",
+    edge_erosion: int = option(4, unit="px", range="[0, 20]",
                                help="depths this close to the edge of a depth map's valid "
                                     "region are not fused (windows straddling an occlusion "
                                     "edge fatten the foreground)")

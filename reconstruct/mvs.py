@@ -35,7 +35,8 @@ from reconstruct.dense import DenseOptions, depth_maps, select_neighbors
 from reconstruct.fusion import FusionOptions, fuse_points, poisson_surface
 from reconstruct.patchmatch import PatchMatchOptions, depth_range, patchmatch, prepare_views
 
-__all__ = ["MvsOptions", "dense_surface", "select_sources", "DENSE_METHODS", "SURFACES"]
+__all__ = ["MvsOptions", "dense_surface", "depth_stage", "fuse_stage", "mesh_stage",
+           "working_colors", "dense_report", "select_sources", "DENSE_METHODS", "SURFACES"]
 
 log = logging.getLogger(__name__)
 
@@ -119,10 +120,161 @@ def _coverage_plot(path: Path, names, depth_cov, fused_cov) -> None:
     plt.close(fig)
 
 
+def depth_stage(names: Sequence[str], images: Sequence[np.ndarray],
+                cameras: Sequence[Camera], visible: Sequence[np.ndarray], points: np.ndarray,
+                out: Path, options: MvsOptions | None = None) -> dict:
+    """Stage ``dense``: a depth, normal and confidence map per view, in ``out/dense``.
+
+    Returns what the later stages need: the working cameras, each view's sources
+    (indices), depth range and depth coverage, timings.
+    """
+    opt = options or MvsOptions()
+    dense = out / "dense"
+    dense.mkdir(exist_ok=True)
+    t = time.perf_counter()
+    if opt.method == "sgbm":
+        return _sgbm_depths(names, images, cameras, visible, points, dense, opt)
+    po = opt.patchmatch
+    views = prepare_views(names, images, cameras, po.max_image_size)
+    for v, vis in zip(views, visible, strict=True):
+        v.depth_range = depth_range(v.camera, points, np.asarray(vis, np.int64),
+                                    po.depth_margin)
+    wcams = [v.camera for v in views]
+    sources = select_sources(wcams, visible, points, po.num_sources, po.min_angle_deg,
+                             po.max_angle_deg)
+    timings = {"prepare": time.perf_counter() - t}
+    t = time.perf_counter()
+    maps, pm_t = patchmatch(views, sources, po)
+    timings["depth_maps"] = time.perf_counter() - t
+    timings.update({f"depth_maps_{k}": v for k, v in pm_t.items()})
+    t = time.perf_counter()
+    for v, m in zip(views, maps, strict=True):
+        if not m.sources:
+            log.warning("%s: no depth map (no source view shares its scene, or no sparse "
+                        "point in front of it); skipped", v.name)
+        (dense / v.name).parent.mkdir(parents=True, exist_ok=True)
+        for kind, arr in (("depth", m.depth), ("normal", m.normal),
+                          ("confidence", m.confidence)):
+            np.save(dense / f"{v.name}.{kind}.npy", arr)
+        write_image(dense / f"{v.name}.preview.png", _preview(m.depth, m.normal, m.confidence))
+    timings["write"] = time.perf_counter() - t
+    mpix = sum(c.width * c.height for c in wcams) / 1e6
+    return {"method": "patchmatch", "names": list(names), "cameras": wcams,
+            "input_cameras": list(cameras), "max_image_size": po.max_image_size,
+            "sources": sources, "depth_range": [list(v.depth_range) for v in views],
+            "depth_coverage": [m.coverage for m in maps], "timings": timings,
+            "megapixel_views_per_s": (mpix * (po.iterations + po.geom_iterations)
+                                      / max(timings["depth_maps"], 1e-9))}
+
+
+def _maps(out: Path, names, kinds=("depth", "normal")):
+    return [[np.load(out / "dense" / f"{n}.{k}.npy") for n in names] for k in kinds]
+
+
+def fuse_stage(depth: dict, colors: Sequence[np.ndarray], out: Path,
+               options: MvsOptions | None = None) -> dict:
+    """Stage ``fuse``: the depth maps of ``out/dense`` fused into ``out/fused.ply``.
+
+    ``colors`` are the views' images at the depth maps' resolution (uint8). Returns each
+    view's fused coverage and fused-pixel masks (bit-packed), and timings."""
+    from core.mesh_io import write_points
+
+    opt = options or MvsOptions()
+    t = time.perf_counter()
+    names, cams = depth["names"], depth["cameras"]
+    if depth["method"] == "sgbm":  # SGBM's maps are filtered already; no normals to fuse
+        (depths,) = _maps(out, names, ("depth",))
+        masks = [d > 0 for d in depths]
+        return {"coverage": [float(m.mean()) for m in masks], "fused_points": None,
+                "masks": [np.packbits(m) for m in masks],
+                "timings": {"fuse": time.perf_counter() - t}}
+    depths, normals = _maps(out, names)
+    sources = depth["sources"]
+    neighbours = [sorted(set(s) | {j for j, ss in enumerate(sources) if i in ss})
+                  for i, s in enumerate(sources)]
+    fused = fuse_points(cams, depths, normals, colors, neighbours, opt.fusion)
+    write_points(out / "fused.ply", fused.points, normals=fused.normals, colors=fused.colors)
+    _coverage_plot(out / "dense" / "coverage.png", list(names), depth["depth_coverage"],
+                   fused.coverage)
+    return {"coverage": fused.coverage, "fused_points": int(len(fused.points)),
+            "masks": [np.packbits(m) for m in fused.masks],
+            "timings": {"fuse": time.perf_counter() - t}}
+
+
+def mesh_stage(depth: dict, fused: dict, colors: Sequence[np.ndarray], points: np.ndarray,
+               out: Path, options: MvsOptions | None = None):
+    """Stage ``mesh``: the surface of the fused points (Poisson, trimmed) or of the fused
+    depth maps (TSDF); None when too little survived fusion."""
+    opt = options or MvsOptions()
+    cams, names = depth["cameras"], depth["names"]
+    (depths,) = _maps(out, names, ("depth",))
+    surface = "tsdf" if depth["method"] == "sgbm" else opt.surface
+    if surface == "poisson":
+        import open3d as o3d
+
+        from reconstruct.fusion import FusedPoints
+
+        pcd = o3d.io.read_point_cloud(str(out / "fused.ply"))
+        if len(pcd.points) < 100:
+            return None, surface
+        pts = FusedPoints(np.asarray(pcd.points), np.asarray(pcd.normals),
+                          np.asarray(pcd.colors), np.zeros(len(pcd.points), np.int32), [])
+        return poisson_surface(pts, cams, depths, opt.fusion,
+                               seed=opt.patchmatch.seed), surface
+    from reconstruct.tsdf import fuse_depth_maps
+
+    kept = [np.where(np.unpackbits(m, count=d.size).reshape(d.shape).astype(bool), d, 0.0)
+            .astype(np.float32) for m, d in zip(fused["masks"], depths, strict=True)]
+    if not any(np.any(d > 0) for d in kept):
+        return None, surface
+    lo, hi = np.percentile(points, [2, 98], axis=0)
+    voxel = float(np.linalg.norm(hi - lo)) * opt.voxel_fraction
+    zmax = max(float(d.max()) for d in kept)
+    return fuse_depth_maps(kept, cams, voxel_size=voxel, depth_max=1.5 * zmax,
+                           colors=list(colors)), surface
+
+
+def working_colors(depth: dict, images: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """The views' colours at the depth maps' resolution (undistorted), uint8 RGB."""
+    if depth["method"] == "sgbm":  # full resolution, as SGBM saw them
+        return [img if img.ndim == 3 else np.repeat(img[..., None], 3, axis=2)
+                for img in images]
+    views = prepare_views(depth["names"], images, depth["input_cameras"],
+                          depth["max_image_size"])
+    return [v.color for v in views]
+
+
+def dense_report(depth: dict, fused: dict, surface: str, mesh) -> dict:
+    """``report.json``'s ``dense``: per view its coverage and sources, the method and the
+    surface that ran, timings, megapixel-views per second."""
+    names = depth["names"]
+    report = {
+        "method": depth["method"], "surface": surface,
+        "working_size": {n: [c.width, c.height] for n, c in zip(names, depth["cameras"],
+                                                                 strict=True)},
+        "views": {n: {"depth_coverage": dc, "fused_coverage": fc,
+                      "sources": [names[j] for j in src], "depth_range": rng}
+                  for n, dc, fc, src, rng in zip(names, depth["depth_coverage"],
+                                                 fused["coverage"], depth["sources"],
+                                                 depth["depth_range"], strict=True)},
+        "fused_points": fused["fused_points"],
+        "min_fused_coverage": float(min(fused["coverage"])) if names else 0.0,
+        "timings": {**depth["timings"], **fused["timings"]},
+        "triangles": 0 if mesh is None else len(mesh.triangles)}
+    if "megapixel_views_per_s" in depth:
+        report["megapixel_views_per_s"] = depth["megapixel_views_per_s"]
+        report["megapixel_views_per_s_definition"] = (
+            "working-resolution megapixels of all views x PatchMatch iterations / "
+            "depth-map seconds")
+        report["coverage_plot"] = "dense/coverage.png"
+    return report
+
+
 def dense_surface(names: Sequence[str], images: Sequence[np.ndarray],
                   cameras: Sequence[Camera], visible: Sequence[np.ndarray],
                   points: np.ndarray, out: Path, options: MvsOptions | None = None):
-    """Depth maps, fused points and the mesh of the registered views.
+    """The three stages in one call: depth maps, fusion and the mesh of the registered
+    views (:func:`depth_stage`, :func:`fuse_stage`, :func:`mesh_stage`).
 
     Parameters
     ----------
@@ -133,121 +285,38 @@ def dense_surface(names: Sequence[str], images: Sequence[np.ndarray],
     points : (n, 3) float
         Sparse points (cameras' frame).
     out : Path
-        Existing folder receiving ``dense/``, ``fused.ply`` (and nothing else).
+        Existing folder receiving ``dense/`` and ``fused.ply``.
 
     Returns
     -------
     mesh : open3d TriangleMesh or None
         None when no depth survived.
     report : dict
+        :func:`dense_report`.
     """
     opt = options or MvsOptions()
-    if opt.method == "sgbm":
-        return _sgbm_surface(names, images, cameras, visible, points, opt)
-    from core.mesh_io import write_points
-
-    po = opt.patchmatch
-    timings = {}
+    depth = depth_stage(names, images, cameras, visible, points, out, opt)
+    colors = working_colors(depth, images)
+    fused = fuse_stage(depth, colors, out, opt)
     t = time.perf_counter()
-    views = prepare_views(names, images, cameras, po.max_image_size)
-    for v, vis in zip(views, visible, strict=True):
-        v.depth_range = depth_range(v.camera, points, np.asarray(vis, np.int64),
-                                    po.depth_margin)
-    wcams = [v.camera for v in views]
-    sources = select_sources(wcams, visible, points, po.num_sources, po.min_angle_deg,
-                             po.max_angle_deg)
-    timings["prepare"] = time.perf_counter() - t
-    t = time.perf_counter()
-    maps, pm_t = patchmatch(views, sources, po)
-    timings["depth_maps"] = time.perf_counter() - t
-    timings.update({f"depth_maps_{k}": v for k, v in pm_t.items()})
-    for v, m in zip(views, maps, strict=True):
-        if not m.sources:
-            log.warning("%s: no depth map (no source view shares its scene, or no sparse "
-                        "point in front of it); skipped", v.name)
-    t = time.perf_counter()
-    neighbours = [sorted(set(s) | {j for j, ss in enumerate(sources) if i in ss})
-                  for i, s in enumerate(sources)]
-    fused = fuse_points(wcams, [m.depth for m in maps], [m.normal for m in maps],
-                        [v.color for v in views], neighbours, opt.fusion)
-    timings["fuse"] = time.perf_counter() - t
-    t = time.perf_counter()
-    mesh = _surface(opt, fused, views, maps, points)
-    timings["mesh"] = time.perf_counter() - t
-    t = time.perf_counter()
-    dense = out / "dense"
-    dense.mkdir(exist_ok=True)
-    for v, m in zip(views, maps, strict=True):
-        (dense / v.name).parent.mkdir(parents=True, exist_ok=True)
-        for kind, arr in (("depth", m.depth), ("normal", m.normal),
-                          ("confidence", m.confidence)):
-            np.save(dense / f"{v.name}.{kind}.npy", arr)
-        write_image(dense / f"{v.name}.preview.png", _preview(m.depth, m.normal, m.confidence))
-    write_points(out / "fused.ply", fused.points, normals=fused.normals, colors=fused.colors)
-    depth_cov = [m.coverage for m in maps]
-    _coverage_plot(dense / "coverage.png", list(names), depth_cov, fused.coverage)
-    timings["write"] = time.perf_counter() - t
-    mpix = sum(v.camera.width * v.camera.height for v in views) / 1e6
-    report = {
-        "method": "patchmatch", "surface": opt.surface,
-        "working_size": {v.name: [v.camera.width, v.camera.height] for v in views},
-        "views": {v.name: {"depth_coverage": dc, "fused_coverage": fc, "sources": m.sources,
-                           "depth_range": list(v.depth_range)}
-                  for v, m, dc, fc in zip(views, maps, depth_cov, fused.coverage, strict=True)},
-        "fused_points": int(len(fused.points)),
-        "min_fused_coverage": float(min(fused.coverage)) if maps else 0.0,
-        "megapixel_views_per_s": (mpix * (po.iterations + po.geom_iterations)
-                                  / max(timings["depth_maps"], 1e-9)),
-        "megapixel_views_per_s_definition": "working-resolution megapixels of all views x "
-                                            "PatchMatch iterations / depth-map seconds",
-        "timings": timings, "coverage_plot": "dense/coverage.png",
-        "triangles": 0 if mesh is None else len(mesh.triangles)}
-    return mesh, report
+    mesh, surface = mesh_stage(depth, fused, colors, points, out, opt)
+    fused["timings"]["mesh"] = time.perf_counter() - t
+    return mesh, dense_report(depth, fused, surface, mesh)
 
 
-def _surface(opt: MvsOptions, fused, views, maps, points):
-    if len(fused.points) < 100:
-        return None
-    if opt.surface == "poisson":
-        return poisson_surface(fused, [v.camera for v in views],
-                               [m.depth for m in maps], opt.fusion, seed=opt.patchmatch.seed)
-    from reconstruct.tsdf import fuse_depth_maps
-
-    depths = [np.where(mask, m.depth, 0.0).astype(np.float32)
-              for mask, m in zip(fused.masks, maps, strict=True)]
-    lo, hi = np.percentile(points, [2, 98], axis=0)
-    voxel = float(np.linalg.norm(hi - lo)) * opt.voxel_fraction
-    zmax = max(float(d.max()) for d in depths)
-    return fuse_depth_maps(depths, [v.camera for v in views], voxel_size=voxel,
-                           depth_max=1.5 * zmax, colors=[v.color for v in views])
-
-
-def _sgbm_surface(names, images, cameras, visible, points, opt: MvsOptions):
-    """The earlier dense stage: rectified-pair SGBM depth maps and a TSDF (the peer)."""
+def _sgbm_depths(names, images, cameras, visible, points, dense: Path, opt: MvsOptions):
+    """Stage ``dense`` by the earlier method: rectified-pair SGBM with its consistency
+    filter, at full resolution (the peer PatchMatch replaced)."""
     import cv2
-
-    from reconstruct.tsdf import fuse_depth_maps
 
     t = time.perf_counter()
     grays = [img if img.ndim == 2 else cv2.cvtColor(img[..., :3], cv2.COLOR_RGB2GRAY)
              for img in images]
-    colors = [img if img.ndim == 3 else np.repeat(img[..., None], 3, 2) for img in images]
     depths, neighbors = depth_maps(grays, cameras, visible, points, options=opt.sgbm)
     timings = {"depth_maps": time.perf_counter() - t}
-    lo, hi = np.percentile(points, [2, 98], axis=0)
-    voxel = float(np.linalg.norm(hi - lo)) * opt.voxel_fraction
-    zmax = max(float(np.max(d)) for d in depths) if depths else 0.0
-    mesh = None
-    t = time.perf_counter()
-    if zmax > 0:
-        mesh = fuse_depth_maps(depths, cameras, voxel_size=voxel, depth_max=1.5 * zmax,
-                               colors=colors)
-    timings["mesh"] = time.perf_counter() - t
-    cov = [float((d > 0).mean()) for d in depths]
-    report = {"method": "sgbm", "surface": "tsdf",
-              "views": {n: {"depth_coverage": c, "fused_coverage": c,
-                            "sources": [names[j] for j in nb]}
-                        for n, c, nb in zip(names, cov, neighbors, strict=True)},
-              "min_fused_coverage": min(cov) if cov else 0.0, "voxel_size": voxel,
-              "timings": timings, "triangles": 0 if mesh is None else len(mesh.triangles)}
-    return mesh, report
+    for n, d in zip(names, depths, strict=True):
+        (dense / n).parent.mkdir(parents=True, exist_ok=True)
+        np.save(dense / f"{n}.depth.npy", d.astype(np.float32))
+    return {"method": "sgbm", "names": list(names), "cameras": list(cameras),
+            "sources": neighbors, "depth_range": [[0.0, 0.0]] * len(names),
+            "depth_coverage": [float((d > 0).mean()) for d in depths], "timings": timings}

@@ -54,9 +54,8 @@ from reconstruct.colmap_runner import (
     camera_from_colmap,
     colmap_params_from_camera,
     image_cam_from_world,
-    run_colmap,
 )
-from reconstruct.mvs import MvsOptions, dense_surface
+from reconstruct.mvs import MvsOptions
 from reconstruct.photo_set import (
     CAMERA_MODES,
     camera_groups,
@@ -319,9 +318,19 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> tupl
     return out, diagnosis
 
 
-def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.PathLike,
-        ) -> SfmResult:
+#: the named stages of :func:`run`, in order (``scanamp reconstruct sfm --from STAGE``)
+STAGES = ("features", "matches", "sparse", "dense", "fuse", "mesh", "evaluate")
+
+
+def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.PathLike, *,
+        from_stage: str | None = None) -> SfmResult:
     """Reconstruct cameras, sparse points and a dense mesh from images.
+
+    The work is seven named stages (:data:`STAGES`), each cached in ``out_dir/stages``
+    with the files it wrote (:class:`core.stages.Stages`): run again into the same
+    folder, only the stages whose options or inputs changed are recomputed (a new
+    Poisson depth re-runs ``mesh`` and ``evaluate``, not SIFT or PatchMatch).
+    ``from_stage`` forces a stage and the later ones.
 
     Parameters
     ----------
@@ -344,19 +353,18 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
         Fewer than 3 images, a missing, unreadable or truncated image, a cameras file
         that disagrees with the folder, every image textureless.
     """
+    from core.stages import Stages
+
     t_all = time.perf_counter()
-    input_path = Path(input_path)
+    input_path, out_dir = Path(input_path), Path(out_dir)
     inp = _resolve_input(input_path)
-    t_check = time.perf_counter()
     _check_images(inp, config.cameras)
-    t_check = time.perf_counter() - t_check
     # one-off costs of the process (open3d alone takes seconds), kept out of the stage
     # timings so that a stage is compared with the bare pycolmap calls on equal terms
     t = time.perf_counter()
     import open3d  # noqa: F401
     import pycolmap  # noqa: F401
     t_imports = time.perf_counter() - t
-    t_sparse = time.perf_counter() - t_check  # the image checks belong to the sparse stage
     groups, intr_source = _intrinsics(config, inp, input_path)
     matcher = _choose_matcher(config, inp)
     opts = ColmapOptions(matcher=matcher, mapper=config.mapper, num_threads=config.num_threads,
@@ -370,51 +378,137 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
               "colmap": {k: v for k, v in asdict(opts).items()}, "options": {
                   "mapper": config.mapper, "matcher": matcher, "dense": config.dense,
                   "camera_mode": config.camera_mode, "seed": config.seed,
-                  "num_threads": config.num_threads}}
-    with atomic_dir(out_dir) as tmp:
-        work = tmp / "colmap"
-        work.mkdir()
-        with tempfile.TemporaryDirectory(prefix="scanamp-upright-") as upright:
-            image_dir = upright_folder(inp.image_dir, inp.names, inp.infos, upright)
-            known = None if inp.known is None else {
-                n: c.cam_from_world for n, c in inp.known.items() if n in inp.names}
-            res = run_colmap(image_dir, inp.names, work, options=opts, cameras=groups,
-                             known_poses=known)
-        rec = res.reconstruction
-        report["timings"] = dict(res.timings, imports=t_imports)
-        report["timings"]["pycolmap"] = sum(res.timings.values())
-        registered = sorted(im.name for im in rec.images.values() if im.has_pose) if rec else []
-        failures, diagnosis = _failures(res.database, inp.names, set(registered),
-                                        config.min_keypoints)
-        textureless = [n for n, why in failures.items() if why.startswith("no texture")]
-        if len(inp.names) - len(textureless) < 3 and inp.known is None:
-            raise InputError("images with no texture (too few SIFT features): "
-                             + ", ".join(textureless), path=inp.image_dir)
-        report["registered"] = len(registered)
-        report["registered_fraction"] = len(registered) / len(inp.names)
-        report["failed_images"] = failures
-        report["num_models"] = res.num_models
-        ok, message = True, "ok"
-        if rec is None or len(registered) < 3:
-            ok = False
-            message = (f"SfM did not register: {len(registered)} of {len(inp.names)} images"
-                       + (f": {diagnosis}" if diagnosis else "")
-                       + f" (see {Path(out_dir) / 'report.json'} for each image)")
-            if diagnosis:
-                report["diagnosis"] = diagnosis
-        if ok:
-            images, cams, pts, visible, true_cams, gt = _sparse_outputs(
-                rec, inp, tmp, Path(out_dir), report)
-            report["timings"]["sparse_total"] = time.perf_counter() - t_sparse
-            report["timings"]["sparse_overhead"] = (report["timings"]["sparse_total"]
-                                                    - report["timings"]["pycolmap"])
-            if config.dense:
-                ok, message = _dense(config, inp, tmp, images, cams, visible, pts, true_cams,
-                                     gt, report, ok, message)
+                  "num_threads": config.num_threads},
+              "timings": {"imports": t_imports}}
+    with atomic_dir(out_dir) as tmp, _Upright(inp) as upright:
+        st = Stages(tmp, STAGES, from_stage=from_stage,
+                    reuse=out_dir if out_dir.is_dir() else None)
+        ok, message, views = _sparse_stages(st, config, inp, groups, opts, upright, tmp,
+                                            out_dir, report)
+        if ok and config.dense:
+            ok, message = _dense_stages(st, config, inp, tmp, report, views)
+        report["stages"] = {"ran": st.ran, "reused": st.skipped}
         report["timings"]["total"] = time.perf_counter() - t_all
         report["ok"], report["message"] = ok, message
         write_json(tmp / "report.json", report)
-    return SfmResult(Path(out_dir), ok, message, report)
+    return SfmResult(out_dir, ok, message, report)
+
+
+class _Upright:
+    """A temporary folder of upright 8-bit photos for COLMAP, made on first use (a run
+    whose sparse stages are all reused never reads the photos for them)."""
+
+    def __init__(self, inp: _Input):
+        self.inp, self._tmp, self._path = inp, None, None
+
+    @property
+    def path(self) -> Path:
+        if self._path is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="scanamp-upright-")
+            self._path = upright_folder(self.inp.image_dir, self.inp.names, self.inp.infos,
+                                        self._tmp.name)
+        return self._path
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self._tmp is not None:
+            self._tmp.cleanup()
+
+
+def _timed(fn, *args, **kwargs) -> dict:
+    t = time.perf_counter()
+    value = fn(*args, **kwargs)
+    return {"value": value, "seconds": time.perf_counter() - t}
+
+
+def _features(upright: _Upright, groups, opts, tmp: Path) -> dict:
+    """Stage ``features``: SIFT of every photo, in ``colmap/features.db``."""
+    from reconstruct.colmap_runner import extract
+
+    (tmp / "colmap").mkdir(exist_ok=True)
+    db = tmp / "colmap" / "features.db"
+    db.unlink(missing_ok=True)
+    return _timed(extract, db, upright.path, groups, opts)
+
+
+def _matches(opts, tmp: Path) -> dict:
+    """Stage ``matches``: verified matches, in ``colmap/database.db`` (features.db plus
+    the matches: a new matcher starts again from the features)."""
+    import shutil
+
+    from reconstruct.colmap_runner import match
+
+    db = tmp / "colmap" / "database.db"
+    shutil.copy2(tmp / "colmap" / "features.db", db)
+    return _timed(match, db, opts)
+
+
+def _sparse(config, inp, opts, upright: _Upright, tmp: Path, out_dir: Path) -> dict:
+    """Stage ``sparse``: the mapper (or triangulation at known poses); the model, points.ply
+    and transforms.json; with ground truth the pose errors. What the dense stages need
+    (cameras, sparse points, what each view sees) is returned."""
+    from reconstruct.colmap_runner import reconstruct
+
+    t = time.perf_counter()
+    database = tmp / "colmap" / "database.db"
+    known = None if inp.known is None else {
+        n: c.cam_from_world for n, c in inp.known.items() if n in inp.names}
+    rec, num_models = reconstruct(database, upright.path, tmp / "colmap" / "sparse", opts,
+                                  known_poses=known)
+    seconds = time.perf_counter() - t
+    registered = sorted(im.name for im in rec.images.values() if im.has_pose) if rec else []
+    failures, diagnosis = _failures(database, inp.names, set(registered), config.min_keypoints)
+    textureless = [n for n, why in failures.items() if why.startswith("no texture")]
+    if len(inp.names) - len(textureless) < 3 and inp.known is None:
+        raise InputError("images with no texture (too few SIFT features): "
+                         + ", ".join(textureless), path=inp.image_dir)
+    part = {"registered": len(registered), "registered_fraction": len(registered)
+            / len(inp.names), "failed_images": failures, "num_models": num_models}
+    if diagnosis:
+        part["diagnosis"] = diagnosis
+    out = {"report": part, "seconds": seconds, "views": None}
+    if rec is not None and len(registered) >= 3:
+        out["views"] = _sparse_outputs(rec, inp, tmp, out_dir, part)
+    return out
+
+
+def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report):
+    """features -> matches -> sparse; whether enough registered, and why not."""
+    from core.stages import files_key
+
+    t = time.perf_counter()
+    photos = files_key([inp.image_dir / n for n in inp.names])
+    cams_file = files_key([config.cameras]) if config.cameras else None
+    feats = st.run("features", _features, upright, groups, opts, tmp, files=[
+        "colmap/features.db"], depends={"photos": photos, "cameras": groups,
+                                        "max_features": opts.max_features})
+    matches = st.run("matches", _matches, opts, tmp, files=["colmap/database.db"],
+                     depends={"matcher": opts.matcher, "seed": opts.seed,
+                              "sequential_overlap": opts.sequential_overlap,
+                              "spatial_neighbors": opts.spatial_neighbors})
+    sparse = st.run("sparse", _sparse, config, inp, opts, upright, tmp, out_dir,
+                    files=["sparse", "points.ply", "transforms.json"],
+                    depends={"mapper": opts.mapper, "seed": opts.seed, "known": cams_file,
+                             "min_keypoints": config.min_keypoints})
+    report.update(sparse["report"])
+    report["timings"].update({"extract": feats["seconds"], "match": matches["seconds"],
+                              "map" if inp.known is None else "triangulate":
+                              sparse["seconds"]})
+    report["timings"]["pycolmap"] = feats["seconds"] + matches["seconds"] + sparse["seconds"]
+    report["timings"]["sparse_total"] = time.perf_counter() - t
+    if any(n in st.skipped for n in STAGES[:3]):  # a reused stage's time is its first run's
+        report["timings"]["sparse_total"] = report["timings"]["pycolmap"]
+    report["timings"]["sparse_overhead"] = (report["timings"]["sparse_total"]
+                                            - report["timings"]["pycolmap"])
+    if sparse["views"] is None:
+        n = len(inp.names)
+        diag = sparse["report"].get("diagnosis", "")
+        return False, (f"SfM did not register: {report['registered']} of {n} images"
+                       + (f": {diag}" if diag else "")
+                       + f" (see {out_dir / 'report.json'} for each image)"), None
+    return True, "ok", sparse["views"]
 
 
 def _intrinsics(config, inp, input_path: Path) -> tuple[list, str]:
@@ -471,9 +565,10 @@ def _intrinsics(config, inp, input_path: Path) -> tuple[list, str]:
                  + ", refined by bundle adjustment")
 
 
-def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict):
+def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict) -> dict:
     """The sparse model (binary and text), points.ply and transforms.json; with ground
-    truth, everything aligned to the true cameras by Sim(3) and the pose errors."""
+    truth, everything aligned to the true cameras by Sim(3) and the pose errors. The
+    registered views' names, cameras, sparse points and what each view sees."""
     sparse = tmp / "sparse" / "0"
     (sparse / "text").mkdir(parents=True)
     rec.write(str(sparse))
@@ -511,33 +606,72 @@ def _sparse_outputs(rec, inp, tmp: Path, out_dir: Path, report: dict):
     write_transforms(tmp / "transforms.json", cams,
                      [os.path.relpath(inp.image_dir / im.name, out_dir)
                       for im in images])
-    return images, cams, pts, visible, true_cams, gt
+    return {"names": [im.name for im in images], "cameras": cams, "points": pts,
+            "visible": visible}
 
 
-def _dense(config, inp, tmp: Path, images, cams, visible, pts, true_cams, gt, report: dict,
-           ok: bool, message: str) -> tuple[bool, str]:
-    """Depth maps, fusion, mesh.ply (:mod:`reconstruct.mvs`); with ground truth, the
-    mesh's score."""
+def _true_cameras(inp) -> tuple[dict | None, dict | None]:
+    gt = inp.capture.ground_truth if inp.capture is not None else None
+    if gt and "cameras" in gt:
+        return {n: Camera.from_dict(c) for n, c in gt["cameras"].items()}, gt
+    return None, gt
+
+
+def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bool, str]:
+    """dense -> fuse -> mesh -> evaluate (:mod:`reconstruct.mvs`); mesh.ply, and with
+    ground truth the mesh's score."""
+    from core.stages import files_key
+    from reconstruct.mvs import dense_report, depth_stage, fuse_stage, mesh_stage, working_colors
+
     t = time.perf_counter()
-    names = [im.name for im in images]
-    pixels = [to_uint8(read_image(inp.image_dir / n)) for n in names]
-    mesh, dense = dense_surface(names, pixels, cams, visible, pts, tmp, config.mvs)
-    if mesh is not None:
-        mesh = _clean_mesh(mesh)
-        if len(mesh.triangles):
-            write_mesh(tmp / "mesh.ply", mesh)
+    names = v["names"]
+    pixels: list = []
+
+    def images():
+        if not pixels:
+            pixels.extend(to_uint8(read_image(inp.image_dir / n)) for n in names)
+        return pixels
+
+    mvs = config.mvs
+    method_opts = asdict(mvs.patchmatch) if mvs.method == "patchmatch" else asdict(mvs.sgbm)
+    depth = st.run("dense", lambda: depth_stage(names, images(), v["cameras"], v["visible"],
+                                                v["points"], tmp, mvs),
+                   files=["dense"], depends={"method": mvs.method, "options": method_opts})
+    fused = st.run("fuse", lambda: fuse_stage(depth, working_colors(depth, images()), tmp, mvs),
+                   files=["fused.ply"] if mvs.method == "patchmatch" else [],
+                   depends={"fusion": asdict(mvs.fusion)})
+
+    def mesh_fn():
+        tm = time.perf_counter()
+        mesh, surface = mesh_stage(depth, fused, working_colors(depth, images()), v["points"],
+                                   tmp, mvs)
+        if mesh is not None:
+            mesh = _clean_mesh(mesh)
+            if len(mesh.triangles):
+                write_mesh(tmp / "mesh.ply", mesh)
+        n = 0 if mesh is None else len(mesh.triangles)
+        return {"surface": surface, "triangles": n, "seconds": time.perf_counter() - tm}
+
+    meshed = st.run("mesh", mesh_fn, files=["mesh.ply"],
+                    depends={"surface": mvs.surface, "fusion": asdict(mvs.fusion),
+                             "voxel_fraction": mvs.voxel_fraction})
+    report["dense"] = dense_report(depth, fused, meshed["surface"], None)
+    report["dense"]["triangles"] = meshed["triangles"]
+    report["dense"]["timings"]["mesh"] = meshed["seconds"]
     report["timings"]["dense"] = time.perf_counter() - t
-    report["dense"] = dense
-    if mesh is None or len(mesh.triangles) == 0:
-        ok = False
-        message = "the dense surface is empty (no consistent depth in any view)"
-    elif true_cams and gt.get("mesh"):
-        t = time.perf_counter()
-        report["metrics"]["mesh"] = _score_mesh(
-            mesh, inp.capture.path(gt["mesh"]), list(true_cams.values()),
-            gt.get("scene_size"))
-        report["timings"]["evaluate_mesh"] = time.perf_counter() - t
-    return ok, message
+    if any(n in st.skipped for n in ("dense", "fuse", "mesh")):
+        report["timings"]["dense"] = sum(report["dense"]["timings"].values())
+    if meshed["triangles"] == 0:
+        return False, "the dense surface is empty (no consistent depth in any view)"
+    true_cams, gt = _true_cameras(inp)
+    if true_cams and gt.get("mesh"):
+        gt_mesh = inp.capture.path(gt["mesh"])
+        scored = st.run("evaluate", lambda: _timed(
+            _score_mesh, read_mesh(tmp / "mesh.ply"), gt_mesh, list(true_cams.values()),
+            gt.get("scene_size")), depends={"gt": files_key([gt_mesh])})
+        report["metrics"]["mesh"] = scored["value"]
+        report["timings"]["evaluate_mesh"] = scored["seconds"]
+    return True, "ok"
 
 
 def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) -> dict:

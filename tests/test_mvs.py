@@ -214,11 +214,14 @@ def test_fusion_keeps_what_views_agree_on():
         normals.append(np.broadcast_to(n, (c.height, c.width, 3)).astype(np.float32))
     colors = [np.zeros((c.height, c.width, 3), np.uint8) for c in cams]
     nb = [[j for j in range(4) if j != i] for i in range(4)]
-    opt = FusionOptions(edge_erosion=0)
+    opt = FusionOptions(edge_erosion=0, min_views=2)
     fused = fuse_points(cams, depths, normals, colors, nb, opt)
     assert min(fused.coverage) > 0.5
     np.testing.assert_allclose(fused.points[:, 2], 0.0, atol=1e-6)  # on the plane
-    assert fused.visibility.min() >= 3
+    assert fused.visibility.min() >= 3  # itself and the 2 that had to agree
+    loose = fuse_points(cams, depths, normals, colors, nb, FusionOptions(edge_erosion=0,
+                                                                         min_views=1))
+    assert loose.visibility.min() == 2 and len(loose.points) > len(fused.points)
     # a view whose depth is 5 % off agrees with nobody: its points go, the others' stay
     wrong = [depths[0] * 1.05, *depths[1:]]
     fused2 = fuse_points(cams, wrong, normals, colors, nb, opt)

@@ -228,3 +228,32 @@ def test_a_camera_that_does_not_move_is_diagnosed(tmp_path, capsys):
     assert len(rep["failed_images"]) == 5
     assert all(why.startswith("no camera motion") for why in rep["failed_images"].values())
     assert "10 planar_or_panoramic" in rep["diagnosis"] or "10 watermark" in rep["diagnosis"]
+
+
+def test_named_stages_rerun_only_what_changed(small_capture, small_recon, tmp_path):
+    """A new trim of the surface re-runs mesh and evaluate, not SIFT or PatchMatch; the
+    files of the reused stages come along; --from forces a stage and the later ones."""
+    from reconstruct.fusion import FusionOptions
+    from reconstruct.mvs import MvsOptions
+    from reconstruct.sfm import SfmConfig, run
+
+    out = tmp_path / "rec"
+    shutil.copytree(small_recon.out_dir, out)
+    cfg = SfmConfig(seed=0, num_threads=1,
+                    mvs=MvsOptions(fusion=FusionOptions(density_quantile=0.02)))
+    res = run(cfg, small_capture, out)
+    st = res.report["stages"]
+    assert st["reused"] == ["features", "matches", "sparse", "dense"]
+    assert st["ran"] == ["fuse", "mesh", "evaluate"]  # fusion's options changed
+    for f in ("sparse/0/images.bin", "points.ply", "colmap/database.db"):
+        assert (out / f).read_bytes() == (small_recon.out_dir / f).read_bytes(), f
+    depth = next((out / "dense").rglob("*.depth.npy"))
+    rel = depth.relative_to(out)
+    assert depth.read_bytes() == (small_recon.out_dir / rel).read_bytes()
+    assert res.report["metrics"]["mesh"]["fscore"] > 0.9
+    first = (out / "mesh.ply").read_bytes()
+    again = run(cfg, small_capture, out, from_stage="mesh")
+    assert again.report["stages"]["ran"] == ["mesh", "evaluate"]
+    assert again.report["stages"]["reused"] == ["features", "matches", "sparse", "dense",
+                                                "fuse"]
+    assert (out / "mesh.ply").read_bytes() == first  # the same inputs, the same bytes

@@ -1,6 +1,9 @@
 """``scanamp reconstruct sfm CAPTURE_OR_IMAGE_FOLDER --out DIR``: pycolmap on the CPU (or
 known cameras, ``--cameras``), then PatchMatch multi-view stereo, fusion and a trimmed
-Poisson surface (:mod:`reconstruct.mvs`).
+Poisson surface (:mod:`reconstruct.mvs`). The work is named stages (features -> matches ->
+sparse -> dense -> fuse -> mesh -> evaluate): run again into the same folder with
+``--overwrite``, only the stages whose options or inputs changed are recomputed;
+``--from STAGE`` forces that stage and the later ones.
 
 Options are :class:`reconstruct.sfm.SfmConfig`'s (flags, or ``--config FILE.toml``)."""
 
@@ -9,7 +12,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from reconstruct.sfm import SfmConfig
+from reconstruct.sfm import STAGES, SfmConfig
 
 GROUP = "reconstruct"
 NAME = "sfm"
@@ -25,12 +28,15 @@ def add_arguments(p):
     p.add_argument("input", type=Path, help="SfM capture folder (capture.json) or a folder of "
                                             "photos (JPEG, PNG, TIFF; EXIF orientation applied)")
     p.add_argument("--out", required=True, type=Path, help="reconstruction folder to write")
+    p.add_argument("--from", dest="from_stage", choices=STAGES, default=None,
+                   help="re-run from this stage on (" + " -> ".join(STAGES) + "); without it "
+                        "a stage whose options and inputs are unchanged is reused from --out")
 
 
 def run(args, config: SfmConfig) -> int:
     from reconstruct.sfm import run
 
-    res = run(config, args.input, args.out)
+    res = run(config, args.input, args.out, from_stage=args.from_stage)
     if not res.ok:
         raise RuntimeError(res.message)
     rep = res.report
