@@ -187,8 +187,10 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     footprint = float(np.median(foot)) if foot else spacing
     depth = opt.poisson_depth or int(np.clip(np.ceil(np.log2(extent / max(2 * footprint,
                                                                         1e-12))), 8, 11))
-    mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-        pcd, depth=depth, n_threads=1)
+    # PoissonRecon's own warnings ("bad average roots") go to the terminal, not the log
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
+            pcd, depth=depth, n_threads=1)
     dens = np.asarray(dens)
     if len(dens) == 0:
         return mesh

@@ -20,7 +20,7 @@ from scanamp.options import config_from_args
 # hand-written flags still to move onto a config dataclass (issue 14, item 2)
 NOT_YET_DECLARED = {
     "capture laser", "capture sfm", "capture stereo", "capture structured-light", "grow",
-    "procgen fractal", "procgen hypertexture",
+    "procgen fractal",
 }
 
 
@@ -45,7 +45,8 @@ def _minimal_argv(p: argparse.ArgumentParser) -> list[str]:
         if a.option_strings and a.required:
             argv += [a.option_strings[0], "x"]
         elif not a.option_strings and a.nargs not in ("?", "*"):
-            argv += ["x"] * (a.nargs if isinstance(a.nargs, int) else 1)
+            value = str(a.choices[0]) if a.choices else "x"  # a positional with choices
+            argv += [value] * (a.nargs if isinstance(a.nargs, int) else 1)
     return argv
 
 

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
+from core.config import Config, option
 from scanamp.commands._procgen_common import (
     MESH_OUT,
     add_output,
@@ -24,19 +26,29 @@ def companions(args, config=None):
     return [] if args.no_preview else [preview_path(args.out)]
 
 
+@dataclass
+class HypertextureConfig(Config):
+    """Options of ``scanamp procgen hypertexture``."""
+
+    mesh: str | None = option(None, help="closed input mesh (shape 'mesh')")
+    polyline: str = option("0,0,0;1,0,0;1,1,0.5",
+                           help="sweep path 'x,y,z;x,y,z;...' in metres (shape 'sweep')")
+    radius: float = option(1.0, unit="m", range="(0, inf)", help="sphere/egg/sweep radius")
+    noise: str = option("turbulence", choices=("turbulence", "fbm"), help="noise of the "
+                                                                          "density")
+    amplitude: float = option(0.1, unit="m", range="[0, inf)", help="noise amplitude")
+    frequency: float = option(4.0, unit="1/m", range="(0, inf)", help="noise frequency")
+    octaves: int = option(5, range="[1, 16]", help="noise octaves")
+    bias: float = option(0.5, range="(0, 1)", help="Perlin bias")
+    gain: float = option(0.5, range="(0, 1)", help="Perlin gain")
+    resolution: int = option(96, range="[8, 1024]", help="voxels along the longest side")
+
+
+CONFIG = HypertextureConfig
+
+
 def add_arguments(p):
     p.add_argument("shape", choices=["sphere", "egg", "sweep", "mesh"], help="base shape")
-    p.add_argument("--mesh", default=None, help="closed input mesh (shape 'mesh')")
-    p.add_argument("--polyline", default="0,0,0;1,0,0;1,1,0.5",
-                   help="sweep path 'x,y,z;x,y,z;...' in metres (shape 'sweep')")
-    p.add_argument("--radius", type=float, default=1.0, help="sphere/egg/sweep radius (m)")
-    p.add_argument("--noise", choices=["turbulence", "fbm"], default="turbulence")
-    p.add_argument("--amplitude", type=float, default=0.1, help="noise amplitude (m)")
-    p.add_argument("--frequency", type=float, default=4.0, help="noise frequency (1/m)")
-    p.add_argument("--octaves", type=int, default=5)
-    p.add_argument("--bias", type=float, default=0.5, help="Perlin bias in (0, 1)")
-    p.add_argument("--gain", type=float, default=0.5, help="Perlin gain in (0, 1)")
-    p.add_argument("--resolution", type=int, default=96, help="voxels along the longest side")
     add_output(p, kind="mesh")
 
 
@@ -53,26 +65,27 @@ def _polyline(text: str):
     return pts
 
 
-def run(args) -> int:
+def run(args, config: HypertextureConfig) -> int:
     from core.mesh_io import read_mesh, write_mesh
     from procgen.implicit import egg_sdf, hypertexture, sphere_sdf, sweep_sdf
 
     out = check_out(args.out, MESH_OUT)
+    c = config
     if args.shape == "mesh":
-        if not args.mesh:
+        if not c.mesh:
             raise ValueError("--mesh: required for shape 'mesh'")
-        shape = read_mesh(args.mesh)
+        shape = read_mesh(c.mesh)
         if len(shape.triangles) == 0:
-            raise ValueError(f"--mesh: {args.mesh}: the mesh has no triangles")
+            raise ValueError(f"--mesh: {c.mesh}: the mesh has no triangles")
     elif args.shape == "sphere":
-        shape = sphere_sdf(radius=args.radius)
+        shape = sphere_sdf(radius=c.radius)
     elif args.shape == "egg":
-        shape = egg_sdf(args.radius)
+        shape = egg_sdf(c.radius)
     else:
-        shape = sweep_sdf(_polyline(args.polyline), args.radius)
-    mesh = hypertexture(shape, noise=args.noise, amplitude=args.amplitude,
-                        frequency=args.frequency, octaves=args.octaves, bias=args.bias,
-                        gain=args.gain, resolution=args.resolution, seed=args.seed)
+        shape = sweep_sdf(_polyline(c.polyline), c.radius)
+    mesh = hypertexture(shape, noise=c.noise, amplitude=c.amplitude, frequency=c.frequency,
+                        octaves=c.octaves, bias=c.bias, gain=c.gain,
+                        resolution=c.resolution, seed=args.seed)
     write_mesh(out, mesh)
     log.info("wrote %s (%d vertices, %d triangles)", out, len(mesh.vertices),
              len(mesh.triangles))
