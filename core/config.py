@@ -65,7 +65,8 @@ def parse_range(text: str) -> tuple[float, float, bool, bool]:
 
 def option(default: Any = MISSING, *, help: str, unit: str | None = None,
            range: str | None = None, choices: Sequence[Any] | None = None,
-           default_factory: Any = MISSING, flag: bool = True) -> Any:
+           default_factory: Any = MISSING, flag: bool = True,
+           short: str | None = None) -> Any:
     """A declared option: a dataclass field whose metadata documents and bounds it.
 
     Parameters
@@ -83,11 +84,14 @@ def option(default: Any = MISSING, *, help: str, unit: str | None = None,
     flag : bool
         False keeps the option out of the generated command-line flags (it is still
         read from ``--config FILE.toml``); for tables such as a calibration target.
+    short : str, optional
+        A short flag besides the long one (``"-n"``), where a command has always had it.
     """
     if range is not None:
         parse_range(range)
     meta = {"help": help, "unit": unit, "range": range,
-            "choices": None if choices is None else tuple(choices), "flag": flag}
+            "choices": None if choices is None else tuple(choices), "flag": flag,
+            "short": short}
     if default_factory is not MISSING:
         return dataclasses.field(default_factory=default_factory, metadata={"scanamp": meta})
     return dataclasses.field(default=default, metadata={"scanamp": meta})
@@ -109,6 +113,7 @@ class Option:
     range: str | None
     choices: tuple | None
     flag: bool
+    short: str | None = None
 
 
 def _hints(cls) -> dict:
@@ -155,7 +160,7 @@ def iter_options(cls_or_obj, prefix: str = "") -> Iterator[Option]:
         if meta is None:
             continue
         yield Option(name, hints[f.name], value, meta["help"], meta["unit"], meta["range"],
-                     meta["choices"], meta["flag"])
+                     meta["choices"], meta["flag"], meta.get("short"))
 
 
 def format_value(value: Any) -> str:

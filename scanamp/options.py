@@ -86,8 +86,8 @@ def add_config_flags(parser: argparse.ArgumentParser, cls, *,
             kw["choices"] = list(opt.choices)
         metavar = ("{" + ",".join(map(str, opt.choices)) + "}" if "choices" in kw
                    else opt.name.rsplit(".", 1)[-1].upper())
-        group.add_argument(flag_name(opt.name), type=_parser_for(opt.type), metavar=metavar,
-                           **kw)
+        names = [flag_name(opt.name)] + ([opt.short] if opt.short else [])
+        group.add_argument(*names, type=_parser_for(opt.type), metavar=metavar, **kw)
 
 
 def given_options(args: argparse.Namespace) -> dict:
