@@ -302,6 +302,9 @@ def depth_maps(grays: Sequence[np.ndarray], cameras: Sequence[Camera],
     opt = options or DenseOptions()
     neighbors = select_neighbors(cameras, visible, points, k=max(opt.num_neighbors, 1),
                                  min_angle_deg=opt.min_angle_deg, max_angle_deg=opt.max_angle_deg)
+    # a rectified pair needs two images of one size (portrait and landscape photos differ)
+    neighbors = [[j for j in nb if (cameras[j].width, cameras[j].height)
+                  == (cameras[i].width, cameras[i].height)] for i, nb in enumerate(neighbors)]
     raw = []
     for i in track(range(len(cameras)), "dense depth (SGBM)", total=len(cameras)):
         cam = cameras[i]

@@ -341,7 +341,7 @@ def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     from core.mesh_io import read_mesh
     from reconstruct.sfm import SfmConfig
 
-    m = _Method("sfm", "structure from motion (orbit, pycolmap + dense TSDF)",
+    m = _Method("sfm", "structure from motion (orbit, pycolmap + PatchMatch MVS)",
                 root / "captures" / "sfm", root / "recon" / "sfm")
     w, h = st.sfm_size
     cfg = PathConfig(kind="orbit", views=st.sfm_views, elevations_deg=[30.0, 50.0], width=w,
@@ -360,7 +360,7 @@ def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     m.mesh = read_mesh(m.recon_dir / "mesh.ply")
     m.points = int(rep["sparse"]["num_points"])
     m.notes = (f"{st.sfm_views} views on 2 rings, {w}x{h}, {rep['registered']} registered, "
-               f"{m.points} sparse points, dense SGBM + TSDF")
+               f"{m.points} sparse points, PatchMatch MVS + Poisson")
     return m
 
 
