@@ -127,18 +127,24 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
                        np.concatenate(V) if V else np.zeros(0, np.int32), masks)
 
 
-def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
-    """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
-    Y = other.to_camera(X)
+def _pixels(cam: Camera, X: np.ndarray):
+    """The pinhole pixel (nearest) each point falls on: indices of the points in front of
+    the camera and inside its image, their pixel columns and rows, and every point's z."""
+    Y = cam.to_camera(X)
     z = Y[:, 2]
     ok = z > 1e-12
     zs = np.where(ok, z, 1.0)
-    uo = np.rint(other.fx * Y[:, 0] / zs + other.cx).astype(np.int64)
-    vo = np.rint(other.fy * Y[:, 1] / zs + other.cy).astype(np.int64)
-    ok &= (uo >= 0) & (vo >= 0) & (uo < other.width) & (vo < other.height)
-    out = np.zeros(len(X), np.int32)
+    u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
+    v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
+    ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
     idx = np.nonzero(ok)[0]
-    uo, vo = uo[idx], vo[idx]
+    return idx, u[idx], v[idx], z
+
+
+def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
+    """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
+    out = np.zeros(len(X), np.int32)
+    idx, uo, vo, z = _pixels(other, X)
     d = depth[vo, uo].astype(np.float64)
     has = d > 0
     idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
@@ -213,14 +219,7 @@ def _free_space(V: np.ndarray, cameras: Sequence[Camera], depths: Sequence[np.nd
     """How many views saw a surface behind each vertex (the vertex is in free space)."""
     votes = np.zeros(len(V), np.int32)
     for cam, depth in zip(cameras, depths, strict=True):
-        Y = cam.to_camera(V)
-        z = Y[:, 2]
-        ok = z > 1e-12
-        zs = np.where(ok, z, 1.0)
-        u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
-        v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
-        ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
-        idx = np.nonzero(ok)[0]
-        d = depth[v[idx], u[idx]]
+        idx, u, v, z = _pixels(cam, V)
+        d = depth[v, u]
         votes[idx[(d > 0) & (z[idx] < d * (1.0 - 5.0 * tol))]] += 1
     return votes

@@ -220,6 +220,17 @@ def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, k
     return total / k
 
 
+@nb.njit(cache=True, inline="always")
+def _keep_better(c, d, m0, m1, m2, best):
+    """Keep (d, m) in ``best`` = (cost, depth, normal) when its cost ``c`` is lower."""
+    if c < best[0]:
+        best[0] = c
+        best[1] = d
+        best[2] = m0
+        best[3] = m1
+        best[4] = m2
+
+
 @nb.njit(cache=True, fastmath=True, inline="always")
 def _random_normal(seed, x, y, it, draw, kinv, out):
     """A random unit normal facing the camera (towards -ray) at (x, y)."""
@@ -284,12 +295,13 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
         scratch = np.empty(max(ns, 1))
         hb = np.empty((3, 3, 3))
         nrm = np.empty(3)
+        best = np.empty(5)  # cost, depth, normal of the best plane so far
         for x in range((y + colour) % 2, w, 2):
-            best_c = C[y, x]
-            bd = D[y, x]
-            b0 = N[y, x, 0]
-            b1 = N[y, x, 1]
-            b2 = N[y, x, 2]
+            best[0] = C[y, x]
+            best[1] = D[y, x]
+            best[2] = N[y, x, 0]
+            best[3] = N[y, x, 1]
+            best[4] = N[y, x, 2]
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
             ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
             rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
@@ -323,18 +335,16 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                         d = dd
                 if d < dmin or d > dmax:
                     continue
-                c = _cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src, sizes, kinv,
-                          kr, ks, rs, ts, radius, step, min_var, top_k, geom, sdepth,
-                          max_reproj)
-                if c < best_c:
-                    best_c = c
-                    bd = d
-                    b0 = m0
-                    b1 = m1
-                    b2 = m2
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
+                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
             for trial in range(3):
+                bd = best[1]
+                b0 = best[2]
+                b1 = best[3]
+                b2 = best[4]
                 base = 2 + 4 * trial
                 if trial == 2:
                     u = _uniform(seed, pix, it, base)
@@ -360,17 +370,11 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                         continue
                 if d < dmin or d > dmax:
                     continue
-                c = _cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src, sizes, kinv,
-                          kr, ks, rs, ts, radius, step, min_var, top_k, geom, sdepth,
-                          max_reproj)
-                if c < best_c:
-                    best_c = c
-                    bd = d
-                    b0 = m0
-                    b1 = m1
-                    b2 = m2
-            D[y, x] = bd
-            N[y, x, 0] = b0
-            N[y, x, 1] = b1
-            N[y, x, 2] = b2
-            C[y, x] = best_c
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
+                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
+            C[y, x] = best[0]
+            D[y, x] = best[1]
+            N[y, x, 0] = best[2]
+            N[y, x, 1] = best[3]
+            N[y, x, 2] = best[4]
