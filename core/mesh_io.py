@@ -19,7 +19,7 @@ from core.validate import InputError
 
 __all__ = ["read_mesh", "write_mesh", "read_points", "write_points",
            "read_geometry", "write_polylines", "MESH_SUFFIXES", "POINT_SUFFIXES",
-           "POLYLINE_SUFFIXES", "write_labeled_mesh", "read_labeled_mesh"]
+           "POLYLINE_SUFFIXES", "write_labeled_mesh", "read_labeled_mesh", "native_output"]
 
 MESH_SUFFIXES = (".ply", ".obj", ".gltf", ".glb", ".stl", ".off")
 # open3d 0.20 writes .glb without its binary chunk (unreadable by open3d and VTK).
@@ -39,7 +39,7 @@ def read_mesh(path: str | os.PathLike):
         raise InputError(f"expected a mesh file ({', '.join(MESH_SUFFIXES)}), got {path.suffix!r}",
                          path=path)
     said: list[str] = []
-    with _native_stderr(said):
+    with native_output(said):
         mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False,
                                          print_progress=False)
     if len(mesh.vertices) == 0:
@@ -327,7 +327,7 @@ def read_points(path: str | os.PathLike):
     if not path.is_file():
         raise InputError("file not found", path=path)
     said: list[str] = []
-    with _native_stderr(said):
+    with native_output(said):
         pcd = o3d.io.read_point_cloud(str(path))
     if len(pcd.points) == 0:
         raise InputError(f"no points read (empty or corrupt point file){_because(said)}",
@@ -371,28 +371,32 @@ def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
 
 
 @contextlib.contextmanager
-def _native_stderr(said: list[str]):
-    """Capture file descriptor 2 (C libraries such as RPly print there directly) and
-    Open3D's own warnings; what they said is appended to ``said``, one string per line,
-    so that our one-line error can carry it instead of a stray line on the terminal."""
+def native_output(said: list[str], fds: tuple[int, ...] = (2,)):
+    """Capture file descriptors ``fds`` (C libraries such as RPly and PoissonRecon print
+    there directly) and Open3D's own warnings; what they said is appended to ``said``,
+    one string per line, so that the caller can log it or put it in a one-line error
+    instead of a stray line on the terminal."""
     import tempfile
 
     import open3d as o3d
 
+    sys.stdout.flush()
     sys.stderr.flush()
     try:
-        saved = os.dup(2)
-    except OSError:  # pragma: no cover - no fd 2 at all
+        saved = [os.dup(fd) for fd in fds]
+    except OSError:  # pragma: no cover - no such descriptor at all
         yield
         return
     with tempfile.TemporaryFile() as sink, o3d.utility.VerbosityContextManager(
             o3d.utility.VerbosityLevel.Error):
-        os.dup2(sink.fileno(), 2)
+        for fd in fds:
+            os.dup2(sink.fileno(), fd)
         try:
             yield
         finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+            for fd, old in zip(fds, saved, strict=True):
+                os.dup2(old, fd)
+                os.close(old)
             sink.seek(0)
             text = sink.read().decode("utf-8", "replace")
             said.extend(ln.strip() for ln in text.splitlines() if ln.strip())
@@ -486,7 +490,7 @@ def read_geometry(path: str | os.PathLike):
         allowed = ", ".join(sorted(set(MESH_SUFFIXES + POINT_SUFFIXES)))
         raise InputError(f"expected a mesh or point file ({allowed}), got {suffix!r}", path=path)
     said: list[str] = []
-    with _native_stderr(said):
+    with native_output(said):
         mesh = None
         if suffix in MESH_SUFFIXES:
             mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False,

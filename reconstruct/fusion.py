@@ -193,10 +193,15 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     footprint = float(np.median(foot)) if foot else spacing
     depth = opt.poisson_depth or int(np.clip(np.ceil(np.log2(extent / max(2 * footprint,
                                                                         1e-12))), 8, 11))
-    # PoissonRecon's own warnings ("bad average roots") go to the terminal, not the log
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+    # PoissonRecon prints its warnings ("bad average roots") itself: to the log instead
+    from core.mesh_io import native_output
+
+    said: list[str] = []
+    with native_output(said, fds=(1, 2)):
         mesh, dens = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
             pcd, depth=depth, n_threads=1)
+    if said:
+        log.debug("PoissonRecon: %s", " ".join(said))
     dens = np.asarray(dens)
     if len(dens) == 0:
         return mesh
