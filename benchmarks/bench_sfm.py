@@ -3,7 +3,8 @@
 Targets: all views registered; rotation error <= 0.1 deg; ATE <= 0.1 % of the scene
 size (bounding-box diagonal); mean reprojection <= 0.5 px; dense mesh F-score at
 tau = 1 % of the scene size >= 0.85. Overhead: our sparse stage <= 1.15x the bare
-pycolmap calls on the same images (same run); dense stage <= 2x the sparse stage.
+pycolmap calls on the same images (same run). The dense stage is timed here; its
+targets (F, time against the sparse stage, the SGBM peer) are bench_mvs's.
 Incremental against global mapping on the same capture.
 
 Fair timing of the sparse stage: pycolmap and open3d are imported before any clock
@@ -119,8 +120,10 @@ def main():
         if "mesh" in rep.get("metrics", {}):
             report(f"{mapper}: dense mesh F-score (tau = 1% scene)",
                    rep["metrics"]["mesh"]["fscore"], 1.0, 0.85)
-            report(f"{mapper}: dense stage vs sparse stage", rep["timings"]["dense"],
-                   rep["timings"]["sparse_total"], 2.0, higher_is_better=False)
+            # the dense stage's time and its bound on real photos: bench_mvs
+            print(f"   {mapper}: dense stage {rep['timings']['dense']:.1f} s, "
+                  f"{rep['timings']['dense'] / rep['timings']['sparse_total']:.1f}x the sparse "
+                  f"stage (PatchMatch; bound on real photos in bench_mvs)")
     if len(sparse_times) == 2:
         print(f"   global vs incremental sparse stage: "
               f"{sparse_times['global'] / sparse_times['incremental']:.2f}x the time")
