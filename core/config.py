@@ -66,7 +66,7 @@ def parse_range(text: str) -> tuple[float, float, bool, bool]:
 def option(default: Any = MISSING, *, help: str, unit: str | None = None,
            range: str | None = None, choices: Sequence[Any] | None = None,
            default_factory: Any = MISSING, flag: bool = True,
-           short: str | None = None) -> Any:
+           short: str | None = None, metavar: tuple[str, ...] | None = None) -> Any:
     """A declared option: a dataclass field whose metadata documents and bounds it.
 
     Parameters
@@ -86,12 +86,15 @@ def option(default: Any = MISSING, *, help: str, unit: str | None = None,
         read from ``--config FILE.toml``); for tables such as a calibration target.
     short : str, optional
         A short flag besides the long one (``"-n"``), where a command has always had it.
+    metavar : tuple of str, optional
+        For a fixed-length tuple: the flag takes that many space-separated values with
+        these names (``--center RE IM``) instead of one comma-separated value.
     """
     if range is not None:
         parse_range(range)
     meta = {"help": help, "unit": unit, "range": range,
             "choices": None if choices is None else tuple(choices), "flag": flag,
-            "short": short}
+            "short": short, "metavar": None if metavar is None else tuple(metavar)}
     if default_factory is not MISSING:
         return dataclasses.field(default_factory=default_factory, metadata={"scanamp": meta})
     return dataclasses.field(default=default, metadata={"scanamp": meta})
@@ -114,6 +117,7 @@ class Option:
     choices: tuple | None
     flag: bool
     short: str | None = None
+    metavar: tuple | None = None
 
 
 def _hints(cls) -> dict:
@@ -160,7 +164,7 @@ def iter_options(cls_or_obj, prefix: str = "") -> Iterator[Option]:
         if meta is None:
             continue
         yield Option(name, hints[f.name], value, meta["help"], meta["unit"], meta["range"],
-                     meta["choices"], meta["flag"], meta.get("short"))
+                     meta["choices"], meta["flag"], meta.get("short"), meta.get("metavar"))
 
 
 def format_value(value: Any) -> str:

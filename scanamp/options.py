@@ -87,6 +87,11 @@ def add_config_flags(parser: argparse.ArgumentParser, cls, *,
         metavar = ("{" + ",".join(map(str, opt.choices)) + "}" if "choices" in kw
                    else opt.name.rsplit(".", 1)[-1].upper())
         names = [flag_name(opt.name)] + ([opt.short] if opt.short else [])
+        if opt.metavar:  # a fixed-length tuple given as separate values: --center RE IM
+            items = [a for a in typing.get_args(tp) if a is not Ellipsis]
+            group.add_argument(*names, type=_parser_for(items[0] if items else str),
+                               nargs=len(opt.metavar), metavar=opt.metavar, **kw)
+            continue
         group.add_argument(*names, type=_parser_for(opt.type), metavar=metavar, **kw)
 
 

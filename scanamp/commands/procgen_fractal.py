@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 
+from core.config import Config, option
 from scanamp.commands._procgen_common import add_output, check_out
 
 NAME = "fractal"
@@ -16,18 +18,28 @@ HELP = "render a deterministic fractal to PNG (koch, sierpinski, fern, mandelbro
 log = logging.getLogger(__name__)
 
 
+@dataclass
+class FractalConfig(Config):
+    """Options of ``scanamp procgen fractal``."""
+
+    width: int = option(800, unit="px", range="[1, 20000]", help="image width")
+    height: int = option(600, unit="px", range="[1, 20000]", help="image height")
+    level: int = option(5, range="[0, 12]", help="koch/sierpinski recursion level")
+    points: int = option(200_000, range="[1, 100000000]", help="fern: chaos-game points")
+    center: tuple[float, float] | None = option(
+        None, metavar=("RE", "IM"), help="mandelbrot/julia: view centre (none: -0.5 0 for "
+                                         "mandelbrot, 0 0 for julia)")
+    zoom: float = option(1.0, range="(0, inf)", help="mandelbrot/julia: magnification")
+    max_iter: int = option(256, range="[1, 100000]", help="mandelbrot/julia: iterations")
+    c: tuple[float, float] = option((-0.8, 0.156), metavar=("RE", "IM"),
+                                    help="julia: the constant c")
+
+
+CONFIG = FractalConfig
+
+
 def add_arguments(p):
     p.add_argument("fractal", choices=["koch", "sierpinski", "fern", "mandelbrot", "julia"])
-    p.add_argument("--width", type=int, default=800, help="image width in pixels")
-    p.add_argument("--height", type=int, default=600, help="image height in pixels")
-    p.add_argument("--level", type=int, default=5, help="koch/sierpinski recursion level")
-    p.add_argument("--points", type=int, default=200_000, help="fern: chaos-game points")
-    p.add_argument("--center", type=float, nargs=2, default=None, metavar=("RE", "IM"),
-                   help="mandelbrot/julia: view centre")
-    p.add_argument("--zoom", type=float, default=1.0, help="mandelbrot/julia: magnification")
-    p.add_argument("--max-iter", type=int, default=256, help="mandelbrot/julia: iterations")
-    p.add_argument("--c", type=float, nargs=2, default=(-0.8, 0.156), metavar=("RE", "IM"),
-                   help="julia: the constant c")
     add_output(p, kind="image")
 
 
@@ -42,38 +54,36 @@ def _fit(points: np.ndarray, w: int, h: int, margin: float = 0.05) -> np.ndarray
     return np.stack([px, py], 1)
 
 
-def _render(args) -> np.ndarray:
+def _render(args, c: FractalConfig) -> np.ndarray:
     import cv2
 
     from procgen import fractals as F
 
-    w, h = args.width, args.height
-    if not (1 <= w <= 20000 and 1 <= h <= 20000):
-        raise ValueError(f"--width/--height: expected 1 to 20000 pixels, got {w} x {h}")
+    w, h = c.width, c.height
     kind = args.fractal
     if kind in ("mandelbrot", "julia"):
         if kind == "mandelbrot":
-            center = (-0.5, 0.0) if args.center is None else tuple(args.center)
-            counts = F.mandelbrot(w, h, center=center, zoom=args.zoom, max_iter=args.max_iter)
+            center = (-0.5, 0.0) if c.center is None else tuple(c.center)
+            counts = F.mandelbrot(w, h, center=center, zoom=c.zoom, max_iter=c.max_iter)
         else:
-            center = (0.0, 0.0) if args.center is None else tuple(args.center)
-            counts = F.julia(w, h, c=tuple(args.c), center=center, zoom=args.zoom,
-                             max_iter=args.max_iter)
+            center = (0.0, 0.0) if c.center is None else tuple(c.center)
+            counts = F.julia(w, h, c=tuple(c.c), center=center, zoom=c.zoom,
+                             max_iter=c.max_iter)
         return F.colorize_escape(counts)
     img = np.full((h, w, 3), 255, np.uint8)
     shift = 4  # sub-pixel precision for cv2's anti-aliased drawing
     if kind == "koch":
-        poly = F.koch_snowflake(args.level)
+        poly = F.koch_snowflake(c.level)
         pix = np.round(_fit(poly, w, h) * (1 << shift)).astype(np.int32)
         cv2.fillPoly(img, [pix], (200, 225, 250), lineType=cv2.LINE_AA, shift=shift)
         cv2.polylines(img, [pix], True, (20, 40, 120), 1, lineType=cv2.LINE_AA, shift=shift)
     elif kind == "sierpinski":
-        tri = F.sierpinski_triangle(args.level)
+        tri = F.sierpinski_triangle(c.level)
         pix = _fit(tri.reshape(-1, 2), w, h).reshape(-1, 3, 2)
         pix = np.round(pix * (1 << shift)).astype(np.int32)
         cv2.fillPoly(img, list(pix), (150, 40, 40), lineType=cv2.LINE_AA, shift=shift)
     else:  # fern: point density, green
-        pts = F.barnsley_fern(args.points, rng=np.random.default_rng(args.seed))
+        pts = F.barnsley_fern(c.points, rng=np.random.default_rng(args.seed))
         pix = np.floor(_fit(pts, w, h)).astype(np.int64)
         ok = (pix[:, 0] >= 0) & (pix[:, 0] < w) & (pix[:, 1] >= 0) & (pix[:, 1] < h)
         dens = np.zeros((h, w))
@@ -84,11 +94,11 @@ def _render(args) -> np.ndarray:
     return img
 
 
-def run(args) -> int:
+def run(args, config: FractalConfig) -> int:
     from core.image_io import write_image
 
     out = check_out(args.out, (".png",))
-    img = _render(args)
+    img = _render(args, config)
     write_image(out, img)
     log.info("wrote %s (%d x %d)", out, img.shape[1], img.shape[0])
     return 0
