@@ -107,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
                   "reconstruct": "reconstruct a mesh from a capture",
                   "simulate": "run a procedural animation",
                   "procgen": "procedural modeling generators",
-                  "calibrate": "calibrate a real camera or stereo pair from board photos"}
+                  "calibrate": "calibrate a real camera or stereo pair from board photos",
+                  "mesh": "mesh processing: clean a reconstruction"}
     for mod in _command_modules():
         group = getattr(mod, "GROUP", None)
         target = sub

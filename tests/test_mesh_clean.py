@@ -1,0 +1,83 @@
+"""Cleaning a reconstruction: floaters go, holes close, the surface stays where it was,
+the faces point outward; sizes are relative, so scale does not change the result."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+
+def _noisy_scan(scale=1.0, seed=0):
+    """A unit-diameter sphere with noise, a hole and 20 small floaters, times ``scale``."""
+    rng = np.random.default_rng(seed)
+    s = o3d.geometry.TriangleMesh.create_sphere(0.5, resolution=40)
+    V = np.asarray(s.vertices)
+    V = V + rng.normal(0, 0.002, V.shape) * (V / np.linalg.norm(V, axis=1, keepdims=True))
+    F = np.asarray(s.triangles)
+    cent = V[F].mean(1)
+    F = F[~(cent[:, 2] > 0.485)]  # a cap cut off: a hole at the top
+    parts = [(V, F)]
+    for _ in range(20):
+        t = o3d.geometry.TriangleMesh.create_tetrahedron(0.01)
+        c = rng.uniform(-1, 1, 3)
+        parts.append((np.asarray(t.vertices) + c, np.asarray(t.triangles)))
+    Vs, Fs, off = [], [], 0
+    for v, f in parts:
+        Vs.append(v)
+        Fs.append(f + off)
+        off += len(v)
+    m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.concatenate(Vs) * scale),
+                                  o3d.utility.Vector3iVector(np.concatenate(Fs)))
+    return m, (V * scale, F)
+
+
+@pytest.mark.parametrize("scale", [0.01, 1.0, 100.0])
+def test_clean_removes_floaters_closes_the_hole_and_stays_on_the_surface(scale):
+    from reconstruct.mesh_clean import clean_mesh, component_areas
+
+    mesh, (V_in, F_in) = _noisy_scan(scale)
+    out, rep = clean_mesh(mesh)
+    assert rep["floaters"]["removed"] == 20
+    _, areas = component_areas(out)
+    assert areas.min() >= 0.01 * areas.sum()  # no component under 1 % of the area
+    assert rep["holes"]["boundary_edges_before"] > 0
+    assert rep["holes"]["boundary_edges_after"] == 0
+    # within 0.5 % of the diagonal of the input (one-sided: cleaned -> kept input surface)
+    diag = rep["input"]["diagonal"]
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(V_in.astype(np.float32)),
+                        o3d.core.Tensor(F_in.astype(np.uint32)))
+    V = np.asarray(out.vertices)
+    d = scene.compute_distance(o3d.core.Tensor(V.astype(np.float32))).numpy()
+    cap = V[:, 2] > 0.475 * scale  # the filled hole is new surface, not measured
+    assert np.percentile(d[~cap], 99) < 0.005 * diag
+    # faces outward: normals point away from the centre
+    out.compute_triangle_normals()
+    Fo = np.asarray(out.triangles)
+    c = np.asarray(out.vertices)[Fo].mean(1)
+    assert np.mean(np.sum(np.asarray(out.triangle_normals) * c, 1) > 0) > 0.99
+    # the remeshing edge is relative: the triangle count does not depend on the scale
+    assert 2000 < rep["output"]["triangles"] < 200_000
+
+
+def test_clean_cli_writes_the_mesh_and_its_report(tmp_path, capsys):
+    import json
+
+    from core.mesh_io import read_mesh, write_mesh
+    from scanamp.cli import main
+
+    mesh, _ = _noisy_scan()
+    write_mesh(tmp_path / "scan.ply", mesh)
+    code = main(["-q", "mesh", "clean", str(tmp_path / "scan.ply"), "--out",
+                 str(tmp_path / "clean.ply"), "--smooth-steps", "0"])
+    assert code == 0, capsys.readouterr().err
+    rep = json.loads((tmp_path / "clean.report.json").read_text())
+    assert rep["floaters"]["removed"] == 20
+    assert len(read_mesh(tmp_path / "clean.ply").triangles) == rep["output"]["triangles"]
+    (tmp_path / "empty.ply").write_text("ply\nformat ascii 1.0\nelement vertex 0\n"
+                                        "property float x\nproperty float y\nproperty float z\n"
+                                        "element face 0\nproperty list uchar int vertex_indices\n"
+                                        "end_header\n")
+    code = main(["mesh", "clean", str(tmp_path / "empty.ply"), "--out", str(tmp_path / "e.ply")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "empty.ply" in err[0]
+    assert not (tmp_path / "e.ply").exists()
