@@ -106,7 +106,17 @@ def clean_mesh(mesh, options: CleanOptions | None = None):
             targetlen=pymeshlab.PureValue(opt.edge_fraction * diag), iterations=3)
     if opt.smooth_steps > 0:
         ms.apply_coord_taubin_smoothing(stepsmoothnum=int(opt.smooth_steps))
-    ms.meshing_re_orient_faces_coherently()
+    # remeshing a real reconstruction can leave non-manifold spots; orientation needs none
+    ms.meshing_repair_non_manifold_edges()
+    ms.meshing_repair_non_manifold_vertices()
+    ms.meshing_remove_unreferenced_vertices()
+    try:
+        ms.meshing_re_orient_faces_coherently()
+        report["oriented"] = True
+    except pymeshlab.PyMeshLabException as exc:  # still not 2-manifold somewhere
+        log.warning("clean: faces left as they were, not oriented coherently (%s)",
+                    str(exc).splitlines()[-1])
+        report["oriented"] = False
     m = ms.current_mesh()
     V, F = m.vertex_matrix(), m.face_matrix()
     out = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(V, float)),

@@ -81,3 +81,21 @@ def test_clean_cli_writes_the_mesh_and_its_report(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "empty.ply" in err[0]
     assert not (tmp_path / "e.ply").exists()
+
+
+def test_clean_is_a_recipe_step(tmp_path):
+    """A recipe may start with ``kind = "clean"`` (its defaults are CleanOptions')."""
+    from scanamp.amplify import amplify
+
+    recipe = tmp_path / "r.toml"
+    recipe.write_text('description = "clean only"\n\n[[step]]\nkind = "clean"\n'
+                      'smooth_steps = 0\n')
+    mesh, _ = _noisy_scan()
+    state, reports = amplify(mesh, recipe)
+    from reconstruct.mesh_clean import component_areas
+
+    _, areas = component_areas(state.surface)
+    rep = reports[0]
+    assert len(areas) == 1 and rep["kind"] == "clean"
+    assert rep["floaters"]["removed"] == 20 and rep["holes"]["boundary_edges_after"] == 0
+    assert rep["params"]["edge_fraction"] == 0.005 and rep["params"]["smooth_steps"] == 0

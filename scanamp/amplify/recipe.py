@@ -15,12 +15,13 @@ from typing import Any
 
 from core.files import read_toml, require
 from core.validate import InputError
+from reconstruct.mesh_clean import CleanOptions
 
 __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_names",
            "RECIPE_DIR"]
 
 RECIPE_DIR = Path(__file__).parent / "recipes"
-KINDS = ("displace", "refine-terrain", "scatter", "sweep", "hypertexture", "animate")
+KINDS = ("clean", "displace", "refine-terrain", "scatter", "sweep", "hypertexture", "animate")
 
 _INF = float("inf")
 
@@ -40,9 +41,18 @@ class _F:
 
 
 _NOISE3 = ("fbm", "turbulence", "ridged")
+_CLEAN = CleanOptions()  # the clean step's defaults are the library's, declared once
 
 # Sizes marked "relative" are fractions of the current mesh's bounding-box diagonal.
 SPECS: dict[str, dict[str, _F]] = {
+    "clean": {
+        "min_component_area": _F(float, _CLEAN.min_component_area, 0.0, 1.0, hi_open=True),
+        "max_hole_edges": _F(int, _CLEAN.max_hole_edges, 0, 100_000),
+        "remesh": _F(bool, _CLEAN.remesh),
+        "edge_fraction": _F(float, _CLEAN.edge_fraction, 0.0, 1.0, lo_open=True,
+                            hi_open=True),
+        "smooth_steps": _F(int, _CLEAN.smooth_steps, 0, 100),
+    },
     "displace": {
         "edge": _F(float, 0.5, 0.0, 100.0),              # target edge / input mean edge; 0: none
         "noise": _F(str, "fbm", choices=_NOISE3),

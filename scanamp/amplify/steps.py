@@ -56,6 +56,13 @@ class State:
         return name
 
 
+def _clean(state: State, step, rng, **_):
+    from reconstruct.mesh_clean import CleanOptions, clean_mesh
+
+    state.surface, report = clean_mesh(state.surface, CleanOptions(**step.params))
+    return report
+
+
 def _displace(state: State, step, rng, **_):
     from procgen.amplify import displace
 
@@ -221,6 +228,7 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
 
 
 EXECUTORS = {
+    "clean": _clean,
     "displace": _displace,
     "refine-terrain": _refine_terrain,
     "scatter": _scatter,
