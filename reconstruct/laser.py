@@ -107,14 +107,15 @@ class LaserReconConfig(Config):
 
 
 def _read(path: Path, channel: int | None = None) -> np.ndarray:
+    """One frame, upright (core.image_io), as grey or one colour channel (0 = red)."""
     import cv2
 
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise InputError("could not read the image", path=path)
+    from core.image_io import read_image
+
+    img = read_image(path)
     if img.ndim == 3:
-        img = img[:, :, 2 - (channel or 0)] if channel is not None else cv2.cvtColor(
-            img, cv2.COLOR_BGR2GRAY)
+        img = img[:, :, channel] if channel is not None else cv2.cvtColor(
+            np.ascontiguousarray(img[:, :, :3]), cv2.COLOR_RGB2GRAY)
     return img
 
 
