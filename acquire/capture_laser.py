@@ -31,8 +31,9 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import write_capture
 from acquire.laser import LaserRenderer, camera_directions
-from acquire.laser_rig import LaserRig
+from acquire.laser_rig import LaserCaptureConfig, LaserRig
 from acquire.scene import RenderScene
+from core.config import to_dict
 from core.files import atomic_dir
 from core.progress import track
 
@@ -205,8 +206,8 @@ def _calibration_captures(rig, cam0, laser0, sensor, target, positions, rng, tmp
     return calib, gt_calib
 
 
-def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator, *,
-            scene_info: dict | None = None, seed: int | None = None, gt_depth: bool = False,
+def capture(scene: RenderScene, config: LaserCaptureConfig, out_dir, rng: np.random.Generator,
+            *, scene_info: dict | None = None, seed: int | None = None,
             gt_mesh=None) -> Path:
     """Render a laser scan of ``scene`` and its calibration captures into ``out_dir``.
 
@@ -214,8 +215,10 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
     ----------
     scene : acquire.scene.RenderScene
         The scene at stage reading 0, in world coordinates (Z up, turntable axis along
-        Z through ``rig.axis_center``). Its lights are ignored (laser plus ambient).
-    rig : LaserRig
+        Z through ``config.rig.axis_center``). Its lights are ignored (laser plus ambient).
+    config : LaserCaptureConfig
+        Rig, sensor, calibration board; ``gt_depth`` also writes each frame's
+        ground-truth z-depth (``gt/depth_0000.npy``).
     out_dir : path
         Written atomically (replaced if it exists).
     rng : numpy.random.Generator
@@ -224,8 +227,6 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
         ``{"path", "name", "seed"}`` recorded in capture.json.
     seed : int, optional
         Recorded in capture.json.
-    gt_depth : bool
-        Also write each frame's ground-truth z-depth (``gt/depth_0000.npy``).
     gt_mesh : open3d.geometry.TriangleMesh, optional
         The ground-truth surface to store as ``gt/mesh.ply`` (default: the scene's
         objects merged).
@@ -238,27 +239,21 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
     from core.mesh_io import write_mesh
     from core.meshes import merge_meshes, transform_mesh
 
-    cam0 = rig.camera()
-    laser0 = rig.laser()
-    sensor = rig.sensor_obj
-    target = rig.target_obj
-    positions = rig.frame_positions()
+    rig = config.rig
+    cam0, laser0, sensor = rig.camera(), rig.laser(), config.sensor
     out_dir = Path(out_dir)
     with atomic_dir(out_dir) as tmp:
         (tmp / "images").mkdir()
         (tmp / "gt").mkdir()
-        frames, stripe, lit_counts, key = _scan_frames(scene, rig, cam0, laser0, sensor,
-                                                       positions, gt_depth, rng, tmp)
-        calib, gt_calib = _calibration_captures(rig, cam0, laser0, sensor, target, positions,
-                                                rng, tmp)
-        # -- ground truth (evaluation only) ---------------------------------------------------
-        if gt_mesh is None:
+        positions = rig.frame_positions()
+        frames, _, lit_counts, key = _scan_frames(scene, rig, cam0, laser0, sensor,
+                                                       positions, config.gt_depth, rng, tmp)
+        calib, gt_calib = _calibration_captures(rig, cam0, laser0, sensor, config.target_obj,
+                                                positions, rng, tmp)
+        if gt_mesh is None:  # ground truth, for evaluation only
             gt_mesh = merge_meshes([transform_mesh(o.mesh, o.world_from_object)
                                     for o in scene.objects])
         write_mesh(tmp / "gt" / "mesh.ply", gt_mesh)
-        n_w, d_w = laser0.plane
-        axis_dir = np.array([0.0, 0.0, 1.0]) if rig.motion == "turntable" else (
-            np.asarray(rig.stage_direction, float) / np.linalg.norm(rig.stage_direction))
         data = {
             "kind": "laser",
             "seed": seed,
@@ -272,26 +267,36 @@ def capture(scene: RenderScene, rig: LaserRig, out_dir, rng: np.random.Generator
                     "bit_depth": sensor.bit_depth},
             "frames": frames,
             "calibration": calib,
-            "ground_truth": {
-                "camera": cam0.to_dict(),
-                "world_from_object_at_reading": "turntable about axis" if
-                rig.motion == "turntable" else "translation along direction",
-                "laser_plane_world": [*n_w.tolist(), d_w],
-                "laser": laser0.to_dict(),
-                "axis_point_world": list(map(float, rig.axis_center)),
-                "axis_direction_world": axis_dir.tolist(),
-                "rig": rig.to_dict(),
-                "stripe": "gt/stripe.npy",
-                "mesh": "gt/mesh.ply",
-                "lit_pixels": lit_counts,
-                **gt_calib,
-            },
+            "ground_truth": _ground_truth(config, cam0, laser0, lit_counts, gt_calib),
         }
         write_capture(tmp, data)
     log.info("laser capture: %d frames, %d calibration images -> %s", len(frames),
              sum(len(c["images"]) * (2 if c["kind"] == "laser_plane" else 1) for c in calib),
              out_dir)
     return out_dir
+
+
+def _ground_truth(config: LaserCaptureConfig, cam0: Camera, laser0, lit_counts,
+                  gt_calib: dict) -> dict:
+    """capture.json's ``ground_truth`` (evaluation only: no reconstruction reads it)."""
+    rig = config.rig
+    n_w, d_w = laser0.plane
+    axis_dir = np.array([0.0, 0.0, 1.0]) if rig.motion == "turntable" else (
+        np.asarray(rig.stage_direction, float) / np.linalg.norm(rig.stage_direction))
+    return {
+        "camera": cam0.to_dict(),
+        "world_from_object_at_reading": "turntable about axis" if
+        rig.motion == "turntable" else "translation along direction",
+        "laser_plane_world": [*n_w.tolist(), d_w],
+        "laser": laser0.to_dict(),
+        "axis_point_world": list(map(float, rig.axis_center)),
+        "axis_direction_world": axis_dir.tolist(),
+        "rig": {**to_dict(rig), "target": dict(config.target)},
+        "stripe": "gt/stripe.npy",
+        "mesh": "gt/mesh.ply",
+        "lit_pixels": lit_counts,
+        **gt_calib,
+    }
 
 
 def transform_for_reading(rig: LaserRig, reading: float) -> np.ndarray:

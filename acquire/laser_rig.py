@@ -18,9 +18,7 @@ lens at 40 cm, a 30-degree triangulation angle, 360 steps of 1 degree.
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,92 +26,77 @@ from acquire.camera import Camera, look_at_cam_from_world
 from acquire.laser import LaserSheet
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, target_from_dict
-from core.files import read_toml
+from core.config import Config, option
 from core.frames import rotation_about
-from core.validate import InputError, check_choice, check_int, check_positive, check_range
 
-__all__ = ["LaserRig", "load_rig"]
+__all__ = ["LaserRig", "LaserCaptureConfig"]
+
+
+_DEFAULT_TARGET = ChArUcoTarget(squares_x=9, squares_y=7, square_length=0.016,
+                                marker_length=0.012).to_dict()
 
 
 @dataclass
-class LaserRig:
-    """Every setting of a laser-triangulation capture (TOML table ``[rig]``).
-
-    Angles in degrees, lengths in metres.
-    """
+class LaserRig(Config):
+    """The geometry, motion and calibration plan of a laser-triangulation rig (TOML table
+    ``[rig]``). Angles in degrees, lengths in metres."""
 
     # camera
-    width: int = 640
-    height: int = 480
-    fov_deg: float = 40.0
-    distortion: tuple = (-0.04, 0.02, 0.0, 0.0, 0.0)
-    working_distance: float = 0.40
-    camera_elevation_deg: float = 15.0
-    aim_height: float = 0.075
+    width: int = option(640, unit="px", range="[16, 16384]", help="image width")
+    height: int = option(480, unit="px", range="[16, 16384]", help="image height")
+    fov_deg: float = option(40.0, unit="deg", range="[1, 170]", help="horizontal field of view")
+    distortion: tuple[float, float, float, float, float] = option(
+        (-0.04, 0.02, 0.0, 0.0, 0.0), help="lens distortion k1, k2, p1, p2, k3 (OpenCV model)")
+    working_distance: float = option(0.40, unit="m", range="(0, inf)",
+                                     help="camera to the aim point on the axis")
+    camera_elevation_deg: float = option(15.0, unit="deg", range="[-80, 80]",
+                                         help="camera raised above the aim point")
+    aim_height: float = option(0.075, unit="m", range="(-inf, inf)",
+                               help="aim point up the turntable axis")
     # laser
-    triangulation_angle_deg: float = 30.0
-    laser_distance: float = 0.40
-    laser_elevation_deg: float = 0.0
-    fan_angle_deg: float = 40.0
-    laser_thickness: float = 0.0005
-    laser_power: float = 0.35
-    speckle: float = 0.0
-    ambient: float = 0.05
+    triangulation_angle_deg: float = option(30.0, unit="deg", range="[1, 89]",
+                                            help="laser turned about the axis from the camera")
+    laser_distance: float = option(0.40, unit="m", range="(0, inf)",
+                                   help="laser origin to the aim point")
+    laser_elevation_deg: float = option(0.0, unit="deg", range="[-80, 80]",
+                                        help="laser raised above the aim point")
+    fan_angle_deg: float = option(40.0, unit="deg", range="[1, 170]", help="laser fan angle")
+    laser_thickness: float = option(0.0005, unit="m", range="(0, inf)",
+                                    help="sheet thickness (Gaussian 1/e^2 width)")
+    laser_power: float = option(0.35, range="[0, inf)", help="peak irradiance of the sheet")
+    speckle: float = option(0.0, range="[0, 2]", help="speckle contrast of the stripe")
+    ambient: float = option(0.05, range="[0, inf)", help="ambient light level")
     # motion
-    motion: str = "turntable"
-    steps: int = 360
-    step_deg: float = 1.0
-    axis_center: tuple = (0.0, 0.0, 0.0)
-    stage_direction: tuple = (0.0, 1.0, 0.0)
-    stage_step: float = 0.001
+    motion: str = option("turntable", choices=("turntable", "stage"),
+                         help="what carries the object between frames")
+    steps: int = option(360, range="[1, 100000]", help="frames of the scan")
+    step_deg: float | None = option(None, unit="deg", range="(0, 360]",
+                                    help="turntable step per frame (none: 360 / steps)")
+    axis_center: tuple[float, float, float] = option((0.0, 0.0, 0.0), unit="m",
+                                                     help="a point on the turntable axis")
+    stage_direction: tuple[float, float, float] = option(
+        (0.0, 1.0, 0.0), help="linear stage direction (motion = stage)")
+    stage_step: float = option(0.001, unit="m", range="(0, inf)",
+                               help="linear stage step per frame")
     # calibration plan
-    target: dict = field(default_factory=lambda: ChArUcoTarget(
-        squares_x=9, squares_y=7, square_length=0.016, marker_length=0.012).to_dict())
-    camera_views: int = 20
+    camera_views: int = option(20, range="[3, 1000]", help="board views for the camera")
     # 8 stripe-on-board poses: over 8 calibrations the plane normal error is RMS 0.023,
     # worst 0.041 deg; with 4 poses 0.033, worst 0.055 (benchmarks/bench_laser_calibration.py)
-    laser_views: int = 8
-    axis_views: int = 9
-    axis_span_deg: float = 90.0
-    stage_views: int = 5
-    calib_supersample: int = 3
-    sensor: dict = field(default_factory=lambda: Sensor().to_dict())
+    laser_views: int = option(8, range="[2, 1000]",
+                              help="board poses under the laser (a plane needs two lines)")
+    axis_views: int = option(9, range="[3, 1000]", help="board views for the turntable axis")
+    axis_span_deg: float = option(90.0, unit="deg", range="(0, 360]",
+                                  help="turntable span of the axis views")
+    stage_views: int = option(5, range="[2, 1000]", help="board views for the stage direction")
+    calib_supersample: int = option(3, range="[1, 8]",
+                                    help="supersampling of the calibration renders")
 
-    def __post_init__(self):
-        for name in ("width", "height", "steps", "camera_views", "laser_views", "axis_views",
-                     "stage_views", "calib_supersample"):
-            setattr(self, name, check_int(getattr(self, name), name))
-        check_range(self.fov_deg, "fov_deg", 1, 170)
-        check_range(self.triangulation_angle_deg, "triangulation_angle_deg", 1, 89)
-        check_range(self.fan_angle_deg, "fan_angle_deg", 1, 170)
-        check_range(self.camera_elevation_deg, "camera_elevation_deg", -80, 80)
-        check_range(self.laser_elevation_deg, "laser_elevation_deg", -80, 80)
-        for name in ("working_distance", "laser_distance", "laser_thickness", "stage_step"):
-            check_positive(getattr(self, name), name)
-        check_positive(self.laser_power, "laser_power", allow_zero=True)
-        check_positive(self.ambient, "ambient", allow_zero=True)
-        check_range(self.speckle, "speckle", 0, 2)
-        check_choice(self.motion, "motion", ("turntable", "stage"))
-        if self.laser_views < 2:
-            raise ValueError(f"laser_views: expected at least 2 (a plane needs two stripe "
-                             f"lines), got {self.laser_views}")
-        if len(self.distortion) != 5:
-            raise ValueError(f"distortion: expected 5 values (k1, k2, p1, p2, k3), "
-                             f"got {len(self.distortion)}")
-        _ = self.target_obj, self.sensor_obj  # validate
+    @property
+    def turntable_step_deg(self) -> float:
+        """The turntable step: ``step_deg``, or a full turn over ``steps`` when unset."""
+        return 360.0 / self.steps if self.step_deg is None else float(self.step_deg)
 
     # -- derived objects ----------------------------------------------------------------
-    @property
-    def target_obj(self):
-        return target_from_dict(self.target)
-
-    @property
-    def sensor_obj(self) -> Sensor:
-        try:
-            return Sensor.from_dict(self.sensor)
-        except TypeError as exc:
-            raise ValueError(f"sensor: {exc}") from None
-
     @property
     def aim(self) -> np.ndarray:
         return np.asarray(self.axis_center, float) + [0.0, 0.0, self.aim_height]
@@ -144,7 +127,7 @@ class LaserRig:
     def frame_positions(self) -> np.ndarray:
         """Stage reading per frame: turntable angle in degrees, or stage offset in metres."""
         if self.motion == "turntable":
-            return np.arange(self.steps) * self.step_deg
+            return np.arange(self.steps) * self.turntable_step_deg
         return np.arange(self.steps) * self.stage_step
 
     def world_from_object(self, position: float) -> np.ndarray:
@@ -156,52 +139,30 @@ class LaserRig:
         T[:3, 3] = position * d / np.linalg.norm(d)
         return T
 
-    def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
-        for k, v in d.items():
-            if isinstance(v, tuple):
-                d[k] = list(v)
-        return d
 
+@dataclass
+class LaserCaptureConfig(Config):
+    """Everything ``scanamp capture laser`` reads: the rig, its sensor, the calibration
+    board (TOML tables ``[rig]``, ``[sensor]``, ``[target]``), the seed.
 
-_FIELDS = {f.name: f for f in dataclasses.fields(LaserRig)}
-
-
-def load_rig(path: str | Path | None = None, *, overrides: dict | None = None) -> LaserRig:
-    """Read a rig from TOML (table ``[rig]``, optional ``[sensor]`` and ``[target]``).
-
-    Unknown keys and bad values raise InputError naming the file and field.
-    ``overrides`` (``{"triangulation_angle_deg": 45}``) are applied last (study sweeps).
+    A ``[target]`` table of the default board's type (or without ``type``) fills its
+    missing keys from the default board.
     """
-    data: dict = {}
-    if path is not None:
-        raw = read_toml(path)
-        rig = raw.get("rig", {})
-        if not isinstance(rig, dict):
-            raise InputError("expected a table", path=path, field="rig")
-        data.update(rig)
-        for sect in ("sensor", "target"):
-            if sect in raw:
-                if not isinstance(raw[sect], dict):
-                    raise InputError("expected a table", path=path, field=sect)
-                base = (Sensor().to_dict() if sect == "sensor"
-                        else LaserRig().target)
-                data[sect] = {**base, **raw[sect]}
-        for key in raw:
-            if key not in ("rig", "sensor", "target"):
-                raise InputError("unknown table (expected rig, sensor, target)", path=path,
-                                 field=key)
-    data.update(overrides or {})
-    for key, value in data.items():
-        if key not in _FIELDS:
-            raise InputError(f"unknown field (expected one of {', '.join(sorted(_FIELDS))})",
-                             path=path, field=f"rig.{key}")
-        if isinstance(value, list):
-            data[key] = tuple(value)
-    try:
-        return LaserRig(**data)
-    except (ValueError, TypeError) as exc:
-        msg = str(exc)
-        field_name = msg.split(":")[0] if ":" in msg else None
-        raise InputError(msg.split(": ", 1)[-1] if field_name else msg, path=path,
-                         field=f"rig.{field_name}" if field_name else None) from None
+
+    rig: LaserRig = option(default_factory=LaserRig, help="rig geometry, motion, calibration")
+    sensor: Sensor = option(default_factory=Sensor, help="the camera's sensor")
+    target: dict = option(default_factory=lambda: dict(_DEFAULT_TARGET), flag=False,
+                          help="calibration board (acquire.targets fields, with 'type')")
+    seed: int = option(0, range="[0, inf)", help="sensor noise and calibration poses seed")
+    gt_depth: bool = option(False, help="also write each frame's ground-truth z-depth "
+                                        "(gt/depth_*.npy)")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.target.get("type", _DEFAULT_TARGET["type"]) == _DEFAULT_TARGET["type"]:
+            object.__setattr__(self, "target", {**_DEFAULT_TARGET, **self.target})
+        target_from_dict(self.target)  # ValueError "target...: ..." on a bad board
+
+    @property
+    def target_obj(self):
+        return target_from_dict(self.target)

@@ -12,46 +12,30 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from core.validate import check_array, check_choice, check_positive, check_range
+from core.config import Config, option
+from core.validate import check_array
 
 __all__ = ["Sensor"]
 
 
 @dataclass
-class Sensor:
-    """Sensor settings (all recorded in capture.json).
+class Sensor(Config):
+    """Sensor settings (all recorded in capture.json; TOML table ``[sensor]``)."""
 
-    Parameters
-    ----------
-    exposure : float      scales radiance to the fraction of the well filled
-    gain : float          analog gain applied to electrons
-    full_well : float     electrons at saturation (shot noise SNR = sqrt(full_well))
-    read_noise : float    read noise standard deviation in electrons
-    bit_depth : {8, 16}
-    blur_sigma : float    optics blur in pixels (0 = none)
-    vignetting : float    relative fall-off at the image corner, in [0, 1)
-    mono : bool           average the channels (a monochrome sensor)
-    shot_noise : bool     Poisson photon noise on/off
-    """
-
-    exposure: float = 1.0
-    gain: float = 1.0
-    full_well: float = 20000.0
-    read_noise: float = 2.0
-    bit_depth: int = 8
-    blur_sigma: float = 0.0
-    vignetting: float = 0.0
-    mono: bool = False
-    shot_noise: bool = True
-
-    def __post_init__(self):
-        self.exposure = check_positive(self.exposure, "exposure")
-        self.gain = check_positive(self.gain, "gain")
-        self.full_well = check_positive(self.full_well, "full_well")
-        self.read_noise = check_positive(self.read_noise, "read_noise", allow_zero=True)
-        check_choice(self.bit_depth, "bit_depth", (8, 16))
-        self.blur_sigma = check_positive(self.blur_sigma, "blur_sigma", allow_zero=True)
-        self.vignetting = check_range(self.vignetting, "vignetting", 0, 1, hi_open=True)
+    exposure: float = option(1.0, range="(0, inf)",
+                             help="scales radiance to the fraction of the well filled")
+    gain: float = option(1.0, range="(0, inf)", help="analog gain applied to electrons")
+    full_well: float = option(20000.0, unit="e-", range="(0, inf)",
+                              help="electrons at saturation (shot-noise SNR sqrt(full_well))")
+    read_noise: float = option(2.0, unit="e-", range="[0, inf)",
+                               help="read noise standard deviation")
+    bit_depth: int = option(8, choices=(8, 16), help="digital numbers per pixel")
+    blur_sigma: float = option(0.0, unit="px", range="[0, inf)",
+                               help="optics blur (Gaussian sigma; 0 = none)")
+    vignetting: float = option(0.0, range="[0, 1)",
+                               help="relative fall-off at the image corner")
+    mono: bool = option(False, help="average the channels (a monochrome sensor)")
+    shot_noise: bool = option(True, help="Poisson photon noise")
 
     @classmethod
     def ideal(cls, **kw) -> Sensor:

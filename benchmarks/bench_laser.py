@@ -20,7 +20,7 @@ from _timing import best_of, report
 
 from acquire.capture_laser import _hires, capture
 from acquire.laser import camera_directions
-from acquire.laser_rig import LaserRig, load_rig
+from acquire.laser_rig import LaserCaptureConfig, LaserRig
 from data_synth.scenes import build_scene
 from reconstruct.laser import LaserReconConfig, run
 from reconstruct.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks
@@ -66,7 +66,7 @@ def _run_one(scene, rig, tmp, name, seed=0):
 
 
 def accuracy_and_speed(scene, tmp, steps):
-    rig = LaserRig(steps=steps, step_deg=360.0 / steps)
+    rig = LaserCaptureConfig(rig=LaserRig(steps=steps))
     rep, t_cap, t_rec = _run_one(scene, rig, tmp, "default")
     ev = rep["evaluation"]
     s, de = ev["surface"], ev["depth_error"]
@@ -106,7 +106,7 @@ def accuracy_and_speed(scene, tmp, steps):
            de["predicted_total_rms_m"], 1.3, higher_is_better=False)
     report("laser-plane normal error", ev["laser_plane_error"]["normal_deg"], 1.0, 0.05,
            higher_is_better=False, unit=" deg")
-    bare = _bare_casting(scene.render_scene, rig)
+    bare = _bare_casting(scene.render_scene, rig.rig)
     report("capture + reconstruction / bare ray casting", t_cap + t_rec, bare, 3.0,
            higher_is_better=False)
     # detectors on the same frames, against the true stripe
@@ -155,8 +155,8 @@ def camera_noise_free(scene, tmp):
     from acquire.sensor import Sensor
     from reconstruct.calibrate_camera import calibrate_camera
 
-    rig = LaserRig(steps=1, sensor=Sensor.ideal().to_dict())
-    capture(scene.render_scene, rig, tmp / "cap_ideal", np.random.default_rng(1))
+    cfg = LaserCaptureConfig(rig=LaserRig(steps=1), sensor=Sensor.ideal())
+    capture(scene.render_scene, cfg, tmp / "cap_ideal", np.random.default_rng(1))
     import cv2
 
     from acquire.capture_io import load_capture
@@ -167,7 +167,7 @@ def camera_noise_free(scene, tmp):
 
     imgs = [cv2.imread(str(c.path(p)), cv2.IMREAD_UNCHANGED) for p in cc["images"]]
     cal = calibrate_camera(imgs, target_from_dict(cc["target"]), dist_model="k1k2")
-    cam = rig.camera()
+    cam = cfg.rig.camera()
     print(f"   noise-free camera calibration: RMS {cal.rms:.4f} px, fx err "
           f"{cal.camera.fx - cam.fx:+.3f} px, cx err {cal.camera.cx - cam.cx:+.3f}, "
           f"cy err {cal.camera.cy - cam.cy:+.3f}")
@@ -187,8 +187,7 @@ def sweep(scene, tmp, steps):
           "| warnings |")
     print("   |---|---|---|---|---|---|---|---|---|---|---|")
     for a in angles:
-        rig = load_rig(None, overrides={"triangulation_angle_deg": a, "steps": steps,
-                                        "step_deg": 360.0 / steps})
+        rig = LaserCaptureConfig(rig=LaserRig(triangulation_angle_deg=a, steps=steps))
         rep, _, _ = _run_one(scene, rig, tmp, f"a{a}")
         ev = rep["evaluation"]
         de, s = ev["depth_error"], ev["surface"]

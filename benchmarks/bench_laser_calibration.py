@@ -24,7 +24,7 @@ import numpy as np
 from _timing import report
 
 from acquire.capture_laser import capture
-from acquire.laser_rig import LaserRig
+from acquire.laser_rig import LaserCaptureConfig, LaserRig
 from data_synth.scenes import build_scene
 from reconstruct.laser import LaserReconConfig, run
 
@@ -35,7 +35,7 @@ def main(k: int = 8):
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for seed in range(k):
-            rig = LaserRig(steps=12, step_deg=30.0)
+            rig = LaserCaptureConfig(rig=LaserRig(steps=12))
             capture(scene.render_scene, rig, tmp / f"c{seed}", np.random.default_rng(seed))
             run(LaserReconConfig(), tmp / f"c{seed}", tmp / f"r{seed}")
             rep = json.loads((tmp / f"r{seed}" / "report.json").read_text())

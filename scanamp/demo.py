@@ -263,7 +263,7 @@ class _Method:
 
 
 def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.laser_rig import LaserRig
+    from acquire.laser_rig import LaserCaptureConfig, LaserRig
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
     from reconstruct.laser import LaserReconConfig
@@ -274,14 +274,13 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     cv, lv, av = st.laser_calib
     # Raised camera and laser: the sheet must reach the terrain, not graze it.
     rig = LaserRig(width=st.laser_size[0], height=st.laser_size[1], steps=st.laser_steps,
-                   step_deg=360.0 / st.laser_steps, aim_height=0.035,
-                   camera_elevation_deg=30.0, laser_elevation_deg=35.0, camera_views=cv,
-                   laser_views=lv, axis_views=av,
-                   calib_supersample=st.laser_calib_supersample, target=dict(_BOARD))
+                   aim_height=0.035, camera_elevation_deg=30.0, laser_elevation_deg=35.0,
+                   camera_views=cv, laser_views=lv, axis_views=av,
+                   calib_supersample=st.laser_calib_supersample)
     laser = ACQUISITION["laser"]
     t = time.perf_counter()
-    laser.capture(bundle, rig, m.capture_dir, rng=np.random.default_rng(seed), seed=seed,
-                  scene_path="demo")
+    laser.capture(bundle, LaserCaptureConfig(rig=rig, target=dict(_BOARD)), m.capture_dir,
+                  rng=np.random.default_rng(seed), seed=seed, scene_path="demo")
     m.seconds["capture"] = time.perf_counter() - t
     t = time.perf_counter()
     # The laser's own stripe thresholds: its profile test rejects the ambient-lit plateaus

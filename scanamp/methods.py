@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Method", "Result", "METHODS", "get_method"]
+__all__ = ["Method", "Result", "METHODS", "get_method", "scene_for_capture"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,23 @@ def _scene_info(scene, scene_path) -> dict:
             "name": scene.name, "seed": scene.seed}
 
 
+def scene_for_capture(scene: str, *, textureless: bool = False):
+    """The scene bundle a capture command renders: a built-in name, scene folder or TOML;
+    ``textureless`` gives every object a constant material (passive stereo fails there)."""
+    import copy
+
+    from data_synth.scenes import build_scene
+
+    bundle = build_scene(scene)
+    if textureless:
+        spec = copy.deepcopy(bundle.spec)
+        for obj in spec.get("objects", []):
+            mat = obj.get("material", {})
+            obj["material"] = {"kind": "constant", "albedo": mat.get("albedo", [0.7, 0.7, 0.7])}
+        bundle = build_scene(spec)
+    return bundle
+
+
 def _object_name(scene) -> str | None:
     names = [o.name for o in scene.render_scene.objects]
     return "object" if "object" in names else None
@@ -73,9 +90,10 @@ def _report(out_dir) -> dict:
 
 # -- laser ---------------------------------------------------------------------------------
 def _laser_load(path):
-    from acquire.laser_rig import load_rig
+    from acquire.laser_rig import LaserCaptureConfig
+    from core.config import load_config
 
-    return load_rig(path)
+    return load_config(LaserCaptureConfig, path)
 
 
 def _laser_config():

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.laser_rig import LaserRig, load_rig
+from acquire.laser_rig import LaserCaptureConfig, LaserRig
+from core.config import load_config
 from core.frames import rotation_about
 from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
 from reconstruct.laser_calib import (
@@ -130,11 +131,21 @@ def test_rig_defaults_and_toml_errors(tmp_path):
     p = tmp_path / "rig.toml"
     p.write_text("[rig]\ntriangulation_angle_deg = 95\n")
     with pytest.raises(ValueError, match="rig.toml: rig.triangulation_angle_deg"):
-        load_rig(p)
+        load_config(LaserCaptureConfig, p)
     p.write_text("[rig]\nbogus = 1\n")
-    with pytest.raises(ValueError, match="rig.bogus: unknown field"):
-        load_rig(p)
-    assert load_rig(None, overrides={"steps": 12}).steps == 12
+    with pytest.raises(ValueError, match="rig.bogus: unknown option"):
+        load_config(LaserCaptureConfig, p)
+    p.write_text("[sensor]\nbit_depth = 12\n")
+    with pytest.raises(ValueError, match="rig.toml: sensor.bit_depth: expected one of 8, 16"):
+        load_config(LaserCaptureConfig, p)
+    # a partial board of the default's type keeps the default's other keys
+    p.write_text("[target]\nsquares_x = 6\n")
+    tgt = load_config(LaserCaptureConfig, p).target_obj
+    assert (tgt.squares_x, tgt.squares_y) == (6, 7)
+    # steps alone spans a full turn; an explicit step_deg is kept
+    cfg = load_config(LaserCaptureConfig, None, **{"rig.steps": 12})
+    assert cfg.rig.frame_positions()[-1] == 330.0
+    assert LaserRig(steps=12, step_deg=5.0).frame_positions()[-1] == 55.0
 
 
 class _Indexed(_Synthetic):

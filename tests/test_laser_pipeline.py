@@ -7,23 +7,24 @@ import numpy as np
 import pytest
 
 from acquire.capture_laser import capture
-from acquire.laser_rig import LaserRig
+from acquire.laser_rig import LaserCaptureConfig, LaserRig
 from acquire.targets import ChArUcoTarget
 from data_synth.scenes import build_scene
 from reconstruct.laser import LaserReconConfig, run
 from scanamp.cli import main as cli
 
-SMALL = dict(width=320, height=240, steps=24, step_deg=15.0, camera_views=10, laser_views=4,
-             axis_views=7, calib_supersample=3,
-             target=ChArUcoTarget(squares_x=6, squares_y=5, square_length=0.025,
-                                  marker_length=0.018).to_dict())
+SMALL = dict(width=320, height=240, steps=24, camera_views=10, laser_views=4,
+             axis_views=7, calib_supersample=3)
+TARGET = ChArUcoTarget(squares_x=6, squares_y=5, square_length=0.025,
+                       marker_length=0.018).to_dict()
 
 
 @pytest.fixture(scope="session")
 def laser_scan(tmp_path_factory):
     root = tmp_path_factory.mktemp("laser")
     bundle = build_scene("object")
-    cap = capture(bundle.render_scene, LaserRig(**SMALL), root / "cap",
+    cap = capture(bundle.render_scene, LaserCaptureConfig(rig=LaserRig(**SMALL), target=TARGET),
+                  root / "cap",
                   np.random.default_rng(0), gt_mesh=bundle.gt_mesh())
     out = run(LaserReconConfig(tau=0.002), cap, root / "rec")
     return cap, out, json.loads((out / "report.json").read_text())

@@ -244,7 +244,7 @@ class RunFailed(RuntimeError):
         self.report = report or {}
 
 
-def _run_peaks(rig, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
+def _run_peaks(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
     """Render the scan's laser frames, detect the stripe, score against the true centre."""
     from acquire.laser import LaserRenderer
     from core.progress import track
@@ -252,7 +252,8 @@ def _run_peaks(rig, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
 
     bundle, _ = _scene(scene)
     rng = np.random.default_rng(seed)
-    cam0, laser0, sensor = rig.camera(), rig.laser(), rig.sensor_obj
+    rig, sensor = cap_cfg.rig, cap_cfg.sensor
+    cam0, laser0 = rig.camera(), rig.laser()
     renderer = LaserRenderer(bundle.render_scene, cam0)
     images, truth = [], []
     for k, pos in enumerate(track(rig.frame_positions(), "laser frames")):
