@@ -95,9 +95,9 @@ def calibration_board_poses(cfg: RigConfig, n: int, rng: np.random.Generator) ->
     at depths within the working distance -0.08..+0.06 m, tilted up to 35 degrees.
     """
     Wr = cfg.world_from_rig()
-    aim = Wr[:3, 3] + cfg.distance * Wr[:3, 2]
-    half_x = cfg.distance * np.tan(np.radians(cfg.fov_deg) / 2)
-    half_y = half_x * cfg.height / cfg.width
+    aim = Wr[:3, 3] + cfg.rig.distance * Wr[:3, 2]
+    half_x = cfg.rig.distance * np.tan(np.radians(cfg.camera.fov_deg) / 2)
+    half_y = half_x * cfg.camera.height / cfg.camera.width
     out = []
     for i in range(n):
         gx, gy = _CAL_GRID[i % len(_CAL_GRID)]
@@ -114,7 +114,7 @@ def calibration_board_poses(cfg: RigConfig, n: int, rng: np.random.Generator) ->
 def axis_board_mount(cfg: RigConfig) -> np.ndarray:
     """``table_from_target (4, 4)``: the axis board's jig on the platter at stage angle 0
     (the world frame is the turntable frame: Z on the axis, origin on the platter)."""
-    return _board_pose(cfg, np.array([0.02, 0.01, cfg.aim_height]), np.radians(-10.0),
+    return _board_pose(cfg, np.array([0.02, 0.01, cfg.rig.aim_height]), np.radians(-10.0),
                        np.radians(10.0), 0.0)
 
 

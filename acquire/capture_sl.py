@@ -11,6 +11,7 @@ full sequence) and ``kind = "axis"`` (a board on the turntable, white light).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,7 @@ from acquire.projector import PatternProjector, sample_bilinear
 from acquire.render import albedo, cast, visibility
 from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig
+from core.config import to_dict
 from core.files import atomic_dir
 from core.image_io import write_image
 from core.progress import track
@@ -40,15 +42,15 @@ __all__ = ["capture", "pattern_sequence"]
 
 def pattern_sequence(rig: RigConfig) -> tuple[list, dict]:
     """All projected images and their description (stored in capture.json)."""
-    w, h = rig.projector_width, rig.projector_height
+    w, h = rig.projector.width, rig.projector.height
     nc, nr = gray_code_bits(w, h)
     pats = (white_black(w, h) + gray_code_patterns(w, h)
-            + phase_shift_patterns(w, h, period_px=rig.period_px, n_steps=rig.n_steps, axis="x")
-            + phase_shift_patterns(w, h, period_px=rig.period_px, n_steps=rig.n_steps, axis="y"))
+            + phase_shift_patterns(w, h, period_px=rig.projector.period_px, n_steps=rig.projector.n_steps, axis="x")
+            + phase_shift_patterns(w, h, period_px=rig.projector.period_px, n_steps=rig.projector.n_steps, axis="y"))
     info = {"width": w, "height": h, "n_col_bits": nc, "n_row_bits": nr,
-            "period_px": rig.period_px, "n_steps": rig.n_steps,
-            "sequence": ["white", "black", f"gray[{2 * (nc + nr)}]", f"phase_x[{rig.n_steps}]",
-                         f"phase_y[{rig.n_steps}]"]}
+            "period_px": rig.projector.period_px, "n_steps": rig.projector.n_steps,
+            "sequence": ["white", "black", f"gray[{2 * (nc + nr)}]", f"phase_x[{rig.projector.n_steps}]",
+                         f"phase_y[{rig.projector.n_steps}]"]}
     return pats, info
 
 
@@ -85,11 +87,10 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
             scene_info: dict | None = None, seed: int | None = None,
             object_name: str | None = None) -> Path:
     """Render a structured-light capture folder (see the module docstring)."""
-    sensor = rig.make_sensor()
-    sensor.mono = True
+    sensor = dataclasses.replace(rig.sensor, mono=True)
     cam, pcam = rig.sl_devices()
     pats, info = pattern_sequence(rig)
-    proj = PatternProjector(pcam, pats[0], rig.projector_intensity)
+    proj = PatternProjector(pcam, pats[0], rig.projector.intensity)
     lamp = rig_lamp(rig)
     out_dir = Path(out_dir)
     with atomic_dir(out_dir) as tmp:
@@ -105,25 +106,25 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
             return rels
 
         cal = []
-        poses = calibration_board_poses(rig, rig.calib_views, rng)
+        poses = calibration_board_poses(rig, rig.calibration.views, rng)
         for i, T in enumerate(track(poses, "projector calibration views", total=len(poses))):
-            sc = board_scene(rig, T, [], rig.ambient)
+            sc = board_scene(rig, T, [], rig.render.ambient)
             imgs, _ = _render_patterns(sc, cam, proj, pats, sensor, rng,
-                                       supersample=rig.supersample, ambient=rig.ambient)
+                                       supersample=rig.render.supersample, ambient=rig.render.ambient)
             cal.append(save(f"cal_{i:03d}", imgs))
         axis_imgs = []
-        aposes, angles = axis_board_poses(rig, rig.axis_views)
+        aposes, angles = axis_board_poses(rig, rig.calibration.axis_views)
         for i, T in enumerate(aposes):
-            sc = board_scene(rig, T, [lamp], rig.ambient)
+            sc = board_scene(rig, T, [lamp], rig.render.ambient)
             imgs, _ = _render_patterns(sc, cam, proj, pats[:1], sensor, rng,
-                                       supersample=rig.supersample, ambient=rig.ambient)
+                                       supersample=rig.render.supersample, ambient=rig.render.ambient)
             axis_imgs += save(f"axis_{i:03d}", imgs)
         frames, gt_frames = [], []
-        for i, ang in enumerate(track(rig.stage_angles_deg, "structured-light frames",
-                                      total=len(rig.stage_angles_deg))):
+        for i, ang in enumerate(track(rig.rig.stage_angles_deg, "structured-light frames",
+                                      total=len(rig.rig.stage_angles_deg))):
             sc = turntable_scene(scene, np.radians(ang))
             imgs, depth = _render_patterns(sc, cam, proj, pats, sensor, rng,
-                                           supersample=rig.supersample, ambient=rig.ambient)
+                                           supersample=rig.render.supersample, ambient=rig.render.ambient)
             _, pdepth = _render_patterns(sc, pcam, proj, [], sensor, rng, supersample=1,
                                          ambient=0.0)
             frames.append({"stage_angle_deg": float(ang), "camera": "cam",
@@ -135,11 +136,11 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
         data = {
             "kind": "structured-light", "seed": seed, "scene": scene_info or {},
             "sensor": sensor.to_dict(),
-            "cameras": {"cam": {"width": rig.width, "height": rig.height}},
+            "cameras": {"cam": {"width": rig.camera.width, "height": rig.camera.height}},
             "projectors": {"proj": info},
             "rig": {"kind": "turntable-structured-light",
-                    "stage_angles_deg": list(rig.stage_angles_deg),
-                    "working_range": list(rig.working_range)},
+                    "stage_angles_deg": list(rig.rig.stage_angles_deg),
+                    "working_range": list(rig.rig.working_range)},
             "frames": frames,
             "calibration": [
                 {"kind": "projector", "images": cal, "camera": "cam", "projector": "proj",
@@ -154,7 +155,7 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
                 # "left"/"right" = camera/projector, as for stereo (the projector's depth
                 # map is its shadow map: what it lights)
                 "cameras": {"left": cam.to_dict(), "right": pcam.to_dict()},
-                "frames": gt_frames, "rig_config": rig.to_dict(),
+                "frames": gt_frames, "rig_config": to_dict(rig),
                 "calibration_board_poses": [T.tolist() for T in poses],
             },
         }

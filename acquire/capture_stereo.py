@@ -30,6 +30,7 @@ from acquire.patterns import random_dots
 from acquire.projector import PatternProjector
 from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig
+from core.config import to_dict
 from core.files import atomic_dir
 from core.image_io import write_image
 from core.progress import track
@@ -43,13 +44,13 @@ def _calibration_views(rig, left, right, lamp, sensor, rng, tmp: Path):
     """The board seen by both cameras (stereo calibration), then on the turntable (axis)."""
     # -- calibration: board seen by both cameras ---------------------------------
     cal_pairs, cal_gt = [], []
-    for i, T in enumerate(track(calibration_board_poses(rig, rig.calib_views, rng),
-                                "stereo calibration views", total=rig.calib_views)):
-        sc = board_scene(rig, T, [lamp], rig.ambient)
+    for i, T in enumerate(track(calibration_board_poses(rig, rig.calibration.views, rng),
+                                "stereo calibration views", total=rig.calibration.views)):
+        sc = board_scene(rig, T, [lamp], rig.render.ambient)
         pair = []
         for name, cam in (("L", left), ("R", right)):
-            (rad,), _ = render_light_sets(sc, cam, [[lamp]], supersample=rig.supersample,
-                                          ambient=rig.ambient)
+            (rad,), _ = render_light_sets(sc, cam, [[lamp]], supersample=rig.render.supersample,
+                                          ambient=rig.render.ambient)
             rel = f"images/cal_{i:03d}_{name}.png"
             write_image(tmp / rel, sensor.apply(rad, rng))
             pair.append(rel)
@@ -57,11 +58,11 @@ def _calibration_views(rig, left, right, lamp, sensor, rng, tmp: Path):
         cal_gt.append(T)
     # -- calibration: board on the turntable (axis) --------------------------------
     axis_imgs = []
-    poses, angles = axis_board_poses(rig, rig.axis_views)
+    poses, angles = axis_board_poses(rig, rig.calibration.axis_views)
     for i, T in enumerate(poses):
-        sc = board_scene(rig, T, [lamp], rig.ambient)
-        (rad,), _ = render_light_sets(sc, left, [[lamp]], supersample=rig.supersample,
-                                      ambient=rig.ambient)
+        sc = board_scene(rig, T, [lamp], rig.render.ambient)
+        (rad,), _ = render_light_sets(sc, left, [[lamp]], supersample=rig.render.supersample,
+                                      ambient=rig.render.ambient)
         rel = f"images/axis_{i:03d}_L.png"
         write_image(tmp / rel, sensor.apply(rad, rng))
         axis_imgs.append(rel)
@@ -73,16 +74,16 @@ def _object_frames(scene, rig, left, right, lamps, proj, sensor, rng, tmp: Path)
     # -- object frames ------------------------------------------------------------
     frames, gt_frames = [], []
     sets = [lamps] + ([lamps + [proj]] if proj is not None else [])
-    for i, ang in enumerate(track(rig.stage_angles_deg, "stereo frames",
-                                  total=len(rig.stage_angles_deg))):
+    for i, ang in enumerate(track(rig.rig.stage_angles_deg, "stereo frames",
+                                  total=len(rig.rig.stage_angles_deg))):
         sc = turntable_scene(scene, np.radians(ang))
         fr = {"stage_angle_deg": float(ang), "images": [], "camera": "left"}
         if proj is not None:
             fr["active_images"] = []
         gt = {"depth": []}
         for name, cam in (("L", left), ("R", right)):
-            rads, depth = render_light_sets(sc, cam, sets, supersample=rig.supersample,
-                                            ambient=rig.ambient)
+            rads, depth = render_light_sets(sc, cam, sets, supersample=rig.render.supersample,
+                                            ambient=rig.render.ambient)
             rel = f"images/pose_{i:03d}_{name}.png"
             write_image(tmp / rel, sensor.apply(rads[0], rng))
             fr["images"].append(rel)
@@ -122,15 +123,15 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
     -------
     Path of the capture folder.
     """
-    sensor = rig.make_sensor()
+    sensor = rig.sensor
     left, right = rig.stereo_cameras()
     lamp = rig_lamp(rig)
     lamps = list(scene.lights) or [lamp]
     proj = None
-    if rig.projector_enabled:
-        pattern = random_dots(rig.projector_width, rig.projector_height, rng=rng,
-                              density=rig.dot_density, dot_sigma_px=rig.dot_sigma_px)
-        proj = PatternProjector(rig.dot_projector_camera(), pattern, rig.projector_intensity)
+    if rig.projector.enabled:
+        pattern = random_dots(rig.projector.width, rig.projector.height, rng=rng,
+                              density=rig.projector.density, dot_sigma_px=rig.projector.dot_sigma_px)
+        proj = PatternProjector(rig.dot_projector_camera(), pattern, rig.projector.intensity)
     out_dir = Path(out_dir)
     with atomic_dir(out_dir) as tmp:
         (tmp / "images").mkdir()
@@ -144,14 +145,14 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
             "seed": seed,
             "scene": scene_info or {},
             "sensor": sensor.to_dict(),
-            "cameras": {"left": {"width": rig.width, "height": rig.height},
-                        "right": {"width": rig.width, "height": rig.height}},
-            "projectors": ({"dots": {"width": rig.projector_width,
-                                     "height": rig.projector_height, "pattern": "random_dots"}}
+            "cameras": {"left": {"width": rig.camera.width, "height": rig.camera.height},
+                        "right": {"width": rig.camera.width, "height": rig.camera.height}},
+            "projectors": ({"dots": {"width": rig.projector.width,
+                                     "height": rig.projector.height, "pattern": "random_dots"}}
                            if proj is not None else {}),
-            "rig": {"kind": "turntable-stereo", "stage_angles_deg": list(rig.stage_angles_deg),
-                    "working_range": list(rig.working_range),
-                    "nominal_baseline": rig.baseline},
+            "rig": {"kind": "turntable-stereo", "stage_angles_deg": list(rig.rig.stage_angles_deg),
+                    "working_range": list(rig.rig.working_range),
+                    "nominal_baseline": rig.rig.baseline},
             "frames": frames,
             "calibration": [
                 {"kind": "stereo", "images": cal_pairs, "cameras": ["left", "right"],
@@ -169,7 +170,7 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
                 "frames": gt_frames,
                 "calibration_board_poses": [T.tolist() for T in cal_gt],
                 "axis_board_poses": [T.tolist() for T in poses],
-                "rig_config": rig.to_dict(),
+                "rig_config": to_dict(rig),
             },
         }
         data["ground_truth"].update(write_gt_meshes(tmp, scene, object_name))

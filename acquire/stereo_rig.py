@@ -9,7 +9,8 @@ camera) ``baseline`` to the right. The object sits on the turntable, which turns
 to each of ``stage_angles_deg`` (a real turntable reports its angle; the rig's
 pose relative to the axis is calibrated from board views, never taken from here).
 
-Configs are TOML (every key optional; defaults below); errors name file and field::
+Configs are TOML (every key optional; defaults below; nested tables of
+:class:`RigConfig`); errors name file and field::
 
     [camera]                       # shared nominal settings
     width = 640
@@ -58,19 +59,17 @@ Configs are TOML (every key optional; defaults below); errors name file and fiel
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
 from acquire.camera import Camera, look_at_cam_from_world
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget
-from core.files import read_toml, require
-from core.validate import InputError, check_int
+from core.config import Config, option
 
-__all__ = ["RigConfig", "load_rig", "rot_z", "rot_y"]
+__all__ = ["RigConfig", "StereoCaptureConfig", "SLCaptureConfig", "CameraOptions", "LensOptions", "GeometryOptions", "ProjectorOptions",
+           "CalibrationOptions", "RenderOptions", "rot_z", "rot_y"]
 
 
 def rot_z(angle: float) -> np.ndarray:
@@ -96,191 +95,176 @@ def _trans(x, y, z) -> np.ndarray:
 
 
 @dataclass
-class RigConfig:
-    """All rig settings (see the module docstring for the meaning and defaults)."""
+class CameraOptions(Config):
+    """``[camera]``: the nominal settings both cameras share."""
 
-    width: int = 640
-    height: int = 480
-    fov_deg: float = 50.0
-    left_dist: tuple = (0.02, -0.01, 0.0, 0.0, 0.0)
-    left_focal_scale: float = 1.0
-    left_principal_offset: tuple = (0.0, 0.0)
-    right_dist: tuple = (-0.015, 0.005, 0.0, 0.0, 0.0)
-    right_focal_scale: float = 1.01
-    right_principal_offset: tuple = (2.0, -1.5)
-    baseline: float = 0.08
-    vergence_deg: float = 8.0
-    distance: float = 0.45
-    elevation_deg: float = 25.0
-    aim_height: float = 0.06
-    stage_angles_deg: tuple = (0.0, 90.0, 180.0, 270.0)
-    working_range: tuple = (0.3, 0.65)
-    projector_enabled: bool = True
-    projector_width: int = 640
-    projector_height: int = 480
-    projector_fov_deg: float = 50.0
-    projector_intensity: float = 0.12
-    dot_density: float = 0.35
-    dot_sigma_px: float = 0.7
-    period_px: float = 16.0
-    n_steps: int = 4
-    calib_views: int = 10
-    axis_views: int = 5
-    board: dict = field(default_factory=lambda: {
-        "squares_x": 7, "squares_y": 5, "square_length": 0.03, "marker_length": 0.022,
-        "dictionary": "DICT_4X4_50"})
-    supersample: int = 2
-    ambient: float = 0.15
-    sensor: dict = field(default_factory=dict)
+    width: int = option(640, unit="px", range="[16, 16384]", help="image width")
+    height: int = option(480, unit="px", range="[16, 16384]", help="image height")
+    fov_deg: float = option(50.0, unit="deg", range="(0, 170]", help="horizontal field of view")
+
+
+@dataclass
+class LensOptions(Config):
+    """``[left]``/``[right]``: how one camera differs from the nominal."""
+
+    dist: tuple[float, float, float, float, float] = option(
+        (0.0, 0.0, 0.0, 0.0, 0.0), help="distortion k1, k2, p1, p2, k3 (OpenCV model)")
+    focal_scale: float = option(1.0, range="(0, inf)", help="focal length over the nominal")
+    principal_offset: tuple[float, float] = option((0.0, 0.0), unit="px",
+                                                   help="principal point off the centre")
+
+
+@dataclass
+class GeometryOptions(Config):
+    """``[rig]``: where the rig stands and what it searches."""
+
+    baseline: float = option(0.08, unit="m", range="(0, inf)", help="camera centres apart")
+    vergence_deg: float = option(8.0, unit="deg", range="[0, 90)",
+                                 help="toe-in of the two cameras together")
+    distance: float = option(0.45, unit="m", range="(0, inf)",
+                             help="rig centre to the aim point")
+    elevation_deg: float = option(25.0, unit="deg", range="[-89, 89]",
+                                  help="rig raised above the aim point")
+    aim_height: float = option(0.06, unit="m", range="(-inf, inf)",
+                               help="aim point up the turntable axis")
+    stage_angles_deg: tuple[float, ...] = option((0.0, 90.0, 180.0, 270.0), unit="deg",
+                                                 help="turntable angles scanned")
+    working_range: tuple[float, float] = option((0.3, 0.65), unit="m", range="(0, inf)",
+                                                help="near and far depth the matcher searches")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if len(self.stage_angles_deg) == 0:
+            raise ValueError("stage_angles_deg: expected at least one angle")
+        if not self.working_range[0] < self.working_range[1]:
+            raise ValueError(f"working_range: expected near < far, got {self.working_range}")
+
+
+@dataclass
+class ProjectorOptions(Config):
+    """``[projector]``: stereo's random dots, structured light's pattern projector."""
+
+    enabled: bool = option(True, help="stereo: project random dots (structured light: always)")
+    width: int = option(640, unit="px", range="[16, 16384]", help="projector width")
+    height: int = option(480, unit="px", range="[16, 16384]", help="projector height")
+    fov_deg: float = option(50.0, unit="deg", range="(0, 170]", help="projector field of view")
+    intensity: float = option(0.12, range="[0, inf)", help="projected irradiance")
+    density: float = option(0.35, range="[0, 1]", help="fraction of projector pixels lit")
+    dot_sigma_px: float = option(0.7, unit="px", range="(0, inf)", help="dot blur")
+    period_px: float = option(16.0, unit="px", range="(0, inf)",
+                              help="structured light: phase-shift period")
+    n_steps: int = option(4, range="[3, 64]", help="structured light: phase steps")
+
+
+@dataclass
+class CalibrationOptions(Config):
+    """``[calibration]``: the board and how many poses it is shown in."""
+
+    views: int = option(10, range="[3, 1000]", help="board poses seen by the rig")
+    axis_views: int = option(5, range="[3, 1000]",
+                             help="board poses on the turntable (axis calibration)")
+    squares_x: int = option(7, range="[3, 100]", help="ChArUco squares across")
+    squares_y: int = option(5, range="[3, 100]", help="ChArUco squares down")
+    square_length: float = option(0.03, unit="m", range="(0, inf)", help="square side")
+    marker_length: float = option(0.022, unit="m", range="(0, inf)", help="marker side")
+    dictionary: str = option("DICT_4X4_50", help="ArUco dictionary name")
+
+    def target(self) -> ChArUcoTarget:
+        return ChArUcoTarget(squares_x=self.squares_x, squares_y=self.squares_y,
+                             square_length=self.square_length,
+                             marker_length=self.marker_length, dictionary=self.dictionary)
+
+
+@dataclass
+class RenderOptions(Config):
+    """``[render]``."""
+
+    supersample: int = option(2, range="[1, 8]", help="rays per pixel side")
+    ambient: float = option(0.15, range="[0, inf)", help="ambient light level")
+
+
+@dataclass
+class RigConfig(Config):
+    """A stereo or structured-light rig: every table of its TOML (module docstring)."""
+
+    camera: CameraOptions = option(default_factory=CameraOptions, help="both cameras")
+    left: LensOptions = option(default_factory=lambda: LensOptions(
+        dist=(0.02, -0.01, 0.0, 0.0, 0.0)), help="the left camera")
+    right: LensOptions = option(default_factory=lambda: LensOptions(
+        dist=(-0.015, 0.005, 0.0, 0.0, 0.0), focal_scale=1.01,
+        principal_offset=(2.0, -1.5)), help="the right camera")
+    rig: GeometryOptions = option(default_factory=GeometryOptions, help="rig geometry")
+    projector: ProjectorOptions = option(default_factory=ProjectorOptions, help="projector")
+    calibration: CalibrationOptions = option(default_factory=CalibrationOptions,
+                                             help="calibration board and poses")
+    render: RenderOptions = option(default_factory=RenderOptions, help="rendering")
+    sensor: Sensor = option(default_factory=Sensor, help="the cameras' sensor")
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.calibration.target()  # board checks
 
     # -- geometry (true values: used to render, stored as ground truth) ----------------
     def world_from_rig(self) -> np.ndarray:
-        el = np.radians(self.elevation_deg)
-        aim = np.array([0.0, 0.0, self.aim_height])
-        eye = aim + self.distance * np.array([0.0, -np.cos(el), np.sin(el)])
+        g = self.rig
+        el = np.radians(g.elevation_deg)
+        aim = np.array([0.0, 0.0, g.aim_height])
+        eye = aim + g.distance * np.array([0.0, -np.cos(el), np.sin(el)])
         return np.linalg.inv(look_at_cam_from_world(eye, aim))
 
-    def _camera(self, side: str, world_from_cam: np.ndarray) -> Camera:
-        f = 0.5 * self.width / np.tan(np.radians(self.fov_deg) / 2)
-        scale = getattr(self, f"{side}_focal_scale")
-        off = getattr(self, f"{side}_principal_offset")
-        return Camera(self.width, self.height, f * scale, f * scale,
-                      (self.width - 1) / 2 + off[0], (self.height - 1) / 2 + off[1],
-                      np.asarray(getattr(self, f"{side}_dist"), float),
+    def _camera(self, lens: LensOptions, world_from_cam: np.ndarray) -> Camera:
+        c = self.camera
+        f = 0.5 * c.width / np.tan(np.radians(c.fov_deg) / 2) * lens.focal_scale
+        off = lens.principal_offset
+        return Camera(c.width, c.height, f, f, (c.width - 1) / 2 + off[0],
+                      (c.height - 1) / 2 + off[1], np.asarray(lens.dist, float),
                       np.linalg.inv(world_from_cam))
+
+    def _projector(self, world_from_projector: np.ndarray) -> Camera:
+        p = self.projector
+        f = 0.5 * p.width / np.tan(np.radians(p.fov_deg) / 2)
+        return Camera(p.width, p.height, f, f, (p.width - 1) / 2, (p.height - 1) / 2,
+                      np.zeros(5), np.linalg.inv(world_from_projector))
 
     def stereo_cameras(self) -> tuple[Camera, Camera]:
         """True left and right cameras (world frame, turntable at angle 0)."""
         Wr = self.world_from_rig()
-        v = np.radians(self.vergence_deg) / 2
-        left = self._camera("left", Wr @ _trans(-self.baseline / 2, 0, 0) @ rot_y(v))
-        right = self._camera("right", Wr @ _trans(self.baseline / 2, 0, 0) @ rot_y(-v))
+        v, b = np.radians(self.rig.vergence_deg) / 2, self.rig.baseline
+        left = self._camera(self.left, Wr @ _trans(-b / 2, 0, 0) @ rot_y(v))
+        right = self._camera(self.right, Wr @ _trans(b / 2, 0, 0) @ rot_y(-v))
         return left, right
 
     def dot_projector_camera(self) -> Camera:
         """True pose and intrinsics of the random-dot projector (between the cameras)."""
-        f = 0.5 * self.projector_width / np.tan(np.radians(self.projector_fov_deg) / 2)
-        Wp = self.world_from_rig() @ _trans(0.0, -0.02, 0.0)
-        return Camera(self.projector_width, self.projector_height, f, f,
-                      (self.projector_width - 1) / 2, (self.projector_height - 1) / 2,
-                      np.zeros(5), np.linalg.inv(Wp))
+        return self._projector(self.world_from_rig() @ _trans(0.0, -0.02, 0.0))
 
     def sl_devices(self) -> tuple[Camera, Camera]:
         """True camera and projector of the structured-light rig (projector on the right)."""
         Wr = self.world_from_rig()
-        v = np.radians(self.vergence_deg) / 2
-        cam = self._camera("left", Wr @ _trans(-self.baseline / 2, 0, 0) @ rot_y(v))
-        f = 0.5 * self.projector_width / np.tan(np.radians(self.projector_fov_deg) / 2)
-        Wp = Wr @ _trans(self.baseline / 2, 0, 0) @ rot_y(-v)
-        proj = Camera(self.projector_width, self.projector_height, f, f,
-                      (self.projector_width - 1) / 2, (self.projector_height - 1) / 2 + 0.0,
-                      np.zeros(5), np.linalg.inv(Wp))
-        return cam, proj
+        v, b = np.radians(self.rig.vergence_deg) / 2, self.rig.baseline
+        cam = self._camera(self.left, Wr @ _trans(-b / 2, 0, 0) @ rot_y(v))
+        return cam, self._projector(Wr @ _trans(b / 2, 0, 0) @ rot_y(-v))
 
     def target(self) -> ChArUcoTarget:
-        return ChArUcoTarget(**self.board)
-
-    def make_sensor(self) -> Sensor:
-        return Sensor(**self.sensor)
-
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        return self.calibration.target()
 
 
-_TABLES = {
-    "camera": {"width": ("width", int), "height": ("height", int), "fov_deg": ("fov_deg", float)},
-    "left": {"dist": ("left_dist", list), "focal_scale": ("left_focal_scale", float),
-             "principal_offset": ("left_principal_offset", list)},
-    "right": {"dist": ("right_dist", list), "focal_scale": ("right_focal_scale", float),
-              "principal_offset": ("right_principal_offset", list)},
-    "rig": {"baseline": ("baseline", float), "vergence_deg": ("vergence_deg", float),
-            "distance": ("distance", float), "elevation_deg": ("elevation_deg", float),
-            "aim_height": ("aim_height", float), "stage_angles_deg": ("stage_angles_deg", list),
-            "working_range": ("working_range", list)},
-    "projector": {"enabled": ("projector_enabled", bool), "width": ("projector_width", int),
-                  "height": ("projector_height", int), "fov_deg": ("projector_fov_deg", float),
-                  "intensity": ("projector_intensity", float), "density": ("dot_density", float),
-                  "dot_sigma_px": ("dot_sigma_px", float), "period_px": ("period_px", float),
-                  "n_steps": ("n_steps", int)},
-    "render": {"supersample": ("supersample", int), "ambient": ("ambient", float)},
-}
-_LIST_LEN = {"left_dist": 5, "right_dist": 5, "left_principal_offset": 2,
-             "right_principal_offset": 2, "working_range": 2}
+@dataclass
+class _CaptureRun(Config):
+    seed: int = option(0, range="[0, inf)", help="calibration poses, dots and sensor noise seed")
+    object: str | None = option(None, help="name of the scanned object in the scene (its mesh "
+                                           "sets the evaluation scale; none: 'object' if any)")
 
 
-def load_rig(path: str | Path | None = None, **overrides) -> RigConfig:
-    """Read a rig TOML (None = defaults); ``overrides`` replace fields after reading.
-
-    Raises
-    ------
-    InputError
-        Naming the file and the field (``rig.toml: rig.baseline: expected a number``).
-    """
-    cfg = RigConfig()
-    if path is not None:
-        data = read_toml(path)
-        known = set(_TABLES) | {"calibration", "sensor"}
-        for key in data:
-            if key not in known:
-                raise InputError(f"unknown table; expected one of {', '.join(sorted(known))}",
-                                 path=path, field=key)
-        for table, keys in _TABLES.items():
-            t = require(data, table, dict, path=path, default={})
-            for key in t:
-                if key not in keys:
-                    raise InputError(f"unknown key; expected one of {', '.join(sorted(keys))}",
-                                     path=path, field=f"{table}.{key}")
-            for key, (attr, kind) in keys.items():
-                v = require(t, key, kind, path=path, prefix=table, default=None)
-                if v is None:
-                    continue
-                if kind is list:
-                    if not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                               for x in v) or (attr in _LIST_LEN and len(v) != _LIST_LEN[attr]):
-                        n = _LIST_LEN.get(attr)
-                        raise InputError(f"expected a list of {n or 'some'} numbers, got {v!r}",
-                                         path=path, field=f"{table}.{key}")
-                    v = tuple(float(x) for x in v)
-                setattr(cfg, attr, v)
-        cal = require(data, "calibration", dict, path=path, default={})
-        board = dict(cfg.board)
-        for key in cal:
-            if key == "views":
-                cfg.calib_views = require(cal, key, int, path=path, prefix="calibration")
-            elif key == "axis_views":
-                cfg.axis_views = require(cal, key, int, path=path, prefix="calibration")
-            elif key in board:
-                board[key] = require(cal, key, type(board[key]) if key != "dictionary" else str,
-                                     path=path, prefix="calibration")
-            else:
-                raise InputError("unknown key", path=path, field=f"calibration.{key}")
-        cfg.board = board
-        cfg.sensor = dict(require(data, "sensor", dict, path=path, default={}))
-    for k, v in overrides.items():
-        setattr(cfg, k, v)
-    try:
-        _validate(cfg)
-    except ValueError as exc:
-        if path is None:
-            raise
-        raise InputError(str(exc), path=path) from None
-    return cfg
+@dataclass
+class SLCaptureConfig(RigConfig, _CaptureRun):
+    """Everything ``scanamp capture structured-light`` reads: the rig (the right camera is
+    the projector), the seed, the scanned object."""
 
 
-def _validate(cfg: RigConfig):
-    for name in ("width", "height", "projector_width", "projector_height", "supersample",
-                 "calib_views", "axis_views", "n_steps"):
-        check_int(getattr(cfg, name), name)
-    for name in ("fov_deg", "baseline", "distance", "projector_fov_deg", "period_px"):
-        if not getattr(cfg, name) > 0:
-            raise ValueError(f"{name}: expected a positive number, got {getattr(cfg, name)!r}")
-    if not 0 < cfg.working_range[0] < cfg.working_range[1]:
-        raise ValueError(f"working_range: expected 0 < near < far, got {cfg.working_range}")
-    if len(cfg.stage_angles_deg) == 0:
-        raise ValueError("stage_angles_deg: expected at least one angle")
-    if cfg.calib_views < 3:
-        raise ValueError(f"calibration.views: expected at least 3, got {cfg.calib_views}")
-    if cfg.axis_views < 3:
-        raise ValueError(f"calibration.axis_views: expected at least 3, got {cfg.axis_views}")
-    cfg.target()  # board checks
-    cfg.make_sensor()
+@dataclass
+class StereoCaptureConfig(RigConfig, _CaptureRun):
+    """Everything ``scanamp capture stereo`` reads: the rig, the seed, the scanned object."""
+
+    textureless: bool = option(False, help="give every object a constant material "
+                                           "(passive stereo fails there)")

@@ -39,15 +39,16 @@ def _scene(kind):
 def _capture(tmp, kind, sl=False):
     from acquire.capture_sl import capture as capture_sl
     from acquire.capture_stereo import capture
-    from acquire.stereo_rig import load_rig
+    from acquire.stereo_rig import RigConfig
+    from core.config import with_options
 
     bundle = _scene(kind)
     out = Path(tmp) / f"{kind}{'_sl' if sl else ''}"
     if sl:
-        rig = load_rig(None, projector_intensity=0.2, calib_views=8)
+        rig = with_options(RigConfig(), {"projector.intensity": 0.2, "calibration.views": 8})
         return capture_sl(bundle.render_scene, rig, out, np.random.default_rng(0),
                           object_name="object")
-    return capture(bundle.render_scene, load_rig(None), out, np.random.default_rng(0),
+    return capture(bundle.render_scene, RigConfig(), out, np.random.default_rng(0),
                    object_name="object")
 
 

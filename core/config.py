@@ -318,6 +318,9 @@ def from_dict(cls, table: Any, *, path: str | os.PathLike | None = None, prefix:
                              path=path, field=f"{prefix}{key}")
         tp, _ = unwrap_optional(hints[key])
         if _is_config(tp) and isinstance(value, dict):
+            base = _default(fields[key])  # a nested default may differ from its class's
+            if dataclasses.is_dataclass(base) and not isinstance(base, type):
+                value = {**to_dict(base), **value}
             value = from_dict(tp, value, path=path, prefix=f"{prefix}{key}.")
         kwargs[key] = value
     try:

@@ -301,17 +301,20 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 
 def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.stereo_rig import load_rig
+    from acquire.stereo_rig import RigConfig
+    from core.config import with_options
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
 
     m = _Method("stereo", "active stereo (random dots, turntable)",
                 root / "captures" / "stereo", root / "recon" / "stereo")
     w, h = st.stereo_size
-    rig = load_rig(None, width=w, height=h, projector_width=w, projector_height=h,
-                   calib_views=st.stereo_calib[0], axis_views=st.stereo_calib[1],
-                   stage_angles_deg=tuple(st.stereo_angles_deg), supersample=st.stereo_supersample,
-                   distance=0.42, aim_height=0.03, working_range=(0.28, 0.6))
+    rig = with_options(RigConfig(), {
+        "camera.width": w, "camera.height": h, "projector.width": w, "projector.height": h,
+        "calibration.views": st.stereo_calib[0], "calibration.axis_views": st.stereo_calib[1],
+        "rig.stage_angles_deg": tuple(st.stereo_angles_deg),
+        "render.supersample": st.stereo_supersample, "rig.distance": 0.42,
+        "rig.aim_height": 0.03, "rig.working_range": (0.28, 0.6)})
     active = ACQUISITION["active-stereo"]
     t = time.perf_counter()
     active.capture(bundle, rig, m.capture_dir, rng=np.random.default_rng(seed), seed=seed,

@@ -77,9 +77,13 @@ def scene_for_capture(scene: str, *, textureless: bool = False):
     return bundle
 
 
-def _object_name(scene) -> str | None:
+def _object_name(scene, config=None) -> str | None:
+    """The scanned object: the config's ``object``, else 'object' when the scene has one."""
     names = [o.name for o in scene.render_scene.objects]
-    return "object" if "object" in names else None
+    chosen = getattr(config, "object", None)
+    if chosen is not None and chosen not in names:
+        raise ValueError(f"object: expected one of {', '.join(names)}, got {chosen!r}")
+    return chosen or ("object" if "object" in names else None)
 
 
 def _report(out_dir) -> dict:
@@ -120,9 +124,17 @@ def _laser_run(config, capture_dir, out_dir) -> Result:
 
 # -- stereo, active stereo, structured light -------------------------------------------------
 def _stereo_load(path):
-    from acquire.stereo_rig import load_rig
+    from acquire.stereo_rig import StereoCaptureConfig
+    from core.config import load_config
 
-    return load_rig(path)
+    return load_config(StereoCaptureConfig, path)
+
+
+def _sl_load(path):
+    from acquire.stereo_rig import SLCaptureConfig
+    from core.config import load_config
+
+    return load_config(SLCaptureConfig, path)
 
 
 def _stereo_config():
@@ -139,9 +151,10 @@ def _stereo_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: i
                     scene_path=None) -> Path:
     from acquire.capture_stereo import capture
 
-    info = {**_scene_info(scene, scene_path), "textureless": False}
+    info = {**_scene_info(scene, scene_path),
+            "textureless": bool(getattr(config, "textureless", False))}
     return capture(scene.render_scene, config, out_dir, rng, scene_info=info, seed=seed,
-                   object_name=_object_name(scene))
+                   object_name=_object_name(scene, config))
 
 
 def _stereo_run(config, capture_dir, out_dir) -> Result:
@@ -163,7 +176,7 @@ def _sl_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int =
 
     return capture(scene.render_scene, config, out_dir, rng,
                    scene_info=_scene_info(scene, scene_path), seed=seed,
-                   object_name=_object_name(scene))
+                   object_name=_object_name(scene, config))
 
 
 def _sl_run(config, capture_dir, out_dir) -> Result:
@@ -213,7 +226,7 @@ METHODS: dict[str, Method] = {
                             _stereo_load, _active_stereo_config, _stereo_capture,
                             _stereo_run),
     "structured-light": Method("structured-light", "structured light (Gray code + phase)",
-                               _stereo_load, _sl_config, _sl_capture, _sl_run),
+                               _sl_load, _sl_config, _sl_capture, _sl_run),
     "sfm": Method("sfm", "structure from motion (pycolmap + dense surface)", _sfm_load,
                   _sfm_config, _sfm_capture, _sfm_run),
 }

@@ -19,7 +19,7 @@ from scanamp.options import config_from_args
 
 # hand-written flags still to move onto a config dataclass (issue 14, item 2)
 NOT_YET_DECLARED = {
-    "capture sfm", "capture stereo", "capture structured-light",
+    "capture sfm",
 }
 
 

@@ -14,11 +14,14 @@ from core.image_io import read_image, write_image
 @pytest.fixture(scope="session")
 def stereo_capture(tmp_path_factory):
     from acquire.capture_stereo import capture
-    from acquire.stereo_rig import load_rig
+    from acquire.stereo_rig import RigConfig
+    from core.config import with_options
     from data_synth.fixtures_stereo import textured_scene
 
-    rig = load_rig(None, width=320, height=240, projector_width=320, projector_height=240,
-                   calib_views=9, axis_views=3, stage_angles_deg=(0.0, 180.0), supersample=1)
+    rig = with_options(RigConfig(), {
+        "camera.width": 320, "camera.height": 240, "projector.width": 320,
+        "projector.height": 240, "calibration.views": 9, "calibration.axis_views": 3,
+        "rig.stage_angles_deg": (0.0, 180.0), "render.supersample": 1})
     out = tmp_path_factory.mktemp("stereo") / "cap"
     return capture(textured_scene(), rig, out, np.random.default_rng(0), object_name="sphere")
 

@@ -11,14 +11,17 @@ from acquire.camera import Camera
 @pytest.fixture(scope="session")
 def sl_capture(tmp_path_factory):
     from acquire.capture_sl import capture
-    from acquire.stereo_rig import load_rig
+    from acquire.stereo_rig import RigConfig
+    from core.config import with_options
     from data_synth.fixtures_stereo import textured_scene
 
     # 320x240 and the full 3x3 grid of board views: at 240x180 the board corners are too
     # small for a focal length better than ~5 %, which the unaligned score cannot hide
-    rig = load_rig(None, width=320, height=240, projector_width=160, projector_height=120,
-                   calib_views=9, axis_views=3, stage_angles_deg=(0.0,), supersample=1,
-                   projector_intensity=0.2, period_px=8.0)
+    rig = with_options(RigConfig(), {
+        "camera.width": 320, "camera.height": 240, "projector.width": 160,
+        "projector.height": 120, "calibration.views": 9, "calibration.axis_views": 3,
+        "rig.stage_angles_deg": (0.0,), "render.supersample": 1, "projector.intensity": 0.2,
+        "projector.period_px": 8.0})
     out = tmp_path_factory.mktemp("sl") / "cap"
     return capture(textured_scene(), rig, out, np.random.default_rng(0), object_name="sphere")
 
