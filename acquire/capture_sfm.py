@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,13 +25,14 @@ from acquire.capture_io import write_capture
 from acquire.nerfstudio import write_transforms
 from acquire.render import render
 from acquire.sensor import Sensor
-from core.files import atomic_dir, require
+from core.config import Config, option, to_dict
+from core.files import atomic_dir
 from core.image_io import write_image
 from core.mesh_io import write_mesh
 from core.progress import track
-from core.validate import InputError, check_choice, check_int, check_positive
+from core.validate import check_positive
 
-__all__ = ["PathConfig", "capture", "path_config_from_toml", "PATH_KINDS"]
+__all__ = ["PathConfig", "SfmCaptureConfig", "capture", "PATH_KINDS"]
 
 log = logging.getLogger(__name__)
 
@@ -39,98 +40,47 @@ PATH_KINDS = ("orbit", "hemisphere", "walk")
 
 
 @dataclass
-class PathConfig:
-    """How the camera moves and what it is.
+class PathConfig(Config):
+    """How the camera moves and what it is (a capture TOML's top-level keys; ``[sensor]``)."""
 
-    Attributes
-    ----------
-    kind : {'orbit', 'hemisphere', 'walk'}
-    views : int
-        Number of frames (orbit: split evenly over the rings).
-    elevations_deg : list of float
-        Orbit ring elevations; the walk uses the first as its mean elevation.
-    distance : float or None
-        Camera distance from the scene centre in metres; None frames the scene's
-        bounding sphere in the vertical field of view (times ``distance_factor``).
-    distance_factor : float
-    auto_exposure : bool
-        Scale the radiance so that the first frame's 99th percentile sits at 85 % of
-        the sensor's range (as a camera's metering would), recorded in ``rig``.
-    width, height : int
-    fov_deg : float
-        Horizontal field of view.
-    nominal_focal_error : float
-        Relative error of the focal length written as the nominal (EXIF-like) one.
-    walk_position_jitter, walk_aim_jitter, walk_roll_deg : float
-        Hand-held jitter (fractions of the distance; degrees).
-    blur_subframes : int
-        Sub-frame renders averaged per frame for motion blur (1 = none).
-    shutter : float
-        Fraction of the time between frames the shutter is open.
-    supersample : int
-        Anti-aliasing rays per pixel side.
-    texture_boost : float
-        Feature-rich textures for SfM: every solid procedural material gets this many
-        times its texture frequency at full contrast (1 keeps the scene's materials).
-    sensor : Sensor
-    """
-
-    kind: str = "orbit"
-    views: int = 24
-    elevations_deg: list = field(default_factory=lambda: [25.0, 45.0])
-    distance: float | None = None
-    distance_factor: float = 0.8
-    width: int = 640
-    height: int = 480
-    fov_deg: float = 50.0
-    nominal_focal_error: float = 0.0
-    walk_position_jitter: float = 0.03
-    walk_aim_jitter: float = 0.03
-    walk_roll_deg: float = 3.0
-    blur_subframes: int = 1
-    shutter: float = 0.5
-    supersample: int = 2
-    auto_exposure: bool = True
-    texture_boost: float = 4.0
-    sensor: Sensor = field(default_factory=Sensor)
-
-    def __post_init__(self):
-        check_choice(self.kind, "kind", PATH_KINDS)
-        for name in ("views", "width", "height", "blur_subframes", "supersample"):
-            check_int(getattr(self, name), name)
-        if self.views < 3:
-            raise ValueError(f"views: expected at least 3 views for SfM, got {self.views}")
-        check_positive(self.fov_deg, "fov_deg")
-        if self.distance is not None:
-            check_positive(self.distance, "distance")
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["sensor"] = self.sensor.to_dict()
-        return d
+    kind: str = option("orbit", choices=PATH_KINDS, help="camera path")
+    views: int = option(24, range="[3, 100000]", help="frames (orbit: split over the rings)")
+    elevations_deg: tuple[float, ...] = option(
+        (25.0, 45.0), unit="deg", range="[-89, 89]",
+        help="orbit ring elevations (the walk's mean elevation is the first)")
+    distance: float | None = option(
+        None, unit="m", range="(0, inf)",
+        help="camera to the scene centre (none: frame the bounding sphere)")
+    distance_factor: float = option(0.8, range="(0, inf)",
+                                    help="framing of the bounding sphere when distance is none")
+    width: int = option(640, unit="px", range="[16, 16384]", help="image width")
+    height: int = option(480, unit="px", range="[16, 16384]", help="image height")
+    fov_deg: float = option(50.0, unit="deg", range="(0, 170]", help="horizontal field of view")
+    nominal_focal_error: float = option(
+        0.0, range="(-1, 1)", help="relative error of the nominal (EXIF-like) focal length")
+    walk_position_jitter: float = option(0.03, range="[0, inf)",
+                                         help="hand-held position jitter (of the distance)")
+    walk_aim_jitter: float = option(0.03, range="[0, inf)",
+                                    help="hand-held aim jitter (of the distance)")
+    walk_roll_deg: float = option(3.0, unit="deg", range="[0, 90]", help="hand-held roll")
+    blur_subframes: int = option(1, range="[1, 64]",
+                                 help="sub-frames averaged per frame for motion blur (1: none)")
+    shutter: float = option(0.5, range="(0, 1]",
+                            help="fraction of the time between frames the shutter is open")
+    supersample: int = option(2, range="[1, 8]", help="anti-aliasing rays per pixel side")
+    auto_exposure: bool = option(
+        True, help="scale radiance so the first frame's 99th percentile sits at 85 % of range")
+    texture_boost: float = option(
+        4.0, range="(0, inf)",
+        help="texture frequency factor of solid procedural materials (1: as in the scene)")
+    sensor: Sensor = option(default_factory=Sensor, help="the camera's sensor")
 
 
-def path_config_from_toml(data: dict, *, path=None) -> PathConfig:
-    """A :class:`PathConfig` from a TOML table (keys as the attributes; ``[sensor]``)."""
-    known = {f.name for f in fields(PathConfig)}
-    kw = {}
-    for key, value in data.items():
-        if key not in known:
-            raise InputError(f"unknown key; expected one of {', '.join(sorted(known))}",
-                             path=path, field=key)
-        if key == "sensor":
-            tbl = require(data, "sensor", dict, path=path)
-            try:
-                value = Sensor(**tbl)
-            except TypeError as exc:
-                raise InputError(str(exc), path=path, field="sensor") from None
-            except ValueError as exc:
-                raise InputError(str(exc), path=path, field="sensor") from None
-        kw[key] = value
-    try:
-        return PathConfig(**kw)
-    except ValueError as exc:
-        raise InputError(str(exc), path=path) from None
+@dataclass
+class SfmCaptureConfig(PathConfig):
+    """Everything ``scanamp capture sfm`` reads: the path, the camera, the seed."""
+
+    seed: int = option(0, range="[0, inf)", help="path jitter and sensor noise seed")
 
 
 def _poses(cfg: PathConfig, target, radius, rng) -> np.ndarray:
@@ -166,6 +116,20 @@ def _boost_textures(render_scene, factor: float):
         objs.append(dataclasses.replace(o, material=m))
     return RenderScene(objs, list(render_scene.lights), render_scene.ambient,
                        render_scene.background)
+
+
+def _render_view(render_scene, config: PathConfig, base: Camera, poses, i: int):
+    """Radiance (motion-blurred over sub-frames when asked) and true depth of view ``i``."""
+    cam = base.with_pose(poses[i])
+    if config.blur_subframes > 1:
+        nxt = poses[i + 1] if i + 1 < len(poses) else poses[i - 1]
+        sub = _paths.subframe_poses(poses[i], nxt, config.blur_subframes,
+                                    shutter=config.shutter)
+        rad = np.mean([render(render_scene, base.with_pose(T),
+                              supersample=config.supersample).radiance for T in sub], 0)
+        return rad, render(render_scene, cam, supersample=1).depth
+    r = render(render_scene, cam, supersample=config.supersample)
+    return r.radiance, r.depth
 
 
 def capture(render_scene, config: PathConfig, out_dir: str | os.PathLike, *,
@@ -209,16 +173,7 @@ def capture(render_scene, config: PathConfig, out_dir: str | os.PathLike, *,
         (tmp / "gt").mkdir()
         for i in track(range(len(poses)), "render SfM views", total=len(poses)):
             cam = base.with_pose(poses[i])
-            if config.blur_subframes > 1:
-                nxt = poses[min(i + 1, len(poses) - 1)] if i + 1 < len(poses) else poses[i - 1]
-                sub = _paths.subframe_poses(poses[i], nxt, config.blur_subframes,
-                                            shutter=config.shutter)
-                rad = np.mean([render(render_scene, base.with_pose(T),
-                                      supersample=config.supersample).radiance for T in sub], 0)
-                depth = render(render_scene, cam, supersample=1).depth
-            else:
-                r = render(render_scene, cam, supersample=config.supersample)
-                rad, depth = r.radiance, r.depth
+            rad, depth = _render_view(render_scene, config, base, poses, i)
             if i == 0:
                 p99 = float(np.percentile(rad, 99))
                 gain = 0.85 / p99 if (config.auto_exposure and p99 > 0) else 1.0
@@ -248,7 +203,8 @@ def capture(render_scene, config: PathConfig, out_dir: str | os.PathLike, *,
             "cameras": {"cam0": {"width": config.width, "height": config.height,
                                  "fx": nominal_f, "fy": nominal_f, "cx": base.cx, "cy": base.cy,
                                  "dist": [0.0] * 5, "nominal": True}},
-            "rig": {"path": config.to_dict(), "order": "path order (sequential)",
+            "rig": {"path": {k: v for k, v in to_dict(config).items() if k != "seed"},
+                    "order": "path order (sequential)",
                     "target": target.tolist(), "distance": radius,
                     "exposure_scale": gain},
             "frames": frames,

@@ -42,15 +42,16 @@ __all__ = ["capture", "pattern_sequence"]
 
 def pattern_sequence(rig: RigConfig) -> tuple[list, dict]:
     """All projected images and their description (stored in capture.json)."""
-    w, h = rig.projector.width, rig.projector.height
+    pj = rig.projector
+    w, h, period, steps = pj.width, pj.height, pj.period_px, pj.n_steps
     nc, nr = gray_code_bits(w, h)
     pats = (white_black(w, h) + gray_code_patterns(w, h)
-            + phase_shift_patterns(w, h, period_px=rig.projector.period_px, n_steps=rig.projector.n_steps, axis="x")
-            + phase_shift_patterns(w, h, period_px=rig.projector.period_px, n_steps=rig.projector.n_steps, axis="y"))
+            + phase_shift_patterns(w, h, period_px=period, n_steps=steps, axis="x")
+            + phase_shift_patterns(w, h, period_px=period, n_steps=steps, axis="y"))
     info = {"width": w, "height": h, "n_col_bits": nc, "n_row_bits": nr,
-            "period_px": rig.projector.period_px, "n_steps": rig.projector.n_steps,
-            "sequence": ["white", "black", f"gray[{2 * (nc + nr)}]", f"phase_x[{rig.projector.n_steps}]",
-                         f"phase_y[{rig.projector.n_steps}]"]}
+            "period_px": period, "n_steps": steps,
+            "sequence": ["white", "black", f"gray[{2 * (nc + nr)}]", f"phase_x[{steps}]",
+                         f"phase_y[{steps}]"]}
     return pats, info
 
 
@@ -88,6 +89,7 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
             object_name: str | None = None) -> Path:
     """Render a structured-light capture folder (see the module docstring)."""
     sensor = dataclasses.replace(rig.sensor, mono=True)
+    shade = {"supersample": rig.render.supersample, "ambient": rig.render.ambient}
     cam, pcam = rig.sl_devices()
     pats, info = pattern_sequence(rig)
     proj = PatternProjector(pcam, pats[0], rig.projector.intensity)
@@ -110,21 +112,21 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
         for i, T in enumerate(track(poses, "projector calibration views", total=len(poses))):
             sc = board_scene(rig, T, [], rig.render.ambient)
             imgs, _ = _render_patterns(sc, cam, proj, pats, sensor, rng,
-                                       supersample=rig.render.supersample, ambient=rig.render.ambient)
+                                       **shade)
             cal.append(save(f"cal_{i:03d}", imgs))
         axis_imgs = []
         aposes, angles = axis_board_poses(rig, rig.calibration.axis_views)
         for i, T in enumerate(aposes):
             sc = board_scene(rig, T, [lamp], rig.render.ambient)
             imgs, _ = _render_patterns(sc, cam, proj, pats[:1], sensor, rng,
-                                       supersample=rig.render.supersample, ambient=rig.render.ambient)
+                                       **shade)
             axis_imgs += save(f"axis_{i:03d}", imgs)
         frames, gt_frames = [], []
         for i, ang in enumerate(track(rig.rig.stage_angles_deg, "structured-light frames",
                                       total=len(rig.rig.stage_angles_deg))):
             sc = turntable_scene(scene, np.radians(ang))
             imgs, depth = _render_patterns(sc, cam, proj, pats, sensor, rng,
-                                           supersample=rig.render.supersample, ambient=rig.render.ambient)
+                                           **shade)
             _, pdepth = _render_patterns(sc, pcam, proj, [], sensor, rng, supersample=1,
                                          ambient=0.0)
             frames.append({"stage_angle_deg": float(ang), "camera": "cam",

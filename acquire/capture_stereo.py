@@ -130,7 +130,8 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
     proj = None
     if rig.projector.enabled:
         pattern = random_dots(rig.projector.width, rig.projector.height, rng=rng,
-                              density=rig.projector.density, dot_sigma_px=rig.projector.dot_sigma_px)
+                              density=rig.projector.density,
+                              dot_sigma_px=rig.projector.dot_sigma_px)
         proj = PatternProjector(rig.dot_projector_camera(), pattern, rig.projector.intensity)
     out_dir = Path(out_dir)
     with atomic_dir(out_dir) as tmp:

@@ -68,8 +68,9 @@ from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget
 from core.config import Config, option
 
-__all__ = ["RigConfig", "StereoCaptureConfig", "SLCaptureConfig", "CameraOptions", "LensOptions", "GeometryOptions", "ProjectorOptions",
-           "CalibrationOptions", "RenderOptions", "rot_z", "rot_y"]
+__all__ = ["RigConfig", "StereoCaptureConfig", "SLCaptureConfig", "CameraOptions",
+           "LensOptions", "GeometryOptions", "ProjectorOptions", "CalibrationOptions",
+           "RenderOptions", "rot_z", "rot_y"]
 
 
 def rot_z(angle: float) -> np.ndarray:

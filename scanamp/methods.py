@@ -188,10 +188,10 @@ def _sl_run(config, capture_dir, out_dir) -> Result:
 
 # -- structure from motion -------------------------------------------------------------------
 def _sfm_load(path):
-    from acquire.capture_sfm import PathConfig, path_config_from_toml
-    from core.files import read_toml
+    from acquire.capture_sfm import SfmCaptureConfig
+    from core.config import load_config
 
-    return PathConfig() if path is None else path_config_from_toml(read_toml(path), path=path)
+    return load_config(SfmCaptureConfig, path)
 
 
 def _sfm_config():

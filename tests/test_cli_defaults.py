@@ -2,8 +2,7 @@
 
 The CLI's defaults cannot drift from the library's: with no flags, a command's effective
 config equals its dataclass's defaults; every generated flag's help shows its default
-(and unit where it has one). Commands whose options are still hand-written flags are
-listed: the list may only shrink.
+(and unit where it has one); every command declares its options so.
 """
 
 from __future__ import annotations
@@ -16,11 +15,6 @@ import pytest
 from core.config import iter_options
 from scanamp.cli import build_parser
 from scanamp.options import config_from_args
-
-# hand-written flags still to move onto a config dataclass (issue 14, item 2)
-NOT_YET_DECLARED = {
-    "capture sfm",
-}
 
 
 def _commands():
@@ -49,14 +43,10 @@ def _minimal_argv(p: argparse.ArgumentParser) -> list[str]:
     return argv
 
 
-def test_every_command_is_declared_or_listed():
-    declared = {n for n, p in COMMANDS.items() if p.get_default("_config_cls") is not None}
-    undeclared = set(COMMANDS) - declared
-    assert undeclared <= NOT_YET_DECLARED, f"new commands must declare CONFIG: " \
-        f"{sorted(undeclared - NOT_YET_DECLARED)}"
-    assert not (NOT_YET_DECLARED & declared), f"declared now, remove from the list: " \
-        f"{sorted(NOT_YET_DECLARED & declared)}"
-    assert {"reconstruct laser", "reconstruct sfm"} <= declared
+def test_every_command_is_declared():
+    undeclared = sorted(n for n, p in COMMANDS.items() if p.get_default("_config_cls") is None)
+    assert not undeclared, f"commands must declare CONFIG: {undeclared}"
+    assert len(COMMANDS) >= 23 and {"reconstruct laser", "capture laser"} <= set(COMMANDS)
 
 
 @pytest.mark.parametrize("name", sorted(n for n, p in COMMANDS.items()
