@@ -249,6 +249,39 @@ class LaserRenderer:
             out[sel] = (1 - u - v) * va[tr[:, 0]] + u * va[tr[:, 1]] + v * va[tr[:, 2]]
         return out
 
+    def _sheet_light(self, laser: LaserSheet, directions: np.ndarray, origin: np.ndarray,
+                     ch: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of the pixels near the sheet (rays ``directions`` from ``origin``): which the
+        laser lights and their radiance, and every pixel's exact signed distance to the
+        sheet's plane (float64 hits, NaN where nothing is hit; speckle drawn here)."""
+        from acquire.render import albedo, cast, visibility
+
+        scene = self.scene
+        n_pl, d_pl = laser.plane
+        dn = directions.astype(np.float64)
+        hits = cast(scene, np.broadcast_to(origin, dn.shape), dn)
+        ok = np.flatnonzero(hits.hit)
+        e = np.zeros(len(dn))
+        P, N, G = hits.points[ok], hits.normals[ok], hits.geo_normals[ok]
+        e_ok = laser.irradiance(P, N)[:, ch]
+        has = np.flatnonzero(e_ok > 0)
+        keep = np.zeros(len(P), bool)
+        if has.size:
+            keep[has[visibility(scene, laser, P[has], G[has])]] = True
+        e[ok] = np.where(keep, e_ok, 0.0)
+        signed = np.full(len(dn), np.nan)
+        signed[ok] = P @ n_pl - d_pl
+        if laser.speckle > 0:
+            if rng is None:
+                raise ValueError("rng: a laser with speckle needs a random generator")
+            k = 1.0 / laser.speckle ** 2
+            e = e * rng.gamma(k, 1.0 / k, size=e.shape)
+        sel = np.flatnonzero(e > 0)
+        hl = type(hits)(*(getattr(hits, f)[sel] for f in
+                          ("hit", "t", "points", "normals", "geo_normals", "obj", "tri", "bary")))
+        rad = e[sel] * albedo(scene, hl)[:, ch] if sel.size else np.zeros(0)
+        return sel, rad, signed
+
     def frame(self, cam_from_world: np.ndarray, laser: LaserSheet | None, *,
               ambient: float | None = None, rng: np.random.Generator | None = None,
               channel: int = 0) -> LaserFrame:
@@ -276,7 +309,6 @@ class LaserRenderer:
         """
         import open3d as o3d
 
-        from acquire.render import albedo, cast, visibility
 
         scene, cam = self.scene, self.camera
         H, W = cam.height, cam.width
@@ -300,29 +332,10 @@ class LaserRenderer:
         else:
             near = np.zeros(0, np.int64)
         if near.size:
-            dn = rays[near, 3:].astype(np.float64)
-            hits = cast(scene, np.broadcast_to(origin, dn.shape), dn)
-            ok = np.flatnonzero(hits.hit)
-            e = np.zeros(near.size)
-            P, N, G = hits.points[ok], hits.normals[ok], hits.geo_normals[ok]
-            e_ok = laser.irradiance(P, N)[:, ch]
-            has = np.flatnonzero(e_ok > 0)
-            keep = np.zeros(len(P), bool)
-            if has.size:
-                keep[has[visibility(scene, laser, P[has], G[has])]] = True
-            e[ok] = np.where(keep, e_ok, 0.0)
-            s[near[ok]] = P @ n_pl - d_pl
-            if laser.speckle > 0:
-                if rng is None:
-                    raise ValueError("rng: a laser with speckle needs a random generator")
-                k = 1.0 / laser.speckle ** 2
-                e = e * rng.gamma(k, 1.0 / k, size=e.shape)
-            sel = np.flatnonzero(e > 0)
-            if sel.size:
-                hl = type(hits)(*(getattr(hits, f)[sel] for f in
-                                  ("hit", "t", "points", "normals", "geo_normals", "obj", "tri",
-                                   "bary")))
-                rad[near[sel]] = e[sel] * albedo(scene, hl)[:, ch]
+            sel, rad_sel, signed = self._sheet_light(laser, rays[near, 3:], origin, ch, rng)
+            hit = np.isfinite(signed)
+            s[near[hit]] = signed[hit]
+            rad[near[sel]] = rad_sel
             lit = int(sel.size)
             stripe = _true_stripe(s, depth, near[sel], H, W)
         if amb > 0 and hit_idx.size:

@@ -124,6 +124,46 @@ def _texture_mask(gray: np.ndarray, min_std: float) -> np.ndarray:
     return np.sqrt(np.maximum(v, 0)) >= min_std
 
 
+def _rectified_projection(cam_ref: Camera, R1: np.ndarray):
+    """Our own rectified projection: the reference's focal length, and an image that holds
+    the whole reference view (stereoRectify's alpha zooms badly for converging views).
+    Returns ``(f, P (3, 4), (width, height))``."""
+    f = 0.5 * (cam_ref.fx + cam_ref.fy)
+    W, H = cam_ref.width, cam_ref.height
+    corners = np.array([[0, 0], [W - 1, 0], [0, H - 1], [W - 1, H - 1], [W / 2, 0],
+                        [W / 2, H - 1], [0, H / 2], [W - 1, H / 2]], np.float64)[:, None]
+    rc = cv2.undistortPoints(corners, cam_ref.K, cam_ref.dist, R=R1).reshape(-1, 2) * f
+    lo, hi = rc.min(0), rc.max(0)
+    rw = int(min(np.ceil(hi[0] - lo[0]) + 1, 2 * W))
+    rh = int(min(np.ceil(hi[1] - lo[1]) + 1, 2 * H))
+    cx = -lo[0] if rw < 2 * W else rw / 2.0
+    cy = -lo[1] if rh < 2 * H else rh / 2.0
+    return f, np.array([[f, 0, cx, 0], [0, f, cy, 0], [0, 0, 1, 0]], np.float64), (rw, rh)
+
+
+def _reference_depth(disp: np.ndarray, valid: np.ndarray, baseline: float, cam_ref: Camera,
+                     R1: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Rectified disparities -> z-depth in the reference camera's own pixels (0: none)."""
+    f, cx, cy = P[0, 0], P[0, 2], P[1, 2]
+    rh, rw = disp.shape
+    # rectified 3-D points; flipping keeps the disparity's magnitude because both
+    # rectified views share the principal point
+    Z = np.where(valid, f * baseline / np.where(valid, disp, 1.0), 0.0)
+    u, v = np.meshgrid(np.arange(rw, dtype=np.float64), np.arange(rh, dtype=np.float64))
+    X = (u - cx) * Z / f
+    Y = (v - cy) * Z / f
+    # z in the reference camera frame: p_ref = R1^T p_rect
+    zref = (R1[0, 2] * X + R1[1, 2] * Y + R1[2, 2] * Z).astype(np.float32)
+    zref[~valid] = 0.0
+    # back to the reference's own pixels: rectified coordinates of every original pixel
+    W, H = cam_ref.width, cam_ref.height
+    uo, vo = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    px = np.stack([uo.ravel(), vo.ravel()], 1)[:, None, :]
+    rect = cv2.undistortPoints(px, cam_ref.K, cam_ref.dist, R=R1, P=P[:, :3]).reshape(H, W, 2)
+    return cv2.remap(zref, rect[..., 0].astype(np.float32), rect[..., 1].astype(np.float32),
+                     cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
 def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_src: Camera,
                depth_range: tuple[float, float], *, block_size: int = 5,
                uniqueness: int = 10, min_gradient: float = 2.0) -> np.ndarray:
@@ -159,19 +199,7 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
     src_in_ref = -R.T @ t
     R1, R2, _, _, _, _, _ = cv2.stereoRectify(cam_ref.K, cam_ref.dist, cam_src.K, cam_src.dist,
                                               size, R, t, flags=cv2.CALIB_ZERO_DISPARITY)
-    # our own projections: the reference's focal length, and a rectified image that holds
-    # the whole reference view (stereoRectify's alpha zooms badly for converging views)
-    f = 0.5 * (cam_ref.fx + cam_ref.fy)
-    W, H = size
-    corners = np.array([[0, 0], [W - 1, 0], [0, H - 1], [W - 1, H - 1], [W / 2, 0],
-                        [W / 2, H - 1], [0, H / 2], [W - 1, H / 2]], np.float64)[:, None]
-    rc = cv2.undistortPoints(corners, cam_ref.K, cam_ref.dist, R=R1).reshape(-1, 2) * f
-    lo, hi = rc.min(0), rc.max(0)
-    rw = int(min(np.ceil(hi[0] - lo[0]) + 1, 2 * W))
-    rh = int(min(np.ceil(hi[1] - lo[1]) + 1, 2 * H))
-    cx = -lo[0] if rw < 2 * W else rw / 2.0
-    cy = -lo[1] if rh < 2 * H else rh / 2.0
-    P = np.array([[f, 0, cx, 0], [0, f, cy, 0], [0, 0, 1, 0]], np.float64)
+    f, P, (rw, rh) = _rectified_projection(cam_ref, R1)
     src_rect = R1 @ src_in_ref
     baseline = abs(src_rect[0])
     flip = src_rect[0] < 0
@@ -209,21 +237,7 @@ def pair_depth(gray_ref: np.ndarray, gray_src: np.ndarray, cam_ref: Camera, cam_
     valid &= disp > 0
     if flip:
         disp, valid = disp[:, ::-1], valid[:, ::-1]
-    # rectified 3-D points; flipping keeps the disparity's magnitude because both
-    # rectified views share the principal point
-    Z = np.where(valid, f * baseline / np.where(valid, disp, 1.0), 0.0)
-    u, v = np.meshgrid(np.arange(rw, dtype=np.float64), np.arange(rh, dtype=np.float64))
-    X = (u - cx) * Z / f
-    Y = (v - cy) * Z / f
-    # z in the reference camera frame: p_ref = R1^T p_rect
-    zref = (R1[0, 2] * X + R1[1, 2] * Y + R1[2, 2] * Z).astype(np.float32)
-    zref[~valid] = 0.0
-    # back to the reference's own pixels: rectified coordinates of every original pixel
-    uo, vo = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-    px = np.stack([uo.ravel(), vo.ravel()], 1)[:, None, :]
-    rect = cv2.undistortPoints(px, cam_ref.K, cam_ref.dist, R=R1, P=P[:, :3]).reshape(H, W, 2)
-    out = cv2.remap(zref, rect[..., 0].astype(np.float32), rect[..., 1].astype(np.float32),
-                    cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    out = _reference_depth(disp, valid, baseline, cam_ref, R1, P)
     out[(out < zmin * 0.8) | (out > zmax * 1.2)] = 0.0
     out[~_texture_mask(gray_ref, min_gradient)] = 0.0
     return out

@@ -392,12 +392,7 @@ def evaluate(
     density = SAMPLES_PER_TAU2 / tau**2 if density is None else check_positive(density, "density")
     if max_samples is not None:
         max_samples = int(check_positive(max_samples, "max_samples"))
-        areas = [g.area() for g in (rec, ref) if g.is_mesh]
-        if areas and density * max(areas) > max_samples:
-            density = max_samples / max(areas)
-            log.debug("density capped to %.4g samples/m^2 by max_samples=%d", density,
-                      max_samples)
-
+        density = _capped_density(density, max_samples, rec, ref)
     rec_pts, rec_nrm = _samples(rec, density, max_samples, thin_points, rng)
     ref_pts, ref_nrm = _samples(ref, density, max_samples, thin_points, rng)
 
@@ -405,34 +400,13 @@ def evaluate(
     check_choice(align, "align", ("none", "icp", "global"))
     icp_fields = {}
     if align != "none":
-        from reconstruct.registration import register
-
         threshold = 5.0 * tau if icp_threshold is None else check_positive(icp_threshold,
                                                                            "icp_threshold")
-        reg = register(rec_pts, ref_pts, method=align, reference_normals=ref_nrm,
-                       threshold=threshold, rng=rng)
-        rot, t = reg.transform[:3, :3], reg.transform[:3, 3]
-        rec_pts = rec_pts @ rot.T + t
-        rec = _Geom(rec.name, rec.vertices @ rot.T + t, rec.triangles,
-                    None if rec.normals is None else rec.normals @ rot.T)
-        if rec_nrm is not None:
-            rec_nrm = rec_nrm @ rot.T
-        icp_fields = dict(icp_fitness=reg.fitness, icp_inlier_rmse=reg.inlier_rmse,
-                          icp_reference_from_recon=tuple(map(tuple, reg.transform.tolist())),
-                          alignment={k: v for k, v in reg.to_dict().items()
-                                     if k not in ("reference_from_scan", "fitness",
-                                                  "inlier_rmse_m")})
-
+        rec, rec_pts, rec_nrm, icp_fields = _align(rec, rec_pts, rec_nrm, ref_pts, ref_nrm,
+                                                   align, threshold, rng)
     surface = distance == "surface"
     acc, acc_nrm = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
-    visible = np.ones(len(ref_pts), dtype=bool)
-    if reference_mask is not None:
-        visible = np.asarray(reference_mask(ref_pts))
-        if visible.shape != (len(ref_pts),) or visible.dtype != bool:
-            raise ValueError(f"reference_mask: expected a ({len(ref_pts)},) bool array, got "
-                             f"{visible.shape} {visible.dtype}")
-        if not visible.any():
-            raise ValueError("reference_mask: expected to keep some reference samples, kept none")
+    visible = _visible(reference_mask, ref_pts)
     comp, comp_nrm = _nearest(ref_pts[visible], rec_pts, rec_nrm, rec if surface else None)
 
     precision, recall, fscore = fscore_at(acc, comp, tau)
@@ -452,6 +426,46 @@ def evaluate(
         normal_consistency=consistency,
         n_recon_samples=len(rec_pts), n_reference_samples=int(visible.sum()),
         density=float(density), distance=distance, **icp_fields)
+
+
+def _capped_density(density: float, max_samples: int, rec: _Geom, ref: _Geom) -> float:
+    """The shared sampling density, lowered so no mesh side exceeds ``max_samples``."""
+    areas = [g.area() for g in (rec, ref) if g.is_mesh]
+    if areas and density * max(areas) > max_samples:
+        density = max_samples / max(areas)
+        log.debug("density capped to %.4g samples/m^2 by max_samples=%d", density, max_samples)
+    return density
+
+
+def _align(rec: _Geom, rec_pts, rec_nrm, ref_pts, ref_nrm, method: str, threshold: float,
+           rng) -> tuple:
+    """The reconstruction moved onto the reference (``icp`` or ``global``), and the report
+    fields of the alignment."""
+    from reconstruct.registration import register
+
+    reg = register(rec_pts, ref_pts, method=method, reference_normals=ref_nrm,
+                   threshold=threshold, rng=rng)
+    rot, t = reg.transform[:3, :3], reg.transform[:3, 3]
+    rec = _Geom(rec.name, rec.vertices @ rot.T + t, rec.triangles,
+                None if rec.normals is None else rec.normals @ rot.T)
+    fields = dict(icp_fitness=reg.fitness, icp_inlier_rmse=reg.inlier_rmse,
+                  icp_reference_from_recon=tuple(map(tuple, reg.transform.tolist())),
+                  alignment={k: v for k, v in reg.to_dict().items()
+                             if k not in ("reference_from_scan", "fitness", "inlier_rmse_m")})
+    return (rec, rec_pts @ rot.T + t, None if rec_nrm is None else rec_nrm @ rot.T, fields)
+
+
+def _visible(reference_mask, ref_pts: np.ndarray) -> np.ndarray:
+    """Which reference samples count for recall (all without a mask)."""
+    if reference_mask is None:
+        return np.ones(len(ref_pts), dtype=bool)
+    visible = np.asarray(reference_mask(ref_pts))
+    if visible.shape != (len(ref_pts),) or visible.dtype != bool:
+        raise ValueError(f"reference_mask: expected a ({len(ref_pts)},) bool array, got "
+                         f"{visible.shape} {visible.dtype}")
+    if not visible.any():
+        raise ValueError("reference_mask: expected to keep some reference samples, kept none")
+    return visible
 
 
 def _nearest(query: np.ndarray, samples: np.ndarray, sample_normals: np.ndarray | None,
