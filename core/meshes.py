@@ -193,7 +193,9 @@ def unique_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     f = np.asarray(triangles, np.int64)
     sides = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
     sides = np.sort(sides, axis=1)
-    edges, inverse = np.unique(sides, axis=0, return_inverse=True)
+    n = int(f.max()) + 1 if f.size else 1
+    keys, inverse = np.unique(sides[:, 0] * n + sides[:, 1], return_inverse=True)
+    edges = np.stack([keys // n, keys % n], axis=1)  # (lo, hi) in lexicographic order
     return edges, inverse.reshape(-1, 3)
 
 

@@ -25,17 +25,52 @@ def _rng(s=0):
     return np.random.default_rng(s)
 
 
-def test_subdivision_reaches_the_target_edge_and_no_further():
+def _area(v, f):
+    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+                                axis=1).sum()
+
+
+def test_subdivision_reaches_the_target_edge_and_keeps_the_surface():
     v, f = mesh_arrays(_ball())
     longest = edge_lengths(v, f).max()
     for target in (longest * 0.9, longest / 3.0, 0.05):
-        nv, nf, _, levels = subdivide_to_edge(v, f, target)
-        got = edge_lengths(nv, nf).max()
-        assert got <= target
-        assert got * 2 > target        # one level fewer would not have reached it
-        assert len(nf) == len(f) * 4 ** levels
+        nv, nf, _, rounds, used = subdivide_to_edge(v, f, target)
+        assert used == target and rounds >= 1
+        assert edge_lengths(nv, nf).max() <= target
         assert np.array_equal(nv[:len(v)], v)   # old vertices kept, in order
         assert is_closed(nf)
+        assert _area(nv, nf) == pytest.approx(_area(v, f), rel=1e-12)  # nothing moved
+        # orientation kept: every new triangle faces out of the ball as its parent did
+        c = nv[nf].mean(axis=1)
+        n = np.cross(nv[nf[:, 1]] - nv[nf[:, 0]], nv[nf[:, 2]] - nv[nf[:, 0]])
+        assert np.all(np.einsum("ij,ij->i", c, n) > 0)
+
+
+def test_subdivision_splits_only_the_long_edges():
+    """A fine part and a coarse part: the fine part's triangles stay as they are, and the
+    whole needs far fewer triangles than uniform midpoint levels would make."""
+    from core.meshes import merge_meshes
+
+    fine = _ball(8).subdivide_midpoint(3).translate((3.0, 0.0, 0.0))
+    coarse = _ball(8)
+    v, f = mesh_arrays(merge_meshes([fine, coarse]))
+    n_fine = len(fine.triangles)
+    target = edge_lengths(*mesh_arrays(fine)).max() * 1.01
+    nv, nf, _, rounds, _ = subdivide_to_edge(v, f, target)
+    assert edge_lengths(nv, nf).max() <= target
+    kept = nf[np.all(nf < len(v), axis=1)]
+    assert len(kept) >= n_fine     # no fine triangle was touched
+    uniform = len(f) * 4 ** int(np.ceil(np.log2(edge_lengths(v, f).max() / target)))
+    assert len(nf) < 0.5 * uniform
+
+
+def test_subdivision_meets_the_triangle_budget_by_lengthening_the_target():
+    v, f = mesh_arrays(_ball())
+    nv, nf, _, _, used = subdivide_to_edge(v, f, 0.001, max_triangles=5000)
+    assert len(nf) <= 5000 and used > 0.001
+    assert edge_lengths(nv, nf).max() <= used
+    # and the budget was used, not wasted: a quarter of it at least
+    assert len(nf) > 5000 / 4
 
 
 @pytest.mark.parametrize("noise", ["fbm", "turbulence", "ridged"])
@@ -226,7 +261,9 @@ def test_bad_arguments_name_themselves():
     with pytest.raises(ValueError, match="rng"):
         displace(ball, rng=0)
     with pytest.raises(ValueError, match="target_edge"):
-        displace(ball, rng=_rng(), target_edge=1e-4, max_triangles=10_000)
+        displace(ball, rng=_rng(), target_edge=-1.0)
+    with pytest.raises(ValueError, match="max_triangles"):  # fewer than the input has
+        displace(ball, rng=_rng(), target_edge=0.1, max_triangles=10)
     with pytest.raises(ValueError, match="altitude_range"):
         scatter_plants(ball, rng=_rng(), altitude_range=(0.8, 0.2))
     with pytest.raises(ValueError, match="mesh"):

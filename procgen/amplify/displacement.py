@@ -29,7 +29,7 @@ from procgen.amplify.surface import (
     mesh_input,
     slope_deg,
     smoothstep,
-    subdivide_midpoint,
+    split_long_edges,
 )
 from procgen.noise.fractal import fbm, ridged, turbulence
 
@@ -59,7 +59,10 @@ class DisplaceResult:
     mask : (n,) float64
         Mask in [0, 1].
     levels : int
-        Midpoint subdivision levels applied.
+        Rounds of longest-edge bisection applied.
+    target_edge : float or None
+        The target edge used: the one asked for, lengthened when the triangle budget
+        needed it (None: no subdivision).
     max_edge : float
         Longest edge after subdivision (<= the target edge length).
     """
@@ -72,6 +75,7 @@ class DisplaceResult:
     mask: np.ndarray
     levels: int
     max_edge: float
+    target_edge: float | None = None
 
     @property
     def rms_relative(self) -> float:
@@ -81,26 +85,33 @@ class DisplaceResult:
 
 def subdivide_to_edge(vertices: np.ndarray, triangles: np.ndarray, target_edge: float, *,
                       attributes: np.ndarray | None = None, max_triangles: int = 2_000_000):
-    """Midpoint-subdivide until the longest edge is at most ``target_edge`` (metres).
+    """Split the edges longer than ``target_edge`` (metres) until none is, within a budget.
 
-    Each level halves every edge, so ``ceil(log2(longest / target_edge))`` levels reach the
-    target and one level fewer would not. Returns ``(vertices, triangles, attributes,
-    levels)``; raises ValueError when the result would exceed ``max_triangles``.
+    Longest-edge bisection (:func:`procgen.amplify.surface.split_long_edges`) refines
+    only where the mesh is coarser than the target, so a reconstruction whose edges vary
+    widely is not multiplied everywhere by its longest edge. When the result would pass
+    ``max_triangles`` the target is lengthened until it fits, instead of refusing: the
+    target used is returned.
+
+    Returns ``(vertices, triangles, attributes, rounds, target_used)``.
     """
     t = check_positive(target_edge, "target_edge")
-    longest = float(edge_lengths(vertices, triangles).max())
-    levels = 0 if longest <= t else int(np.ceil(np.log2(longest / t)))
-    # rounding can leave the longest edge a hair above the target: one more level
-    while longest / 2.0 ** levels > t:
-        levels += 1
-    if len(triangles) * 4 ** levels > max_triangles:
-        raise ValueError(f"target_edge: {t:g} m needs {levels} subdivision levels, "
-                         f"{len(triangles) * 4 ** levels} triangles > max_triangles "
-                         f"{max_triangles}; choose a longer edge")
-    v, f, a = np.asarray(vertices, np.float64), np.asarray(triangles, np.int64), attributes
-    for _ in range(levels):
-        v, f, a = subdivide_midpoint(v, f, a)
-    return v, f, a, levels
+    max_triangles = check_int(max_triangles, "max_triangles", 1)
+    v, f = np.asarray(vertices, np.float64), np.asarray(triangles, np.int64)
+    if len(f) > max_triangles:
+        raise ValueError(f"max_triangles: the input has {len(f)} triangles already, more "
+                         f"than {max_triangles}")
+    # no triangle of longest edge <= t is larger than the equilateral one, sqrt(3)/4 t^2:
+    # a target below this bound cannot fit the budget whatever the mesh
+    area = 0.5 * float(np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]],
+                                               v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+    t = max(t, float(np.sqrt(area / (np.sqrt(3.0) / 4.0 * max_triangles))))
+    while True:
+        out = split_long_edges(v, f, t, attributes, max_triangles=max_triangles)
+        if out is not None:
+            nv, nf, na, rounds = out
+            return nv, nf, na, rounds, t
+        t *= 1.25
 
 
 def displace(mesh, *, rng: np.random.Generator, target_edge: float | None = None,
@@ -130,7 +141,8 @@ def displace(mesh, *, rng: np.random.Generator, target_edge: float | None = None
     rng : numpy.random.Generator
         Draws the noise permutation.
     target_edge : float, optional
-        Longest edge after subdivision, in metres (None: no subdivision).
+        Longest edge after subdivision, in metres (None: no subdivision); only longer
+        edges are split, and it is lengthened when ``max_triangles`` needs it.
     noise : {'fbm', 'turbulence', 'ridged'}
     amplitude : float
         RMS displacement relative to the local scale (>= 0).
@@ -149,7 +161,7 @@ def displace(mesh, *, rng: np.random.Generator, target_edge: float | None = None
     invert_mask : bool
         Use ``1 - mask``.
     max_triangles : int
-        Refuse a subdivision beyond this size.
+        Triangle budget of the subdivision.
 
     Returns
     -------
@@ -182,8 +194,8 @@ def displace(mesh, *, rng: np.random.Generator, target_edge: float | None = None
     if target_edge is None:
         v, f, a, levels = v0, f0, attrs, 0
     else:
-        v, f, a, levels = subdivide_to_edge(v0, f0, target_edge, attributes=attrs,
-                                            max_triangles=max_triangles)
+        v, f, a, levels, target_edge = subdivide_to_edge(
+            v0, f0, target_edge, attributes=attrs, max_triangles=max_triangles)
     h = a[:, 0]
     if mask == "none":
         m = np.ones(len(v))
@@ -208,4 +220,5 @@ def displace(mesh, *, rng: np.random.Generator, target_edge: float | None = None
     out_v = v + offset[:, None] * normals
     longest = float(edge_lengths(v, f).max())
     return DisplaceResult(mesh=make_mesh(out_v, f), base_vertices=v, normals=normals,
-                          offset=offset, scale=h, mask=m, levels=levels, max_edge=longest)
+                          offset=offset, scale=h, mask=m, levels=levels, max_edge=longest,
+                          target_edge=target_edge)

@@ -1,6 +1,7 @@
 """Surface helpers of the amplification operators.
 
-Arrays in, arrays out: midpoint subdivision that carries per-vertex attributes, the
+Arrays in, arrays out: midpoint subdivision and longest-edge bisection that carry
+per-vertex attributes, the
 local scale of a mesh, slope and curvature. Generic mesh measures (edges, normals,
 the bounding-box diagonal) are :mod:`core.meshes`.
 """
@@ -53,6 +54,74 @@ def subdivide_midpoint(vertices: np.ndarray, triangles: np.ndarray,
         at = np.asarray(attributes, np.float64)
         na = np.concatenate([at, 0.5 * (at[edges[:, 0]] + at[edges[:, 1]])])
     return nv, nf, na
+
+
+def split_long_edges(vertices: np.ndarray, triangles: np.ndarray, target_edge: float,
+                     attributes: np.ndarray | None = None, *, max_triangles: int | None = None):
+    """Longest-edge bisection (Rivara) until no edge is longer than ``target_edge``.
+
+    Only the edges longer than the target are split (and, so that every split triangle is
+    split across its longest side and keeps its shape, the longest edge of each triangle
+    that has a split edge): a mesh whose edges vary widely is refined where it is coarse
+    and left alone where it is fine. Midpoints are shared between neighbours, so the mesh
+    stays conforming and closed meshes stay closed; the surface does not move.
+    ``attributes (n, k)`` are interpolated linearly.
+
+    Returns ``(vertices, triangles, attributes, rounds)`` with the old vertices first, in
+    order; ``None`` as soon as a round would pass ``max_triangles``.
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(triangles, np.int64)
+    a = None if attributes is None else np.asarray(attributes, np.float64)
+    rounds = 0
+    while True:
+        edges, te = unique_edges(f)
+        length = np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1)
+        mark = length > target_edge
+        if not mark.any():
+            return v, f, a, rounds
+        # side k joins corners k and k + 1; the longest side of each triangle
+        longest = np.argmax(length[te], axis=1)
+        long_edge = te[np.arange(len(f)), longest]
+        while True:  # closure: a triangle with a split side splits its longest side too
+            need = mark[te].any(axis=1) & ~mark[long_edge]
+            if not need.any():
+                break
+            mark[long_edge[need]] = True
+        mid = np.full(len(edges), -1, np.int64)
+        mid[mark] = len(v) + np.arange(int(mark.sum()))
+        v = np.vstack([v, 0.5 * (v[edges[mark, 0]] + v[edges[mark, 1]])])
+        if a is not None:
+            a = np.concatenate([a, 0.5 * (a[edges[mark, 0]] + a[edges[mark, 1]])])
+        f = _bisect(f, te, mark, mid, longest)
+        rounds += 1
+        if max_triangles is not None and len(f) > max_triangles:
+            return None
+
+
+def _bisect(f: np.ndarray, te: np.ndarray, mark: np.ndarray, mid: np.ndarray,
+            longest: np.ndarray) -> np.ndarray:
+    """New triangles of one bisection round (orientation kept)."""
+    rows = np.arange(len(f))
+    # rotate each triangle so its longest side is (a, b): side k joins corners k, k + 1
+    a = f[rows, longest]
+    b = f[rows, (longest + 1) % 3]
+    c = f[rows, (longest + 2) % 3]
+    e_bc = te[rows, (longest + 1) % 3]
+    e_ca = te[rows, (longest + 2) % 3]
+    m_ab = mid[te[rows, longest]]
+    m_bc, m_ca = mid[e_bc], mid[e_ca]
+    split = m_ab >= 0
+    bc, ca = split & mark[e_bc], split & mark[e_ca]
+    out = [f[~split]]
+    left, right = split & ~ca, split & ~bc  # halves (a, m_ab, c) and (m_ab, b, c) unsplit
+    out.append(np.stack([a[left], m_ab[left], c[left]], 1))
+    out.append(np.stack([m_ab[right], b[right], c[right]], 1))
+    out.append(np.stack([a[ca], m_ab[ca], m_ca[ca]], 1))
+    out.append(np.stack([m_ab[ca], c[ca], m_ca[ca]], 1))
+    out.append(np.stack([m_ab[bc], b[bc], m_bc[bc]], 1))
+    out.append(np.stack([m_ab[bc], m_bc[bc], c[bc]], 1))
+    return np.concatenate(out)
 
 
 def local_edge_length(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
