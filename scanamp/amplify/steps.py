@@ -76,7 +76,8 @@ def _displace(state: State, step, rng, **_):
                    mask_range=tuple(p["mask_range"]), invert_mask=p["invert_mask"],
                    max_triangles=p["max_triangles"])
     state.surface = res.mesh
-    return {"input_mean_edge": mean_edge, "target_edge": target,
+    return {"input_mean_edge": mean_edge, "target_edge_asked": target,
+            "target_edge": res.target_edge,
             "subdivision_levels": res.levels, "max_edge": res.max_edge,
             "rms_offset_relative": res.rms_relative,
             "masked_fraction": float(np.mean(res.mask < 1e-12))}
