@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["axis_angle_matrix", "rotation_about", "euler_xyz_deg", "rotation_to",
-           "rotation_angle_deg", "rigid"]
+           "rotation_between", "rotation_angle_deg", "rigid"]
 
 
 def axis_angle_matrix(axis, angle: float) -> np.ndarray:
@@ -68,6 +68,26 @@ def rotation_to(z_axis) -> np.ndarray:
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     return np.stack([x, y, z], axis=1)
+
+
+def rotation_between(a, b) -> np.ndarray:
+    """The smallest rotation ``(3, 3)`` taking the direction of ``a`` to that of ``b``
+    (identity when they agree; a half turn about an axis perpendicular to ``a`` when they
+    are opposite).
+
+    >>> np.round(rotation_between([0, 0, 1], [0, 1, 0]) @ [0, 0, 1], 12) + 0.0
+    array([0., 1., 0.])
+    """
+    a = np.asarray(a, float) / np.linalg.norm(a)
+    b = np.asarray(b, float) / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s, c = float(np.linalg.norm(axis)), float(np.clip(a @ b, -1.0, 1.0))
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        return axis_angle_matrix(np.cross(a, helper), np.pi)
+    return axis_angle_matrix(axis / s, float(np.arctan2(s, c)))
 
 
 def rotation_angle_deg(R) -> float:

@@ -143,3 +143,35 @@ render = false
     boids = json.loads((tmp_path / "o" / "animation" / "report.json").read_text())
     assert boids["steps"] == 4 and boids["mesh"]["closed"]
     assert (tmp_path / "o" / "mesh.ply").is_file()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_plants_stand_along_the_meshes_own_up(tmp_path, seed):
+    """A gently rolling ground in its own frame (up is a random direction): the plants
+    stand on it along that up, found from the mesh, and the report says so."""
+    from scipy.spatial.transform import Rotation
+
+    from procgen.terrain import heightfield_to_mesh
+
+    x = np.linspace(0, 2 * np.pi, 21)
+    hf = 0.02 * np.sin(x)[:, None] * np.cos(x)[None, :]
+    v, f = mesh_arrays(heightfield_to_mesh(hf, spacing=0.05))   # 1 m x 1 m
+    R = Rotation.random(random_state=seed).as_matrix()
+    up = R @ [0.0, 0.0, 1.0]
+    path = tmp_path / "ground.ply"
+    write_mesh(path, make_mesh(v @ R.T, f))
+    recipe = {"step": [{"kind": "scatter", "density": 30.0, "height": 0.1, "variants": 2,
+                        "slope_max_deg": 40.0}], "render": {"width": 32, "height": 24}}
+    out = run(path, recipe, tmp_path / "out", seed=0)
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["up"]["source"] == "mesh"
+    assert np.degrees(np.arccos(np.clip(np.dot(rep["up"]["up"], up), -1, 1))) < 5.0
+    pv, _ = mesh_arrays(read_mesh(out / "plants.ply"))
+    h = pv @ up                                  # heights along the true up
+    ground_top = float((v @ R.T @ up).max())
+    height = 0.1 * np.sqrt(2.0)                  # 0.1 of the 1.41 m diagonal
+    assert h.min() > float((v @ R.T @ up).min()) - 0.01   # nothing grows into the ground
+    assert h.max() > ground_top + 0.5 * height            # they stand up, not sideways
+    # --up given: used as is
+    out2 = run(path, recipe, tmp_path / "out2", seed=0, up=tuple(up))
+    assert json.loads((out2 / "report.json").read_text())["up"]["source"] == "given"

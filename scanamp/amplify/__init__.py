@@ -75,8 +75,17 @@ def amplify(mesh, recipe, *, seed: int = 0, out_dir: str | os.PathLike | None = 
     return state, reports
 
 
+def _moved(mesh, R: np.ndarray):
+    """A copy of ``mesh`` rotated by ``R (3, 3)`` about the origin."""
+    import copy
+
+    out = copy.deepcopy(mesh)
+    out.rotate(R, center=(0.0, 0.0, 0.0))
+    return out
+
+
 def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
-        seed: int | None = 0) -> Path:
+        seed: int | None = 0, up=None) -> Path:
     """Amplify the mesh file ``mesh_path`` with ``recipe`` into ``out_dir``.
 
     Parameters
@@ -90,6 +99,12 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     seed : int, optional
         Seeds every step (each step draws from its own spawned generator). ``None``: the
         recipe's ``seed`` field, else 0. Same seed, same mesh bytes.
+    up : (3,) float, optional
+        Up in the mesh's frame. None: estimated (:func:`reconstruct.up.estimate_up`) from
+        a camera model beside the mesh, else from the mesh. The steps run with up along
+        +z (plants stand along up, snow falls against it, terrain is a heightfield over
+        it) and the results are written back in the mesh's own frame; ``report.json``
+        says which up was used and where it came from.
 
     Returns
     -------
@@ -111,9 +126,16 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
     v, f = mesh_arrays(mesh)
+    from core.frames import rotation_between
     from core.meshes import make_mesh
+    from reconstruct.up import estimate_up, find_camera_model
 
-    mesh = make_mesh(v, f)
+    cameras = find_camera_model(mesh_path) if up is None else None
+    up_est = estimate_up(v, f, up=up, cameras=cameras)
+    to_upright = rotation_between(up_est.up, [0.0, 0.0, 1.0])  # the smallest turn
+    log.info("up %s from %s (%s)", np.round(up_est.up, 3).tolist(), up_est.source,
+             up_est.detail)
+    mesh = make_mesh(v @ to_upright.T, f)
     out_dir = Path(out_dir)
     r = rec.render
     view = dict(width=r["width"], height=r["height"], elevation_deg=r["elevation_deg"],
@@ -124,10 +146,11 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         write_image(tmp / "before.png", render_parts([(mesh, SURFACE_COLOR)], **view))
         state, steps = amplify(mesh, rec, seed=int(seed), out_dir=tmp)
         final = merge_meshes([m for m, _ in _parts(state)]) if state.parts else state.surface
+        back = to_upright.T  # +z -> the mesh's own up
         files = ["mesh.ply"]
-        write_mesh(tmp / "mesh.ply", final)
+        write_mesh(tmp / "mesh.ply", _moved(final, back))
         if state.parts or state.parts_unmerged:
-            write_mesh(tmp / "surface.ply", state.surface)
+            write_mesh(tmp / "surface.ply", _moved(state.surface, back))
             files.append("surface.ply")
             used = set()
             for name, m, _ in state.parts + state.parts_unmerged:
@@ -135,7 +158,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
                 while name in used:
                     name, k = f"{base}_{k}", k + 1
                 used.add(name)
-                write_mesh(tmp / f"{name}.ply", m)
+                write_mesh(tmp / f"{name}.ply", _moved(m, back))
                 files.append(f"{name}.ply")
         write_image(tmp / "after.png", render_parts(_parts(state, unmerged=True), **view))
         files += ["before.png", "after.png"]
@@ -146,6 +169,8 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
             "recipe_path": None if rec.path is None else str(rec.path),
             "mesh": str(mesh_path),
             "seed": int(seed),
+            "up": up_est.to_dict(),
+            "upright_from_mesh": to_upright.tolist(),
             "input": _counts(mesh),
             "output": _counts(final),
             "surface": _counts(state.surface),

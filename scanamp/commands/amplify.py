@@ -20,6 +20,9 @@ class AmplifyOptions(Config):
 
     seed: int | None = option(None, range="[0, inf)",
                               help="random seed (default: the recipe's seed, else 0)")
+    up: tuple[float, float, float] | None = option(
+        None, help="up in the mesh's frame, x,y,z (none: from a camera model beside the mesh "
+                   "- transforms.json or sparse/ - else from the mesh's ground and walls)")
 
 
 CONFIG = AmplifyOptions
@@ -37,6 +40,6 @@ def add_arguments(p):
 def run(args, config: AmplifyOptions) -> int:
     from scanamp.amplify import run as amplify_run
 
-    out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed)
+    out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed, up=config.up)
     log.info("wrote %s", out)
     return 0
