@@ -35,8 +35,8 @@ from procgen.noise.fractal import bias as _bias
 from procgen.noise.fractal import fbm, turbulence
 from procgen.noise.fractal import gain as _gain
 
-__all__ = ["sphere_sdf", "egg_sdf", "sweep_sdf", "mesh_sdf", "isosurface", "hypertexture",
-           "fractal_egg", "architexture"]
+__all__ = ["sphere_sdf", "egg_sdf", "sweep_sdf", "mesh_sdf", "shell_sdf", "isosurface",
+           "hypertexture", "fractal_egg", "architexture"]
 
 
 def sphere_sdf(center=(0.0, 0.0, 0.0), radius: float = 1.0) -> Callable:
@@ -95,14 +95,8 @@ def sweep_sdf(polyline, radius: float) -> Callable:
     return sdf
 
 
-def mesh_sdf(mesh) -> Callable:
-    """Signed distance to a closed triangle mesh (Open3D ``RaycastingScene``; negative inside).
-
-    Raises
-    ------
-    ValueError
-        When the mesh has no triangles.
-    """
+def _raycasting_scene(mesh):
+    """Open3D ``RaycastingScene`` of a mesh, and its vertices."""
     import open3d as o3d
 
     v, f = mesh_arrays(mesh)
@@ -113,12 +107,43 @@ def mesh_sdf(mesh) -> Callable:
     tmesh.triangle.indices = o3d.core.Tensor(f.astype(np.int32))
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(tmesh)
+    return scene, v
+
+
+def _query(p):
+    import open3d as o3d
+
+    return o3d.core.Tensor(np.ascontiguousarray(p, dtype=np.float32))
+
+
+def mesh_sdf(mesh) -> Callable:
+    """Signed distance to a closed triangle mesh (Open3D ``RaycastingScene``; negative inside).
+
+    Raises
+    ------
+    ValueError
+        When the mesh has no triangles.
+    """
+    scene, v = _raycasting_scene(mesh)
 
     def sdf(p):
-        q = o3d.core.Tensor(np.ascontiguousarray(p, dtype=np.float32))
-        return scene.compute_signed_distance(q, nsamples=3).numpy().astype(np.float64)
+        return scene.compute_signed_distance(_query(p), nsamples=3).numpy().astype(np.float64)
 
     sdf.bounds = (v.min(axis=0), v.max(axis=0))
+    return sdf
+
+
+def shell_sdf(mesh, thickness: float) -> Callable:
+    """Signed distance to the solid shell of half-width ``thickness`` around a surface
+    (its unsigned distance minus ``thickness``): an inside for an open mesh, such as a
+    reconstruction with holes or a ground sheet, where :func:`mesh_sdf` has none."""
+    thickness = check_positive(thickness, "thickness")
+    scene, v = _raycasting_scene(mesh)
+
+    def sdf(p):
+        return scene.compute_distance(_query(p)).numpy().astype(np.float64) - thickness
+
+    sdf.bounds = (v.min(axis=0) - thickness, v.max(axis=0) + thickness)
     return sdf
 
 

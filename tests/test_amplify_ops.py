@@ -248,10 +248,24 @@ def test_hypertexture_with_zero_amplitude_reproduces_the_surface():
     assert r2.max() > 1.0 + 0.05                             # turbulence pushes outward
 
 
-def test_hypertexture_refuses_an_open_mesh():
-    plane = heightfield_to_mesh(np.zeros((3, 3)))
-    with pytest.raises(ValueError, match="closed"):
-        hypertexture_mesh(plane, rng=_rng())
+def test_hypertexture_gives_an_open_mesh_a_shell_instead_of_refusing():
+    """An open hemisphere: the result is closed, hugs the input within the shell's
+    half-width (plus a voxel of marching cubes), and covers all of it."""
+    from reconstruct.evaluate import evaluate
+    from procgen.amplify.hyper import SHELL_VOXELS
+
+    ball = _ball(24)
+    v, f = mesh_arrays(ball)
+    keep = np.all(v[f][:, :, 2] > -1e-9, axis=1)
+    dome = make_mesh(v, f[keep])
+    res = hypertexture_mesh(dome, rng=_rng(), amplitude=0.0, resolution=40)
+    assert res.inside == "shell"
+    out, of = mesh_arrays(res.mesh)
+    assert is_closed(of)
+    ev = evaluate(res.mesh, dome, tau=(SHELL_VOXELS + 1.0) * res.voxel, distance="surface")
+    assert ev.precision > 0.99 and ev.recall > 0.99
+    closed = hypertexture_mesh(ball, rng=_rng(), amplitude=0.0, resolution=24)
+    assert closed.inside == "mesh"
 
 
 def test_bad_arguments_name_themselves():

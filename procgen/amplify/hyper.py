@@ -18,23 +18,29 @@ import numpy as np
 from core.meshes import is_closed
 from core.validate import check_int, check_positive, check_rng
 from procgen.amplify.surface import mesh_input
-from procgen.implicit import hypertexture
+from procgen.implicit import hypertexture, shell_sdf
 
-__all__ = ["HyperResult", "hypertexture_mesh"]
+__all__ = ["HyperResult", "hypertexture_mesh", "SHELL_VOXELS"]
+
+SHELL_VOXELS = 1.5  # half-width of the shell built around an open mesh, in voxels
 
 
 @dataclass
 class HyperResult:
-    """``mesh`` (the re-meshed surface) and ``voxel`` (the sampling step in metres)."""
+    """``mesh`` (the re-meshed surface), ``voxel`` (the sampling step in metres) and
+    ``inside``: ``"mesh"`` (a closed input's own inside) or ``"shell"`` (an open input
+    thickened by ``SHELL_VOXELS`` voxels on each side to give it one)."""
 
     mesh: object
     voxel: float
+    inside: str = "mesh"
 
 
 def hypertexture_mesh(mesh, *, rng: np.random.Generator, noise: str = "turbulence",
                       amplitude: float = 0.02, frequency: float = 8.0, octaves: int = 4,
                       resolution: int = 96, bias: float = 0.5, gain: float = 0.5) -> HyperResult:
-    """Perlin-Hoffert hypertexture of a closed mesh.
+    """Perlin-Hoffert hypertexture of a mesh (an open one is first given an inside: the
+    shell of half-width ``SHELL_VOXELS`` voxels around it, :func:`procgen.implicit.shell_sdf`).
 
     The surface becomes the 0.5 level of ``D(x) = clip(0.5 - (sdf(x) - amplitude *
     N(frequency x)) / (4 voxel))`` shaped by bias and gain; with ``amplitude = 0`` it is
@@ -43,7 +49,7 @@ def hypertexture_mesh(mesh, *, rng: np.random.Generator, noise: str = "turbulenc
     Parameters
     ----------
     mesh : open3d.geometry.TriangleMesh
-        Closed and consistently oriented (the signed distance needs an inside).
+        Closed and consistently oriented, or open (then thickened into a shell).
     rng : numpy.random.Generator
         Draws the noise permutation.
     noise : {'turbulence', 'fbm'}
@@ -63,9 +69,6 @@ def hypertexture_mesh(mesh, *, rng: np.random.Generator, noise: str = "turbulenc
     """
     rng = check_rng(rng)
     v, f = mesh_input(mesh)
-    if not is_closed(f):
-        raise ValueError("mesh: hypertexture needs a closed, consistently oriented surface "
-                         "(its signed distance has no inside otherwise)")
     amp = check_positive(amplitude, "amplitude", allow_zero=True)
     resolution = check_int(resolution, "resolution", 8, 512)
     seed = int(rng.integers(0, 2 ** 31 - 1))
@@ -73,7 +76,9 @@ def hypertexture_mesh(mesh, *, rng: np.random.Generator, noise: str = "turbulenc
     pad = 2.5 * amp + 0.05 * float(np.max(hi - lo))
     lo, hi = lo - pad, hi + pad
     voxel = float(np.max(hi - lo)) / (resolution - 1)
-    out = hypertexture(mesh, bounds=(lo, hi), resolution=resolution, noise=noise,
+    closed = is_closed(f)
+    shape = mesh if closed else shell_sdf(mesh, SHELL_VOXELS * voxel)
+    out = hypertexture(shape, bounds=(lo, hi), resolution=resolution, noise=noise,
                        amplitude=amp, frequency=frequency, octaves=octaves, bias=bias,
                        gain=gain, seed=seed)
-    return HyperResult(mesh=out, voxel=voxel)
+    return HyperResult(mesh=out, voxel=voxel, inside="mesh" if closed else "shell")

@@ -153,7 +153,7 @@ def _hypertexture(state: State, step, rng, **_):
                             octaves=p["octaves"], resolution=p["resolution"], bias=p["bias"],
                             gain=p["gain"])
     state.surface = res.mesh
-    return {"voxel": res.voxel, "amplitude_m": p["amplitude"] * diag}
+    return {"voxel": res.voxel, "amplitude_m": p["amplitude"] * diag, "inside": res.inside}
 
 
 def _fit(mesh, simulation: str, size: float):
