@@ -283,3 +283,43 @@ def test_bad_arguments_name_themselves():
     with pytest.raises(ValueError, match="mesh"):
         displace(make_mesh(np.zeros((3, 3)), np.zeros((0, 3), int)), rng=_rng())
     assert surface_area(*mesh_arrays(ball)).sum() > 0
+
+
+def test_snow_lies_only_where_the_sky_is_seen_and_thickens_on_level_ground():
+    """A ground with a roof over part of it: nothing under the roof, nothing steeper than
+    the limit; depth never decreases as the surface levels (no drift); every snow vertex's
+    upward ray leaves the mesh."""
+    from core.meshes import merge_meshes, vertex_normals
+    from procgen.amplify import snow_cover
+
+    x = np.linspace(-1, 1, 41)
+    hf = 0.4 * np.sin(2 * x)[:, None] * np.ones_like(x)[None, :]   # slopes of 0..39 deg
+    ground = heightfield_to_mesh(hf, spacing=0.05)
+    gv, gf = mesh_arrays(ground)
+    gv = gv - [gv[:, 0].mean(), gv[:, 1].mean(), 0.0]
+    roof = o3d.geometry.TriangleMesh.create_box(0.6, 0.6, 0.02).translate((-0.3, -0.3, 1.0))
+    mesh = merge_meshes([make_mesh(gv, gf), roof])
+    res = snow_cover(mesh, rng=_rng(), depth=0.05, slope_max_deg=30.0, drift=0.0)
+    v, f = mesh_arrays(mesh)
+    g = np.arange(len(gv))                                    # the ground's vertices
+    under = (np.abs(v[g, 0]) < 0.29) & (np.abs(v[g, 1]) < 0.29)
+    assert res.depth[g][under].max() == 0.0                   # sheltered by the roof
+    n = vertex_normals(v, f)
+    slope = np.degrees(np.arccos(np.clip(n[:, 2], -1, 1)))
+    assert res.depth[slope >= 30.0].max() == 0.0
+    open_ = g[~under & (slope[g] < 25.0)]
+    assert len(open_) > 100 and np.all(res.depth[open_] > 0)
+    # non-decreasing in n.z among the vertices that see the sky
+    seen = np.flatnonzero(res.sky)
+    order = seen[np.argsort(n[seen, 2], kind="stable")]
+    assert np.all(np.diff(res.depth[order]) >= -1e-12)
+    # every vertex of the layer: its upward ray leaves the scene without hitting it
+    sv, _ = mesh_arrays(res.mesh)
+    assert _sky_seen(mesh, sv).all()
+
+
+def _sky_seen(mesh, points):
+    rs = o3d.t.geometry.RaycastingScene()
+    rs.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
+    rays = np.hstack([points + [0, 0, 1e-6], np.tile([0.0, 0.0, 1.0], (len(points), 1))])
+    return ~rs.test_occlusions(o3d.core.Tensor(rays.astype(np.float32))).numpy().astype(bool)

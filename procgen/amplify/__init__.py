@@ -8,6 +8,7 @@
 - :func:`scatter_plants` — stochastic L-system plants from one grammar, planted by
   density, slope and altitude rules.
 - :func:`grow_vines` — tubes swept along noise-driven walks on the surface.
+- :func:`snow_cover` — a snow layer where the surface is level enough and sees the sky.
 - :func:`hypertexture_mesh` — the mesh's signed distance plus noise, re-meshed.
 
 Every operator takes the canonical mesh, keyword-only options and ``rng``, and returns a
@@ -17,6 +18,7 @@ small result object holding the new mesh and what a test needs to check it.
 from procgen.amplify.displacement import DisplaceResult, displace, subdivide_to_edge
 from procgen.amplify.hyper import HyperResult, hypertexture_mesh
 from procgen.amplify.plants import TREE_GRAMMAR, ScatterResult, grow_variants, scatter_plants
+from procgen.amplify.snow import SnowResult, snow_cover
 from procgen.amplify.terrain_refine import (
     Heightfield,
     TerrainResult,
@@ -30,5 +32,6 @@ __all__ = [
     "refine_terrain", "heightfield_from_mesh", "Heightfield", "TerrainResult",
     "scatter_plants", "grow_variants", "TREE_GRAMMAR", "ScatterResult",
     "grow_vines", "surface_walks", "VineResult",
+    "snow_cover", "SnowResult",
     "hypertexture_mesh", "HyperResult",
 ]

@@ -21,7 +21,8 @@ __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_nam
            "RECIPE_DIR"]
 
 RECIPE_DIR = Path(__file__).parent / "recipes"
-KINDS = ("clean", "displace", "refine-terrain", "scatter", "sweep", "hypertexture", "animate")
+KINDS = ("clean", "displace", "refine-terrain", "scatter", "sweep", "snow", "hypertexture",
+         "animate")
 
 _INF = float("inf")
 
@@ -103,6 +104,13 @@ SPECS: dict[str, dict[str, _F]] = {
         "taper": _F(float, 0.6, 0.0, 1.0),
         "merge": _F(bool, True),
         "color": _F(list, [0.25, 0.45, 0.15], 0.0, 1.0, length=3),
+    },
+    "snow": {
+        "depth": _F(float, 0.01, 0.0, 1.0, lo_open=True),     # relative
+        "slope_max_deg": _F(float, 60.0, 0.0, 90.0, lo_open=True),
+        "drift": _F(float, 0.3, 0.0, 1.0),
+        "merge": _F(bool, True),
+        "color": _F(list, [0.95, 0.96, 0.98], 0.0, 1.0, length=3),
     },
     "hypertexture": {
         "noise": _F(str, "turbulence", choices=("turbulence", "fbm")),

@@ -142,6 +142,24 @@ def _sweep(state: State, step, rng, **_):
             "part": name}
 
 
+def _snow(state: State, step, rng, **_):
+    from procgen.amplify.snow import snow_cover
+
+    p = step.params
+    v, _ = mesh_arrays(state.surface)
+    depth = p["depth"] * bbox_diagonal(v)
+    res = snow_cover(state.surface, rng=rng, depth=depth, slope_max_deg=p["slope_max_deg"],
+                     drift=p["drift"])
+    name = None
+    if res.mesh is not None:
+        if p["merge"]:
+            name = state.add_part("snow", res.mesh, p["color"])
+        else:
+            state.parts_unmerged.append(("snow", res.mesh, tuple(p["color"])))
+    return {"depth_m": depth, "covered_fraction": res.covered_fraction,
+            "sky_fraction": float(res.sky.mean()), "part": name}
+
+
 def _hypertexture(state: State, step, rng, **_):
     from procgen.amplify import hypertexture_mesh
 
@@ -234,6 +252,7 @@ EXECUTORS = {
     "refine-terrain": _refine_terrain,
     "scatter": _scatter,
     "sweep": _sweep,
+    "snow": _snow,
     "hypertexture": _hypertexture,
     "animate": _animate,
 }
