@@ -54,6 +54,21 @@ def test_run_writes_mesh_renders_and_report(small_mesh, tmp_path):
     parts = sum(len(read_mesh(out / f"{n}.ply").triangles) for n in ("surface", "plants",
                                                                       "vines"))
     assert parts == len(final.triangles)
+    # every vertex labelled and coloured: the parts' labels count their vertices exactly
+    from core.mesh_io import read_labeled_mesh
+    from scanamp.amplify.labels import LABELS
+
+    lm = read_labeled_mesh(out / "mesh.ply")
+    assert lm["names"] == LABELS
+    ids = {name: k for k, name in LABELS.items()}
+    for part, label in (("plants", "plant"), ("vines", "vine")):
+        n = len(read_mesh(out / f"{part}.ply").vertices)
+        assert int((lm["labels"] == ids[label]).sum()) == n
+    assert int(np.isin(lm["labels"], [ids["ground"], ids["object"]]).sum()) == \
+        len(read_mesh(out / "surface.ply").vertices)
+    plant_rgb = lm["colors"][lm["labels"] == ids["plant"]]
+    assert np.all(plant_rgb == np.round(np.array([0.35, 0.5, 0.2]) * 255))
+    assert len(read_mesh(out / "mesh.gltf").triangles) == len(final.triangles)
     before, after = read_image(out / "before.png"), read_image(out / "after.png")
     assert before.shape == after.shape == (48, 64, 3) and np.any(before != after)
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())   # atomic

@@ -80,3 +80,23 @@ def test_up_from_cameras_beside_the_mesh(tmp_path):
 def test_bad_up_names_itself():
     with pytest.raises(ValueError, match="up"):
         estimate_up(np.zeros((3, 3)), np.array([[0, 1, 2]]), up=(0, 0, 0))
+
+
+def test_ground_and_objects_of_the_demo_scene():
+    """The morphological ground filter against the scene's own parts: the terrain is
+    ground, the tree, shell and object stand on it (only their feet count as ground)."""
+    from reconstruct.ground import ground_mask
+
+    bundle = build_scene("demo")
+    terrain = np.concatenate([np.full(len(o.mesh.vertices), o.name == "terrain")
+                              for o in bundle.render_scene.objects])
+    v, f = mesh_arrays(bundle.gt_mesh())
+    g = ground_mask(v, f)
+    assert g[terrain].mean() > 0.95 and g[~terrain].mean() < 0.06
+    # in its own frame and scale: rotate back to up with the estimate, scale 100x
+    R = Rotation.random(random_state=3).as_matrix()
+    from core.frames import rotation_between
+
+    est = up_from_mesh(100 * v @ R.T, f)
+    g2 = ground_mask(100 * v @ R.T @ rotation_between(est.up, [0, 0, 1]).T, f)
+    assert np.mean(g2 == g) > 0.97

@@ -8,7 +8,9 @@ current surface; animate runs a particle, cloth or boids recipe with surface + p
 the collider.
 
 Output folder (written atomically): ``mesh.ply`` (the final mesh: surface and parts
-merged), ``surface.ply`` and one PLY per added part, ``before.png`` / ``after.png``,
+merged, every vertex with ``red green blue`` and an integer ``label``; ``labels.json``
+names the labels, :mod:`scanamp.amplify.labels`), ``mesh.gltf`` (the same with its
+colours), ``surface.ply`` and one PLY per added part, ``before.png`` / ``after.png``,
 ``animation/`` (one folder per animate step, as ``scanamp simulate`` writes it) and
 ``report.json`` (steps with their validated parameters, counts before and after,
 timings, seed).
@@ -30,7 +32,7 @@ import numpy as np
 from core.files import atomic_dir, write_json
 from core.image_io import write_image
 from core.mesh_io import read_mesh, write_mesh
-from core.meshes import merge_meshes, mesh_arrays
+from core.meshes import mesh_arrays
 from core.progress import track
 from core.validate import InputError
 from scanamp.amplify.recipe import KINDS, Recipe, Step, load_recipe, parse_recipe, recipe_names
@@ -41,16 +43,8 @@ log = logging.getLogger(__name__)
 __all__ = ["run", "amplify", "load_recipe", "parse_recipe", "recipe_names", "KINDS", "Recipe",
            "Step", "State"]
 
-SURFACE_COLOR = (0.72, 0.68, 0.6)
-
-
 def _counts(mesh) -> dict:
     return {"vertices": len(mesh.vertices), "triangles": len(mesh.triangles)}
-
-
-def _parts(state: State, *, unmerged: bool = False):
-    extra = state.parts + (state.parts_unmerged if unmerged else [])
-    return [(state.surface, SURFACE_COLOR)] + [(m, c) for _, m, c in extra]
 
 
 def amplify(mesh, recipe, *, seed: int = 0, out_dir: str | os.PathLike | None = None
@@ -140,15 +134,23 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     r = rec.render
     view = dict(width=r["width"], height=r["height"], elevation_deg=r["elevation_deg"],
                 azimuth_deg=r["azimuth_deg"], fov_deg=r["fov_deg"])
+    import open3d as o3d
+
+    from core.mesh_io import write_labeled_mesh
+    from scanamp.amplify.labels import LABELS, labelled_arrays, surface_parts
     from scanamp.amplify.views import render_parts
 
     with atomic_dir(out_dir) as tmp:
-        write_image(tmp / "before.png", render_parts([(mesh, SURFACE_COLOR)], **view))
+        write_image(tmp / "before.png", render_parts(surface_parts(mesh)[1], **view))
         state, steps = amplify(mesh, rec, seed=int(seed), out_dir=tmp)
-        final = merge_meshes([m for m, _ in _parts(state)]) if state.parts else state.surface
         back = to_upright.T  # +z -> the mesh's own up
-        files = ["mesh.ply"]
-        write_mesh(tmp / "mesh.ply", _moved(final, back))
+        fv, ff, colors, labels = labelled_arrays(state.surface, state.parts)
+        final = make_mesh(fv @ back.T, ff)
+        write_labeled_mesh(tmp / "mesh.ply", fv @ back.T, ff, colors=colors, labels=labels,
+                           names=LABELS)
+        final.vertex_colors = o3d.utility.Vector3dVector(colors)
+        write_mesh(tmp / "mesh.gltf", final)
+        files = ["mesh.ply", "labels.json", "mesh.gltf"]
         if state.parts or state.parts_unmerged:
             write_mesh(tmp / "surface.ply", _moved(state.surface, back))
             files.append("surface.ply")
@@ -160,7 +162,9 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
                 used.add(name)
                 write_mesh(tmp / f"{name}.ply", _moved(m, back))
                 files.append(f"{name}.ply")
-        write_image(tmp / "after.png", render_parts(_parts(state, unmerged=True), **view))
+        after = surface_parts(state.surface)[1] + [(m, c) for _, m, c in
+                                                   state.parts + state.parts_unmerged]
+        write_image(tmp / "after.png", render_parts(after, **view))
         files += ["before.png", "after.png"]
         files += [s["animation"] for s in steps if s.get("animation")]
         report = {

@@ -135,8 +135,8 @@ SPECS: dict[str, dict[str, _F]] = {
 }
 
 _RENDER = {
-    "width": _F(int, 320, 16, 4096),
-    "height": _F(int, 240, 16, 4096),
+    "width": _F(int, 640, 16, 4096),
+    "height": _F(int, 480, 16, 4096),
     "elevation_deg": _F(float, 30.0, -89.0, 89.0),
     "azimuth_deg": _F(float, -60.0, -360.0, 360.0),
     "fov_deg": _F(float, 45.0, 1.0, 170.0),
