@@ -29,6 +29,7 @@ __all__ = [
     "atomic_dir",
     "atomic_file",
     "write_json",
+    "read_text",
     "read_json",
     "read_toml",
     "write_toml",
@@ -146,6 +147,17 @@ def write_json(path: str | os.PathLike, data: Any) -> Path:
     with atomic_file(path) as tmp:
         tmp.write_text(json.dumps(data, indent=2, default=_jsonable, allow_nan=True) + "\n")
     return Path(path)
+
+
+def read_text(path: str | os.PathLike) -> str:
+    """Read a UTF-8 text file; a missing or undecodable file raises InputError naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text: {exc}", path=path) from None
 
 
 def read_json(path: str | os.PathLike) -> Any:

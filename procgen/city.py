@@ -24,11 +24,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.config import Config, option
 from core.validate import check_range
 
 __all__ = ["CityConfig", "City", "generate_city", "grow_roads", "Box", "Cylinder", "Union",
            "Difference", "csg_mesh", "segments_cross"]
 
+
+HIGHWAY_HALF_WIDTH = 6.0  # metres: road ribbons, highways wider than streets
+STREET_HALF_WIDTH = 3.5
 
 # --------------------------------------------------------------------------- CSG
 
@@ -123,23 +127,28 @@ def csg_mesh(solid, *, voxel: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
 
 
 @dataclass
-class CityConfig:
-    """City parameters (metres, degrees)."""
+class CityConfig(Config):
+    """City parameters (metres, degrees): the options of ``scanamp procgen city``."""
 
-    size: float = 2000.0
-    centres: int = 3
-    highway_length: float = 120.0
-    street_length: float = 70.0
-    snap_radius: float = 25.0
-    highway_fan: float = 30.0
-    max_segments: int = 600
-    river_width: float = 120.0
-    parks: int = 2
-    park_radius: float = 120.0
-    lot_depth: float = 22.0
-    lot_width: float = 18.0
-    road_clearance: float = 6.0
-    voxel: float = 1.5
+    size: float = option(2000.0, unit="m", range="[100, inf)", help="side of the square map")
+    centres: int = option(3, range="[1, 50]", help="population centres")
+    highway_length: float = option(120.0, unit="m", range="(0, inf)",
+                                   help="length of a highway segment")
+    street_length: float = option(70.0, unit="m", range="(0, inf)",
+                                  help="length of a street segment")
+    snap_radius: float = option(25.0, unit="m", range="[0, inf)",
+                                help="road ends this close to an intersection join it")
+    highway_fan: float = option(30.0, unit="deg", range="[0, 180]",
+                                help="spread of the directions a highway samples")
+    max_segments: int = option(600, range="[1, 100000]", help="road segments at most")
+    river_width: float = option(120.0, unit="m", range="[0, inf)", help="river width (0: none)")
+    parks: int = option(2, range="[0, 100]", help="parks (no roads, no buildings)")
+    park_radius: float = option(120.0, unit="m", range="(0, inf)", help="park radius")
+    lot_depth: float = option(22.0, unit="m", range="(0, inf)", help="lot depth from the road")
+    lot_width: float = option(18.0, unit="m", range="(0, inf)", help="lot width along the road")
+    road_clearance: float = option(6.0, unit="m", range="[0, inf)",
+                                   help="lots start this far from the road's axis")
+    voxel: float = option(1.5, unit="m", range="(0, inf)", help="building meshing voxel")
 
 
 @dataclass
@@ -159,6 +168,10 @@ class City:
         ``cx, cy, half_x, half_y`` of each lot (axis-aligned in the lot's frame).
     vertices, triangles : arrays
         All buildings and flat road ribbons as one mesh.
+    part : (n,) int8
+        What each vertex belongs to: 0 a building, 1 a street, 2 a highway.
+    heights : (b,) float64
+        Height of each building's top (its tallest solid), metres.
     """
 
     config: CityConfig
@@ -170,6 +183,8 @@ class City:
     lot_frames: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     vertices: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     triangles: np.ndarray = field(default_factory=lambda: np.empty((0, 3), np.int64))
+    part: np.ndarray = field(default_factory=lambda: np.empty(0, np.int8))
+    heights: np.ndarray = field(default_factory=lambda: np.empty(0))
     density: object = None
     water: object = None
     park: object = None
@@ -359,6 +374,17 @@ def _building(rng, cx, cy, hx, hy, height, angle):
     return solid
 
 
+def _top(solid) -> float:
+    """Highest z of a CSG tree (a difference is no higher than what it cuts)."""
+    if isinstance(solid, Box):
+        return float(solid.center[2] + solid.half[2])
+    if isinstance(solid, Cylinder):
+        return float(solid.center[2] + solid.half_height)
+    if isinstance(solid, Union):
+        return max(_top(s) for s in solid.parts)
+    return _top(solid.a)
+
+
 def generate_city(rng: np.random.Generator, config: CityConfig | None = None) -> City:
     """Grow roads, place lots and build CSG buildings.
 
@@ -379,8 +405,9 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
     if len(edges) == 0:
         return city
     a, b = nodes[edges[:, 0]], nodes[edges[:, 1]]
+    halfw = np.where(highway, HIGHWAY_HALF_WIDTH, STREET_HALF_WIDTH)
     peak = float(density(nodes).max())
-    fps, frames, solids = [], [], []
+    fps, frames, solids, heights = [], [], [], []
     centres = np.empty((0, 2))
     radii = np.empty(0)
     for (p, q) in zip(a, b, strict=True):
@@ -400,7 +427,7 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
                 if water(corners).any() or park(corners).any() or water(c).any():
                     continue
                 dist, _ = _point_segment_distance(c, a, b)
-                if dist.min() < r + 0.5 * cfg.road_clearance:
+                if np.min(dist - halfw) < r + 1.0:  # a metre clear of every ribbon
                     continue
                 if len(centres) and np.any(np.linalg.norm(centres - c, axis=1) < radii + r):
                     continue
@@ -410,9 +437,11 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
                 height = 6 + 80 * rel**2 * rng.uniform(0.5, 1.0)
                 angle = np.arctan2(d[1], d[0])
                 solids.append(_building(rng, 0.0, 0.0, hx, hy, height, angle))
+                heights.append(_top(solids[-1]))
                 fps.append([c[0], c[1], hx, hy])
                 frames.append([angle, 0.0])
     city.buildings = solids
+    city.heights = np.array(heights)
     city.footprints = np.array(fps).reshape(-1, 4)
     city.lot_frames = np.array(frames).reshape(-1, 2)
     vs, fs = [], []
@@ -425,14 +454,18 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
         fs.append(f + count)
         count += len(v)
     # roads as flat ribbons slightly above the ground
+    parts = [np.zeros(count, np.int8)]
     for (p, q), hw in zip(zip(a, b, strict=True), highway, strict=True):
         d = q - p
-        n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12) * (6 if hw else 3.5)
+        n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12) * (
+            HIGHWAY_HALF_WIDTH if hw else STREET_HALF_WIDTH)
         quad = np.array([[*(p - n), 0.05], [*(q - n), 0.05], [*(q + n), 0.05],
                          [*(p + n), 0.05]])
         vs.append(quad)
         fs.append(np.array([[0, 1, 2], [0, 2, 3]]) + count)
+        parts.append(np.full(4, 2 if hw else 1, np.int8))
         count += 4
+    city.part = np.concatenate(parts)
     city.vertices = np.vstack(vs)
     city.triangles = np.vstack(fs).astype(np.int64)
     return city

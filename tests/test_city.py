@@ -68,3 +68,46 @@ def test_roads_follow_the_population_global_goal(city):
     p = np.random.default_rng(0).uniform(-half, half, (4000, 2))
     land = p[~city.water(p) & ~city.park(p)]
     assert city.density(city.nodes).mean() > 1.2 * city.density(land).mean()
+
+
+def test_road_graph_is_connected(city):
+    """One network: every intersection reaches every other along the roads."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(city.nodes)
+    e = city.edges
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    used = np.unique(e)
+    count, label = connected_components(graph, directed=False)
+    assert len(np.unique(label[used])) == 1
+
+
+def test_buildings_stand_inside_their_lots_clear_of_roads_and_each_other(city):
+    from procgen.city import HIGHWAY_HALF_WIDTH, STREET_HALF_WIDTH, _point_segment_distance
+
+    cfg, fp, fr = city.config, city.footprints, city.lot_frames
+    a, b = city.nodes[city.edges[:, 0]], city.nodes[city.edges[:, 1]]
+    halfw = np.where(city.highway, HIGHWAY_HALF_WIDTH, STREET_HALF_WIDTH)
+    for (cx, cy, hx, hy), (angle, _) in zip(fp, fr, strict=True):
+        # the building's base box is the footprint: inside the lot (width x depth)
+        assert hx <= cfg.lot_width / 2 and hy <= cfg.lot_depth / 2
+        d, n = np.array([np.cos(angle), np.sin(angle)]), np.array([-np.sin(angle),
+                                                                    np.cos(angle)])
+        corners = [np.array([cx, cy]) + i * hx * d + j * hy * n for i in (-1, 1)
+                   for j in (-1, 1)]
+        for c in corners:   # clear of every road ribbon (highways wider than streets)
+            dist, _ = _point_segment_distance(c, a, b)
+            assert np.min(dist - halfw) > 0.0
+    # the first building's mesh lies within its footprint (CSG, meshed)
+    v, _ = csg_mesh(city.buildings[0], voxel=1.0)
+    hx, hy = fp[0, 2], fp[0, 3]
+    assert np.abs(v[:, 0]).max() <= hx + 1.0 and np.abs(v[:, 1]).max() <= hy + 1.0
+
+
+def test_building_heights_follow_the_population(city):
+    from scipy.stats import spearmanr
+
+    pop = city.density(city.footprints[:, :2])
+    rho = spearmanr(pop, city.heights).statistic
+    assert rho >= 0.7, rho

@@ -121,3 +121,64 @@ def test_empty_input_mesh_exits_2(tmp_path, capsys):
                str(tmp_path / "o.ply")])
     assert rc == 2
     assert "empty.ply" in capsys.readouterr().err
+
+
+def _labelled(path):
+    from core.mesh_io import read_labeled_mesh
+
+    m = read_labeled_mesh(path)
+    return m, {m["names"][int(k)] for k in np.unique(m["labels"])}
+
+
+def test_city_cli_writes_roads_and_buildings_labelled(tmp_path):
+    out = tmp_path / "city" / "c.ply"
+    out.parent.mkdir()
+    assert main(["-q", "procgen", "city", "--size", "600", "--max-segments", "60",
+                 "--voxel", "3", "--out", str(out)]) == 0
+    m, names = _labelled(out)
+    assert names == {"road", "building", "ground"}
+    # roads lie flat just above the ground, buildings rise from it
+    road = m["vertices"][m["labels"] == 6]
+    assert np.allclose(road[:, 2], 0.05)
+    assert m["vertices"][m["labels"] == 7][:, 2].max() > 6.0
+    assert read_image(out.with_name("c.preview.png")).std() > 1
+
+
+def test_plant_cli_bark_and_leaves_same_seed_same_bytes(tmp_path):
+    a, b = tmp_path / "a" / "p.ply", tmp_path / "b" / "p.ply"
+    for p in (a, b):
+        p.parent.mkdir()
+        assert main(["-q", "procgen", "plant", "--seed", "4", "--no-preview",
+                     "--out", str(p)]) == 0
+    assert a.read_bytes() == b.read_bytes()
+    m, names = _labelled(a)
+    assert names == {"bark", "leaf"}
+    c = tmp_path / "c" / "p.ply"
+    c.parent.mkdir()
+    assert main(["-q", "procgen", "plant", "--seed", "5", "--no-preview", "--out", str(c)]) == 0
+    assert c.read_bytes() != a.read_bytes()
+
+
+@pytest.mark.parametrize("shape", ["turbinate", "helicospiral"])
+def test_shell_cli_scaled_to_size(tmp_path, shape):
+    out = tmp_path / "s.ply"
+    assert main(["-q", "procgen", "shell", "--shape", shape, "--size", "0.2", "--n-theta",
+                 "120", "--n-s", "16", "--no-preview", "--out", str(out)]) == 0
+    v = read_mesh(out).vertices
+    assert np.ptp(np.asarray(v), axis=0).max() == pytest.approx(0.2)
+
+
+def test_sweep_cli_closed_tube_of_the_profile_radius(tmp_path):
+    from core.meshes import is_closed, mesh_arrays
+
+    out = tmp_path / "w.ply"
+    assert main(["-q", "procgen", "sweep", "--profile", "circle", "--path", "circle",
+                 "--twist", "0", "--radius", "0.05", "--size", "2", "--no-preview",
+                 "--out", str(out)]) == 0
+    v, f = mesh_arrays(read_mesh(out))
+    assert is_closed(f)
+    # a torus: every vertex 0.1 m from the 1 m circle (profile radius 0.05 x size 2)
+    ring = np.hypot(v[:, 0], v[:, 1]) - 1.0
+    assert np.allclose(np.hypot(ring, v[:, 2]), 0.1, atol=1e-9)
+    assert main(["-q", "procgen", "sweep", "--path", "circle", "--taper", "0.5",
+                 "--out", str(tmp_path / "x.ply")]) == 2

@@ -64,3 +64,16 @@ def test_geometry_is_closed_and_seeded():
 def test_bad_grammars(text, words):
     with pytest.raises(InputError, match=words):
         parse_shape_grammar(text)
+
+
+def test_a_typical_plant_branches_several_times():
+    """The weighted grammar: the median derivation over 60 seeds branches at least three
+    times (with equal weights it is a stick with a leaf or two)."""
+    g = parse_shape_grammar(PLANT)
+    branches = [derive_sentence(g, np.random.default_rng(s), max_depth=10).count("[")
+                for s in range(60)]
+    assert np.median(branches) >= 3
+    flat = parse_shape_grammar(PLANT.replace("{0.85}", "").replace("{0.15}", "")
+                               .replace("{0.5}", ""))
+    assert np.median([derive_sentence(flat, np.random.default_rng(s), max_depth=10)
+                      .count("[") for s in range(60)]) <= 1
