@@ -72,6 +72,7 @@ SPECS: dict[str, dict[str, _F]] = {
         "hurst": _F(float, 0.8, 0.0, 1.0, lo_open=True, hi_open=True),
         "sigma": _F(float, None, 0.0, 1e6),               # metres; default: continue roughness
         "trim": _F(bool, True),
+        "objects": _F(str, "keep", choices=("keep", "refine")),  # keep: only the ground
     },
     "scatter": {
         "grammar": _F(str, "tree"),

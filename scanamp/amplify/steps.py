@@ -84,15 +84,30 @@ def _displace(state: State, step, rng, **_):
 
 
 def _refine_terrain(state: State, step, rng, **_):
+    from core.meshes import merge_meshes
     from procgen.amplify import refine_terrain
+    from reconstruct.ground import ground_mask
 
     p = step.params
-    res = refine_terrain(state.surface, rng=rng, control_size=p["control_size"],
+    v, f = mesh_arrays(state.surface)
+    on_ground = ground_mask(v, f)[f].sum(axis=1) >= 2
+    keep = p["objects"] == "keep" and on_ground.any() and not on_ground.all()
+    ground = _submesh(v, f[on_ground]) if keep else state.surface
+    res = refine_terrain(ground, rng=rng, control_size=p["control_size"],
                          levels=p["levels"], hurst=p["hurst"], sigma=p["sigma"],
                          trim=p["trim"])
-    state.surface = res.mesh
+    state.surface = merge_meshes([res.mesh, _submesh(v, f[~on_ground])]) if keep else res.mesh
     return {"control_shape": list(res.control.shape), "fine_shape": list(res.heights.shape),
-            "control_hit_fraction": float(res.valid.mean()), "fine_spacing": res.spacing}
+            "control_hit_fraction": float(res.valid.mean()), "fine_spacing": res.spacing,
+            "object_triangles_kept": int((~on_ground).sum()) if keep else 0}
+
+
+def _submesh(v: np.ndarray, f: np.ndarray):
+    """The triangles ``f`` of vertices ``v`` as their own mesh (unused vertices dropped)."""
+    from core.meshes import make_mesh
+
+    used, inverse = np.unique(f, return_inverse=True)
+    return make_mesh(v[used], inverse.reshape(-1, 3))
 
 
 def _scatter(state: State, step, rng, *, recipe=None, **_):

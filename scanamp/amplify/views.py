@@ -15,7 +15,41 @@ from acquire.render import render
 from acquire.scene import RenderScene, SceneObject
 from core.meshes import make_mesh, mesh_arrays
 
-__all__ = ["render_parts"]
+__all__ = ["render_parts", "tight_camera"]
+
+
+def tight_camera(points: np.ndarray, *, width: int, height: int, fov_deg: float,
+                 elevation_deg: float, azimuth_deg: float, fill: float = 0.9) -> Camera:
+    """A look-at camera from the given direction, as close as it can be with every point
+    inside the central ``fill`` of the image (the bounding sphere's framing, pulled in:
+    a flat scene seen from above fills the frame instead of a quarter of it)."""
+    p = np.asarray(points, float)
+    if len(p) > 20000:
+        p = p[np.linspace(0, len(p) - 1, 20000).astype(np.int64)]
+    far = frame_camera(p, width=width, height=height, fov_deg=fov_deg,
+                       elevation_deg=elevation_deg, azimuth_deg=azimuth_deg, margin=1.0)
+    lo, hi = p.min(0), p.max(0)
+    center = 0.5 * (lo + hi)
+    eye0 = far.center
+
+    def fits(k: float) -> bool:
+        cam = Camera.look_at(center + k * (eye0 - center), center, width=width, height=height,
+                             fov_deg=fov_deg)
+        uv, z = cam.project(p)
+        if not np.all(z > 0):
+            return False
+        mx, my = (1 - fill) / 2 * width, (1 - fill) / 2 * height
+        return bool(np.all((uv[:, 0] >= mx) & (uv[:, 0] <= width - mx) & (uv[:, 1] >= my)
+                           & (uv[:, 1] <= height - my)))
+
+    lo_k, hi_k = 0.05, 1.0
+    if not fits(hi_k):
+        return far
+    for _ in range(20):
+        mid = 0.5 * (lo_k + hi_k)
+        lo_k, hi_k = (lo_k, mid) if fits(mid) else (mid, hi_k)
+    return Camera.look_at(center + hi_k * (eye0 - center), center, width=width, height=height,
+                          fov_deg=fov_deg)
 
 
 def render_parts(parts, *, width: int = 320, height: int = 240, elevation_deg: float = 30.0,
@@ -23,7 +57,7 @@ def render_parts(parts, *, width: int = 320, height: int = 240, elevation_deg: f
                  camera: Camera | None = None) -> np.ndarray:
     """Render ``parts`` (a list of ``(mesh, rgb albedo)``) to an ``(h, w, 3) uint8`` image.
 
-    ``camera`` defaults to :func:`frame_camera` of all the parts' vertices.
+    ``camera`` defaults to :func:`tight_camera` of all the parts' vertices.
     """
     objects = []
     allv = []
@@ -37,8 +71,8 @@ def render_parts(parts, *, width: int = 320, height: int = 240, elevation_deg: f
     if not objects:
         raise ValueError("parts: expected at least one mesh with triangles")
     if camera is None:
-        camera = frame_camera(np.vstack(allv), width=width, height=height, fov_deg=fov_deg,
-                              elevation_deg=elevation_deg, azimuth_deg=azimuth_deg, margin=1.1)
+        camera = tight_camera(np.vstack(allv), width=width, height=height, fov_deg=fov_deg,
+                              elevation_deg=elevation_deg, azimuth_deg=azimuth_deg)
     sun = DirectionalLight(direction=np.array([-0.4, 0.5, -1.0]), intensity=0.9)
     scene = RenderScene(objects, lights=[sun], ambient=0.25,
                         background=np.array([0.82, 0.86, 0.9]))
