@@ -27,7 +27,7 @@ from core.progress import track
 
 log = logging.getLogger(__name__)
 
-__all__ = ["render_animation", "draw_splats", "mesh_background"]
+__all__ = ["render_animation", "write_frames", "draw_splats", "mesh_background"]
 
 
 def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0.12),
@@ -107,6 +107,15 @@ def render_animation(frames: Iterable, camera, out_path: str | os.PathLike, *,
     Path
         ``out_path``, written atomically.
     """
+    draw = draw_splats if draw is None else draw
+    images = (draw(fr, camera, background, background_depth) for fr in frames)
+    return write_frames(images, out_path, fps=fps, quality=quality, total=total)
+
+
+def write_frames(images: Iterable, out_path: str | os.PathLike, *, fps: float = 12.0,
+                 quality: float = 7.0, total: int | None = None) -> Path:
+    """Encode images (``(h, w, 3)`` float in [0, 1] or uint8) as ``.mp4`` (H.264) or
+    ``.gif``, written atomically; ValueError for another suffix or no image."""
     import imageio.v2 as iio
 
     out_path = Path(out_path)
@@ -115,7 +124,6 @@ def render_animation(frames: Iterable, camera, out_path: str | os.PathLike, *,
         raise ValueError(f"out_path: expected a .mp4 or .gif file, got {out_path.name!r}")
     if not fps > 0:
         raise ValueError(f"fps: expected a positive number, got {fps!r}")
-    draw = draw_splats if draw is None else draw
     with atomic_file(out_path) as tmp:
         if suffix == ".mp4":
             writer = iio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264",
@@ -125,9 +133,9 @@ def render_animation(frames: Iterable, camera, out_path: str | os.PathLike, *,
             writer = iio.get_writer(tmp, format="GIF", mode="I", duration=1000.0 / fps, loop=0)
         try:
             count = 0
-            for fr in track(frames, "rendering", total=total):
-                img = draw(fr, camera, background, background_depth)
-                u8 = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
+            for img in track(images, "rendering", total=total):
+                u8 = img if img.dtype == np.uint8 else \
+                    (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
                 if suffix == ".mp4" and (u8.shape[0] % 2 or u8.shape[1] % 2):
                     u8 = np.pad(u8, ((0, u8.shape[0] % 2), (0, u8.shape[1] % 2), (0, 0)),
                                 mode="edge")  # yuv420p needs even sizes

@@ -190,3 +190,31 @@ def test_plants_stand_along_the_meshes_own_up(tmp_path, seed):
     # --up given: used as is
     out2 = run(path, recipe, tmp_path / "out2", seed=0, up=tuple(up))
     assert json.loads((out2 / "report.json").read_text())["up"]["source"] == "given"
+
+
+def test_variants_scene_and_turntable(small_mesh, tmp_path):
+    """--variants: one result per seed and a contact sheet; each result is a scene the
+    capture commands accept (one object per label, its meshes standing on z = 0) and,
+    asked for, a turntable animation with the frames asked."""
+    import imageio.v2 as iio
+
+    from data_synth.scenes import build_scene
+    from scanamp.amplify import run_variants
+
+    recipe = {"step": [{"kind": "displace", "edge": 0.0, "amplitude": 0.3},
+                       {"kind": "scatter", "density": 40.0, "slope_max_deg": 60.0,
+                        "variants": 2, "height": 0.15}],
+              "render": {"width": 64, "height": 48}}
+    out = run_variants(small_mesh, recipe, tmp_path / "v", seeds=[3, 4], turntable=6)
+    a, b = (out / "seed_3" / "mesh.ply").read_bytes(), (out / "seed_4" / "mesh.ply").read_bytes()
+    assert a != b
+    sheet = read_image(out / "contact_sheet.png")
+    assert sheet.shape[1] == 4 * 320 and sheet.std() > 1
+    reader = iio.get_reader(out / "seed_3" / "turntable.mp4", format="FFMPEG")
+    assert sum(1 for _ in reader) == 6
+    scene = build_scene(str(out / "seed_3" / "scene.toml"))
+    names = [o.name for o in scene.render_scene.objects]
+    assert "plant" in names and set(names) <= {"ground", "object", "plant"}
+    v, f = mesh_arrays(scene.gt_mesh())
+    assert abs(v[:, 2].min()) < 1e-9
+    assert len(f) == len(read_mesh(out / "seed_3" / "mesh.ply").triangles)

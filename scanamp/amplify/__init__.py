@@ -40,8 +40,15 @@ from scanamp.amplify.steps import EXECUTORS, State
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run", "amplify", "load_recipe", "parse_recipe", "recipe_names", "KINDS", "Recipe",
-           "Step", "State"]
+__all__ = ["run", "run_variants", "amplify", "load_recipe", "parse_recipe", "recipe_names",
+           "KINDS", "Recipe", "Step", "State"]
+
+
+def _homogeneous(R: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    return T
+
 
 def _counts(mesh) -> dict:
     return {"vertices": len(mesh.vertices), "triangles": len(mesh.triangles)}
@@ -79,7 +86,7 @@ def _moved(mesh, R: np.ndarray):
 
 
 def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
-        seed: int | None = 0, up=None) -> Path:
+        seed: int | None = 0, up=None, turntable: int = 0) -> Path:
     """Amplify the mesh file ``mesh_path`` with ``recipe`` into ``out_dir``.
 
     Parameters
@@ -99,6 +106,8 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         +z (plants stand along up, snow falls against it, terrain is a heightfield over
         it) and the results are written back in the mesh's own frame; ``report.json``
         says which up was used and where it came from.
+    turntable : int
+        Frames of a turntable animation of the result (``turntable.mp4``; 0: none).
 
     Returns
     -------
@@ -138,6 +147,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
 
     from core.mesh_io import write_labeled_mesh
     from scanamp.amplify.labels import LABELS, labelled_arrays, surface_parts
+    from scanamp.amplify.scene_export import write_scene
     from scanamp.amplify.views import render_parts
 
     with atomic_dir(out_dir) as tmp:
@@ -165,7 +175,14 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         after = surface_parts(state.surface)[1] + [(m, c) for _, m, c in
                                                    state.parts + state.parts_unmerged]
         write_image(tmp / "after.png", render_parts(after, **view))
-        files += ["before.png", "after.png"]
+        files += ["before.png", "after.png", "scene.toml", "parts"]
+        scene_from_upright = write_scene(tmp, fv, ff, colors, labels, LABELS)
+        if turntable > 0:
+            from scanamp.amplify.views import turntable as spin
+
+            spin(after, tmp / "turntable.mp4", frames=int(turntable),
+                 elevation_deg=r["elevation_deg"], fov_deg=r["fov_deg"])
+            files.append("turntable.mp4")
         files += [s["animation"] for s in steps if s.get("animation")]
         report = {
             "format": "scanamp.amplify/1",
@@ -175,6 +192,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
             "seed": int(seed),
             "up": up_est.to_dict(),
             "upright_from_mesh": to_upright.tolist(),
+            "scene_from_mesh": (scene_from_upright @ _homogeneous(to_upright)).tolist(),
             "input": _counts(mesh),
             "output": _counts(final),
             "surface": _counts(state.surface),
@@ -186,3 +204,22 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         write_json(tmp / "report.json", report)
     log.info("amplified %s with %s -> %s", mesh_path, rec.name, out_dir)
     return out_dir
+
+
+def run_variants(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
+                 seeds, up=None, turntable: int = 0) -> Path:
+    """One amplified result per seed in ``out_dir/seed_N/`` (each as :func:`run` writes
+    it) and ``contact_sheet.png``: every result's after view, labelled by its seed."""
+    from scanamp.amplify.views import contact_sheet
+
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds: expected distinct seeds, got {seeds}")
+    with atomic_dir(out_dir) as tmp:
+        for s in track(seeds, "variants", total=len(seeds)):
+            run(mesh_path, recipe, tmp / f"seed_{s}", seed=s, up=up, turntable=turntable)
+        sheet = contact_sheet([tmp / f"seed_{s}" / "after.png" for s in seeds],
+                              [f"seed {s}" for s in seeds])
+        write_image(tmp / "contact_sheet.png", sheet)
+    log.info("%d variants of %s -> %s", len(seeds), mesh_path, out_dir)
+    return Path(out_dir)

@@ -79,3 +79,48 @@ def render_parts(parts, *, width: int = 320, height: int = 240, elevation_deg: f
     rad = render(scene, camera, supersample=2).radiance
     srgb = np.clip(rad, 0.0, 1.0) ** (1 / 2.2)
     return (srgb * 255 + 0.5).astype(np.uint8)
+
+
+def turntable(parts, path, *, frames: int = 36, width: int = 480, height: int = 360,
+              elevation_deg: float = 30.0, fov_deg: float = 45.0, fps: float = 12.0):
+    """A turntable animation of ``parts`` about +z (``.mp4`` or ``.gif``): ``frames``
+    views one full turn apart, each framed as :func:`render_parts` frames the first."""
+    from scanamp.animation import write_frames
+
+    allv = np.vstack([mesh_arrays(m)[0] for m, _ in parts])
+    azimuths = -60.0 + 360.0 * np.arange(frames) / frames
+    cams = [tight_camera(allv, width=width, height=height, fov_deg=fov_deg,
+                         elevation_deg=elevation_deg, azimuth_deg=a) for a in azimuths]
+    # one distance for every view: the farthest any view needs, so the scene does not pump
+    center = 0.5 * (allv.min(0) + allv.max(0))
+    dist = max(float(np.linalg.norm(c.center - center)) for c in cams)
+    fixed = []
+    for c in cams:
+        d = c.center - center
+        fixed.append(Camera.look_at(center + dist * d / np.linalg.norm(d), center, width=width,
+                                    height=height, fov_deg=fov_deg))
+    images = (render_parts(parts, camera=c) for c in fixed)
+    return write_frames(images, path, fps=fps, total=frames)
+
+
+def contact_sheet(images, captions, *, columns: int = 4, width: int = 320) -> np.ndarray:
+    """Images (paths or arrays) side by side, ``columns`` a row, each scaled to ``width``
+    and captioned underneath; an ``(h, w, 3) uint8`` sheet."""
+    import cv2
+
+    from core.image_io import read_image
+
+    tiles = []
+    for img, text in zip(images, captions, strict=True):
+        a = read_image(img) if not isinstance(img, np.ndarray) else img
+        a = cv2.resize(a[..., :3], (width, round(a.shape[0] * width / a.shape[1])),
+                       interpolation=cv2.INTER_AREA)
+        bar = np.full((24, width, 3), 255, np.uint8)
+        cv2.putText(bar, text, (6, 17), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (40, 40, 40), 1,
+                    cv2.LINE_AA)
+        tiles.append(np.vstack([a, bar]))
+    h = max(t.shape[0] for t in tiles)
+    tiles = [np.vstack([t, np.full((h - t.shape[0], width, 3), 255, np.uint8)]) for t in tiles]
+    tiles += [np.full((h, width, 3), 255, np.uint8)] * (-len(tiles) % columns)
+    rows = [np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)]
+    return np.vstack(rows)

@@ -20,6 +20,12 @@ class AmplifyOptions(Config):
 
     seed: int | None = option(None, range="[0, inf)",
                               help="random seed (default: the recipe's seed, else 0)")
+    variants: int = option(1, range="[1, 1000]",
+                           help="amplified results from seeds seed, seed+1, ...: DIR/seed_N/ "
+                                "each, and DIR/contact_sheet.png")
+    turntable: int = option(0, range="[0, 3600]",
+                            help="frames of a turntable animation of each result "
+                                 "(turntable.mp4; 0: none)")
     up: tuple[float, float, float] | None = option(
         None, help="up in the mesh's frame, x,y,z (none: from a camera model beside the mesh "
                    "- transforms.json or sparse/ - else from the mesh's ground and walls)")
@@ -39,7 +45,15 @@ def add_arguments(p):
 
 def run(args, config: AmplifyOptions) -> int:
     from scanamp.amplify import run as amplify_run
+    from scanamp.amplify import run_variants
 
-    out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed, up=config.up)
+    if config.variants > 1:
+        first = 0 if config.seed is None else config.seed
+        out = run_variants(args.mesh, args.recipe, args.out,
+                           seeds=range(first, first + config.variants), up=config.up,
+                           turntable=config.turntable)
+    else:
+        out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed, up=config.up,
+                          turntable=config.turntable)
     log.info("wrote %s", out)
     return 0
