@@ -72,8 +72,7 @@ def plant_gallery(out: Path, seeds=range(12)) -> Path:
 def main(argv):
     out = Path(argv[0]) if argv else Path("docs/img")
     out.mkdir(parents=True, exist_ok=True)
-    print(city(out))
-    print(plant_gallery(out))
+    sys.stdout.write(f"{city(out)}\n{plant_gallery(out)}\n")
 
 
 if __name__ == "__main__":
