@@ -47,6 +47,16 @@ class State:
             return self.surface
         return merge_meshes([self.surface] + [m for _, m, _ in self.parts])
 
+    def place(self, base: str, mesh, color, merge: bool) -> str | None:
+        """Add ``mesh`` (None: nothing) as a part, merged into the final mesh or in its
+        own file only; the part's name when merged."""
+        if mesh is None:
+            return None
+        if merge:
+            return self.add_part(base, mesh, color)
+        self.parts_unmerged.append((base, mesh, tuple(color)))
+        return None
+
     def add_part(self, base: str, mesh, color) -> str:
         names = {n for n, _, _ in self.parts}
         name, k = base, 2
@@ -124,12 +134,7 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
                          altitude_range=tuple(p["altitude_range"]), variants=p["variants"],
                          steps=p["steps"], sides=p["sides"], max_plants=p["max_plants"],
                          upright=p["upright"], min_plants=p["min_plants"])
-    name = None
-    if res.mesh is not None:
-        if p["merge"]:
-            name = state.add_part("plants", res.mesh, p["color"])
-        else:
-            state.parts_unmerged.append(("plants", res.mesh, tuple(p["color"])))
+    name = state.place("plants", res.mesh, p["color"], p["merge"])
     return {"plants": len(res.positions), "candidates": res.candidates,
             "density_per_m2": density,
             "eligible_area": res.eligible_area, "truncated": res.truncated,
@@ -148,11 +153,7 @@ def _sweep(state: State, step, rng, **_):
                      step=min(stp, length), radius=p["radius"] * diag,
                      wander_deg=p["wander_deg"], slope_max_deg=p["slope_max_deg"],
                      sides=p["sides"], taper=p["taper"])
-    name = None
-    if p["merge"]:
-        name = state.add_part("vines", res.mesh, p["color"])
-    else:
-        state.parts_unmerged.append(("vines", res.mesh, tuple(p["color"])))
+    name = state.place("vines", res.mesh, p["color"], p["merge"])
     return {"vines": len(res.paths), "length": length, "radius": p["radius"] * diag,
             "part": name}
 
@@ -165,12 +166,7 @@ def _snow(state: State, step, rng, **_):
     depth = p["depth"] * bbox_diagonal(v)
     res = snow_cover(state.surface, rng=rng, depth=depth, slope_max_deg=p["slope_max_deg"],
                      drift=p["drift"])
-    name = None
-    if res.mesh is not None:
-        if p["merge"]:
-            name = state.add_part("snow", res.mesh, p["color"])
-        else:
-            state.parts_unmerged.append(("snow", res.mesh, tuple(p["color"])))
+    name = state.place("snow", res.mesh, p["color"], p["merge"])
     return {"depth_m": depth, "covered_fraction": res.covered_fraction,
             "sky_fraction": float(res.sky.mean()), "part": name}
 

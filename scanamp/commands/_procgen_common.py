@@ -24,6 +24,12 @@ def add_output(parser, *, kind: str):
                             help="do not write the FILE.preview.png render beside the mesh")
 
 
+def labelled_companions(args) -> list[Path]:
+    """What a command writing :func:`write_parts` output writes beside ``--out``."""
+    extra = [args.out.with_name("labels.json")] if args.out.suffix.lower() == ".ply" else []
+    return extra + ([] if args.no_preview else [preview_path(args.out)])
+
+
 def check_out(path: Path, suffixes) -> Path:
     if path.suffix.lower() not in suffixes:
         raise ValueError(f"--out: expected a file ending in {', '.join(suffixes)}, "

@@ -12,6 +12,7 @@ from scanamp.commands._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,
+    labelled_companions,
     preview_path,
     render_preview,
     write_parts,
@@ -31,8 +32,7 @@ _COLORS = {"building": (0.78, 0.72, 0.62), "road": (0.25, 0.25, 0.27),
 
 
 def companions(args, config=None):
-    extra = [args.out.with_name("labels.json")] if args.out.suffix.lower() == ".ply" else []
-    return extra + ([] if args.no_preview else [preview_path(args.out)])
+    return labelled_companions(args)
 
 
 def add_arguments(p):

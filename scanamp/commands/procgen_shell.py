@@ -12,6 +12,7 @@ from scanamp.commands._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,
+    labelled_companions,
     preview_path,
     render_preview,
     write_parts,
@@ -43,8 +44,7 @@ CONFIG = ShellConfig
 
 
 def companions(args, config=None):
-    extra = [args.out.with_name("labels.json")] if args.out.suffix.lower() == ".ply" else []
-    return extra + ([] if args.no_preview else [preview_path(args.out)])
+    return labelled_companions(args)
 
 
 def add_arguments(p):
