@@ -19,9 +19,11 @@ __all__ = ["LABELS", "COLORS", "label_of_part", "labelled_arrays", "surface_part
 
 # label id -> name; fixed, so a label means the same thing in every output
 LABELS = {0: "surface", 1: "ground", 2: "object", 3: "plant", 4: "vine", 5: "snow",
-          6: "road", 7: "building", 8: "roof", 9: "bark", 10: "leaf", 11: "shell"}
+          6: "road", 7: "building", 8: "roof", 9: "bark", 10: "leaf", 11: "shell",
+          12: "cloth", 13: "boid"}
 _IDS = {name: k for k, name in LABELS.items()}
-_PART_KIND = {"plants": "plant", "vines": "vine", "snow": "snow"}
+_PART_KIND = {"plants": "plant", "vines": "vine", "snow": "snow", "cloth": "cloth",
+              "boids": "boid"}
 COLORS = {"ground": (0.55, 0.5, 0.38), "object": (0.74, 0.7, 0.64),
           "surface": (0.72, 0.68, 0.6)}
 

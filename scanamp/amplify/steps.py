@@ -252,9 +252,57 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     sub_report = read_json(out_dir / name / "report.json")
     keys = ("status", "frames", "n", "steps", "particles_born", "particles_alive", "escapes",
             "impacts", "final", "animation")
+    shown = _last_frame(state, sim, out_dir / name, np.linalg.inv(T), mesh)
     return {"animation": name, "simulation": sim, "sub_recipe": str(sub), "seed": seed,
-            "sim_from_mesh": T.tolist(),
+            "sim_from_mesh": T.tolist(), "last_frame_part": shown,
             "result": {key: sub_report[key] for key in keys if key in sub_report}}
+
+
+def _last_frame(state: State, sim: str, folder, mesh_from_sim: np.ndarray, mesh):
+    """What the animation ends with, as a part of the result in the mesh's frame: the
+    draped cloth of the last frame (merged), or the boids of the frame that has the most
+    of them about the mesh, as small tetrahedra (their own file and the after view).
+    Particles leave no geometry. Returns the part's name."""
+    import glob
+
+    from core.meshes import make_mesh
+
+    if sim == "cloth":
+        plys = sorted(glob.glob(str(folder / "ply" / "frame_*.ply")))
+        if not plys:
+            return None
+        from core.mesh_io import read_mesh
+
+        cloth = read_mesh(plys[-1])
+        cloth.transform(mesh_from_sim)
+        return state.place("cloth", cloth, (0.75, 0.25, 0.22), True)
+    if sim != "boids":
+        return None
+    vtps = sorted(glob.glob(str(folder / "frames" / "frame_*.vtp")))
+    if not vtps:
+        return None
+    import pyvista as pv
+
+    v, _ = mesh_arrays(mesh)
+    lo, hi = v.min(0), v.max(0)
+    pad = 0.5 * (hi - lo)
+    best = (0, None, None)
+    for path in vtps:  # the frame with the most boids about the mesh (the latest on ties)
+        pts = (np.asarray(pv.read(path).points, float) @ mesh_from_sim[:3, :3].T
+               + mesh_from_sim[:3, 3])
+        near = np.all((pts >= lo - pad) & (pts <= hi + pad), axis=1)
+        if near.sum() >= best[0]:
+            best = (int(near.sum()), pts, near)
+    count, pts, near = best
+    if count == 0:
+        return None
+    size = 0.01 * bbox_diagonal(v)
+    tet = size * np.array([[1, 0, 0], [-0.5, 0.8, 0], [-0.5, -0.8, 0], [0, 0, 1.2]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    verts = (pts[near][:, None, :] + tet[None]).reshape(-1, 3)
+    tris = (faces[None] + 4 * np.arange(int(near.sum()))[:, None, None]).reshape(-1, 3)
+    state.place("boids", make_mesh(verts, tris), (0.15, 0.2, 0.3), False)
+    return "boids"
 
 
 EXECUTORS = {
