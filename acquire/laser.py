@@ -18,19 +18,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from core.validate import check_array, check_positive, check_range
+from core.validate import check_array, check_positive, check_range, check_unit_vector
 
 __all__ = ["LaserSheet", "LaserFrame", "LaserRenderer", "camera_directions", "plane_of"]
 
 _CUTOFF = 4.0  # sheet half-thickness rendered, in sigmas (exp(-8) = 3e-4 of the peak)
-
-
-def _unit(v, name):
-    v = check_array(v, name, shape=(3,))
-    n = np.linalg.norm(v)
-    if n == 0:
-        raise ValueError(f"{name}: expected a non-zero vector, got (0, 0, 0)")
-    return v / n
 
 
 @dataclass
@@ -70,8 +62,8 @@ class LaserSheet:
 
     def __post_init__(self):
         self.origin = check_array(self.origin, "origin", shape=(3,))
-        self.normal = _unit(self.normal, "normal")
-        d = _unit(self.direction, "direction")
+        self.normal = check_unit_vector(self.normal, "normal")
+        d = check_unit_vector(self.direction, "direction")
         d = d - (d @ self.normal) * self.normal
         if np.linalg.norm(d) < 1e-9:
             raise ValueError("direction: expected a direction inside the sheet, got its normal")

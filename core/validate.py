@@ -27,6 +27,7 @@ __all__ = [
     "check_range",
     "check_positive",
     "check_finite",
+    "check_unit_vector",
 ]
 
 
@@ -181,3 +182,12 @@ def check_rng(rng: Any, name: str = "rng") -> np.random.Generator:
 def check_positive(value: Any, name: str, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a float > 0 (or >= 0 with ``allow_zero``)."""
     return check_range(value, name, 0.0, None, lo_open=not allow_zero)
+
+
+def check_unit_vector(value: Any, name: str) -> np.ndarray:
+    """A finite, non-zero 3-vector scaled to unit length, else ValueError naming ``name``."""
+    v = check_array(value, name, shape=(3,))
+    n = float(np.linalg.norm(v))
+    if not np.isfinite(n) or n == 0:
+        raise ValueError(f"{name}: expected a non-zero vector, got {np.asarray(v).tolist()}")
+    return v / n

@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from core.validate import check_unit_vector
+
 __all__ = ["UpEstimate", "estimate_up", "up_from_cameras", "up_from_mesh", "find_camera_model"]
 
 log = logging.getLogger(__name__)
@@ -58,21 +60,13 @@ class UpEstimate:
                 "support": float(self.support), "detail": self.detail}
 
 
-def _unit(v) -> np.ndarray:
-    v = np.asarray(v, np.float64).reshape(3)
-    n = float(np.linalg.norm(v))
-    if not np.isfinite(n) or n == 0:
-        raise ValueError(f"up: expected a non-zero vector, got {v.tolist()}")
-    return v / n
-
-
 def up_from_cameras(world_from_cams) -> UpEstimate:
     """Up as the mean image-up (``-y`` of each OpenCV camera) in the world."""
     ups = np.array([-np.asarray(T, np.float64)[:3, 1] for T in world_from_cams])
     if len(ups) == 0:
         raise ValueError("cameras: expected at least one camera")
     mean = ups.mean(axis=0)
-    return UpEstimate(_unit(mean), "cameras", float(np.linalg.norm(mean)),
+    return UpEstimate(check_unit_vector(mean, "up"), "cameras", float(np.linalg.norm(mean)),
                       f"{len(ups)} cameras")
 
 
@@ -150,7 +144,7 @@ def estimate_up(vertices: np.ndarray, triangles: np.ndarray, *, up=None,
     model or transforms.json, :func:`reconstruct.camera_files.read_cameras`), else from
     the mesh. A camera model that cannot be read is logged and the mesh used."""
     if up is not None:
-        return UpEstimate(_unit(up), "given", 1.0)
+        return UpEstimate(check_unit_vector(up, "up"), "given", 1.0)
     if cameras is not None:
         from core.validate import InputError
         from reconstruct.camera_files import read_cameras

@@ -14,18 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.validate import check_array, check_choice, check_positive
+from core.validate import check_array, check_choice, check_positive, check_unit_vector
 
 __all__ = ["PointShape", "DiscShape", "BoxShape", "MeshSurface", "VelocityDist", "Emitter",
            "birth_count", "normal_clamped", "birth_count_moments"]
-
-
-def _unit(v, name):
-    v = check_array(v, name, shape=(3,))
-    n = np.linalg.norm(v)
-    if n == 0:
-        raise ValueError(f"{name}: expected a non-zero vector, got (0, 0, 0)")
-    return v / n
 
 
 def _basis(n):
@@ -57,7 +49,7 @@ class DiscShape:
 
     def sample(self, n: int, rng: np.random.Generator):
         c = check_array(self.center, "center", shape=(3,))
-        nn = _unit(self.normal, "normal")
+        nn = check_unit_vector(self.normal, "normal")
         u, w = _basis(nn)
         r = check_positive(self.radius, "radius", allow_zero=True) * np.sqrt(rng.random(n))
         phi = rng.uniform(0, 2 * np.pi, n)
@@ -181,8 +173,8 @@ class VelocityDist:
             d = rng.normal(size=(n, 3))
             d /= np.linalg.norm(d, axis=1, keepdims=True)
             return d * speed[:, None]
-        axes = (np.tile(_unit(self.direction, "direction"), (n, 1)) if self.kind == "cone"
-                else np.asarray(normals, np.float64))
+        axes = (np.tile(check_unit_vector(self.direction, "direction"), (n, 1))
+                if self.kind == "cone" else np.asarray(normals, np.float64))
         cos_max = np.cos(np.radians(self.spread_deg))
         cz = 1.0 - rng.random(n) * (1.0 - cos_max)
         phi = rng.uniform(0, 2 * np.pi, n)
