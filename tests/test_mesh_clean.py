@@ -99,3 +99,17 @@ def test_clean_is_a_recipe_step(tmp_path):
     assert len(areas) == 1 and rep["kind"] == "clean"
     assert rep["floaters"]["removed"] == 20 and rep["holes"]["boundary_edges_after"] == 0
     assert rep["params"]["edge_fraction"] == 0.005 and rep["params"]["smooth_steps"] == 0
+
+
+def test_a_dense_scan_is_decimated_before_remeshing_and_stays_on_its_surface():
+    """Far more triangles than the remeshing edge needs (a 200k-triangle scan): the fast
+    path decimates first, and the result still lies on the input surface."""
+    from reconstruct.mesh_clean import CleanOptions, clean_mesh
+
+    s = o3d.geometry.TriangleMesh.create_sphere(0.5, resolution=160)   # 102k triangles
+    F = np.asarray(s.triangles)
+    out, rep = clean_mesh(s, CleanOptions(edge_fraction=0.02))        # needs about 6k
+    assert "decimated_to" in rep and rep["decimated_to"] < len(F) / 2
+    r = np.linalg.norm(np.asarray(out.vertices), axis=1)
+    assert np.percentile(np.abs(r - 0.5), 99) < 0.005 * rep["input"]["diagonal"]
+    assert rep["holes"]["boundary_edges_after"] == 0
