@@ -18,9 +18,17 @@ distances both ways give
 * **normal consistency** = the mean of ``|n . n_nearest|`` over both directions
   (Mescheder et al. 2019), when both sides carry normals (mesh samples always do).
 
-Distances are point-to-sample, so they carry a sampling error of the order of the
-sample spacing squared over the distance (or the spacing itself for distances
-below it); the default density ties the spacing to ``tau`` (see :func:`evaluate`).
+Distances
+---------
+With ``distance="surface"`` (the default) a sample's distance to a mesh is to the closest
+point of its triangles (exact: a mesh scored against itself gives 0 whatever the
+density), to a point cloud the nearest point. With ``"samples"`` it is to the nearest
+sample of the other side, the Tanks and Temples / DTU protocol, which adds a sampling
+error of about ``1 / (2 pi density d)`` to a gap ``d`` and about half the spacing to a gap
+of 0; the default density ties the spacing to ``tau`` (about ``tau / 2.8``). A
+reconstruction in its own frame can be aligned first: ``"icp"`` from the identity
+(point-to-plane when the reference samples have normals), ``"global"`` from any frame
+(a deterministic coarse registration first).
 
 Example
 -------
@@ -331,58 +339,35 @@ def evaluate(
     rng: np.random.Generator | None = None,
     max_samples: int | None = DEFAULT_MAX_SAMPLES,
 ) -> EvaluationResult:
-    """Score a reconstruction against a reference surface.
+    """Score a reconstruction against a reference surface (see the module docstring).
 
     Parameters
     ----------
-    recon, reference : open3d TriangleMesh or PointCloud, (n, 3) float64, or (vertices, triangles)
-        A mesh is sampled uniformly by area; a point cloud (or a mesh with no
-        triangles) is used as its own samples, voxel-thinned to the sample spacing.
+    recon, reference : open3d TriangleMesh or PointCloud, (n, 3) array or (vertices, triangles)
+        A mesh is sampled uniformly by area; a point cloud (or a mesh with no triangles)
+        is its own samples, voxel-thinned to the sample spacing when ``thin_points``.
     tau : float, optional
-        Threshold of precision/recall/F in metres. Default: 0.5 % of the
-        reference's bounding-box diagonal (always reported in the result).
+        Precision/recall/F threshold in metres; default 0.5 % of the reference's
+        bounding-box diagonal (always reported).
     density : float, optional
-        Mesh samples per m^2, the same on both sides. Default
-        ``SAMPLES_PER_TAU2 / tau**2`` (spacing ~ tau / 2.8).
-    icp : bool
-        Shorthand for ``align="icp"``.
-    icp_threshold : float, optional
-        Final ICP correspondence distance; default ``5 * tau``.
-    align : {"none", "icp", "global"}, optional
-        Align the reconstruction to the reference before scoring
-        (:func:`reconstruct.registration.register`): ``"icp"`` from the identity
-        (point-to-plane when the reference samples have normals), ``"global"`` from any
-        frame (a deterministic coarse registration first), for a scan in its own frame.
+        Mesh samples per m^2 on both sides; default ``SAMPLES_PER_TAU2 / tau**2``.
+    icp, icp_threshold, align
+        Alignment before scoring: ``align`` "none", "icp" (``icp=True``) or "global"
+        (:func:`reconstruct.registration.register`); ICP's final correspondence
+        distance ``icp_threshold``, default ``5 * tau``.
     reference_mask : callable, optional
-        ``reference_mask(points (n, 3)) -> (n,) bool``: which reference samples
-        count for recall and completeness (e.g. the surface the scanner could see).
-        Precision and accuracy still use the whole reference, so a correct point on
-        an unseen part is not penalised.
-    thin_points : bool
-        Voxel-thin point clouds to the sample spacing (first point per voxel), so
-        a dense cloud does not outweigh a sparse region.
+        ``(n, 3) -> (n,) bool``: the reference samples that count for recall and
+        completeness (what the scanner could see); precision uses the whole reference.
     distance : {"surface", "samples"}
-        ``"surface"`` (default): a sample's distance to a mesh is to the closest
-        point of its triangles (exact: a mesh scored against itself gives 0 whatever
-        the density), to a point cloud the nearest point. ``"samples"``: to the
-        nearest sample of the other side, the Tanks and Temples / DTU protocol,
-        which adds a sampling error of about ``1 / (2 pi density d)`` to a gap ``d``
-        and about half the spacing to a gap of 0.
+        To the closest point of the other mesh's triangles (exact), or to its nearest
+        sample (the Tanks and Temples / DTU protocol); see "Distances" above.
     rng : numpy.random.Generator, optional
         Sampling randomness; default ``numpy.random.default_rng(0)``.
     max_samples : int or None
-        Cap on samples per side. When a mesh would exceed it the shared density is
-        lowered for both sides; a larger point cloud is randomly subsampled.
+        Cap on samples per side (the shared density is lowered to meet it).
 
-    Returns
-    -------
-    EvaluationResult
-
-    Raises
-    ------
-    ValueError
-        Empty or degenerate input, bad option, a mask of the wrong shape or one that
-        keeps no sample. Messages start with ``recon`` or ``reference``.
+    Raises ValueError for empty or degenerate input, a bad option, or a mask of the
+    wrong shape or keeping nothing (messages start with ``recon`` or ``reference``).
     """
     rng = np.random.default_rng(0) if rng is None else rng
     check_choice(distance, "distance", {"surface", "samples"})
@@ -397,24 +382,27 @@ def evaluate(
     ref_pts, ref_nrm = _samples(ref, density, max_samples, thin_points, rng)
 
     align = ("icp" if icp else "none") if align is None else align
-    check_choice(align, "align", ("none", "icp", "global"))
-    icp_fields = {}
-    if align != "none":
-        threshold = 5.0 * tau if icp_threshold is None else check_positive(icp_threshold,
-                                                                           "icp_threshold")
-        rec, rec_pts, rec_nrm, icp_fields = _align(rec, rec_pts, rec_nrm, ref_pts, ref_nrm,
-                                                   align, threshold, rng)
+    threshold = 5.0 * tau if icp_threshold is None else icp_threshold
+    rec, rec_pts, rec_nrm, icp_fields = _align(rec, rec_pts, rec_nrm, ref_pts, ref_nrm, align,
+                                               threshold, rng)
     surface = distance == "surface"
     acc, acc_nrm = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
     visible = _visible(reference_mask, ref_pts)
     comp, comp_nrm = _nearest(ref_pts[visible], rec_pts, rec_nrm, rec if surface else None)
 
-    precision, recall, fscore = fscore_at(acc, comp, tau)
     consistency = None
     if rec_nrm is not None and ref_nrm is not None:
         c_acc = np.abs(np.einsum("ij,ij->i", rec_nrm, acc_nrm))
         c_comp = np.abs(np.einsum("ij,ij->i", ref_nrm[visible], comp_nrm))
         consistency = float(0.5 * (c_acc.mean() + c_comp.mean()))
+    return _result(acc, comp, tau, normal_consistency=consistency,
+                   n_recon_samples=len(rec_pts), n_reference_samples=int(visible.sum()),
+                   density=float(density), distance=distance, **icp_fields)
+
+
+def _result(acc: np.ndarray, comp: np.ndarray, tau: float, **fields):
+    """The scores of the two directed distance sets."""
+    precision, recall, fscore = fscore_at(acc, comp, tau)
     acc_mean, comp_mean = float(acc.mean()), float(comp.mean())
     return EvaluationResult(
         tau=float(tau), precision=precision, recall=recall, fscore=fscore,
@@ -422,10 +410,7 @@ def evaluate(
         completeness_mean=comp_mean, completeness_median=float(np.median(comp)),
         chamfer=acc_mean + comp_mean, overall=0.5 * (acc_mean + comp_mean),
         hausdorff=float(max(acc.max(), comp.max())),
-        hausdorff_95=float(max(np.percentile(acc, 95), np.percentile(comp, 95))),
-        normal_consistency=consistency,
-        n_recon_samples=len(rec_pts), n_reference_samples=int(visible.sum()),
-        density=float(density), distance=distance, **icp_fields)
+        hausdorff_95=float(max(np.percentile(acc, 95), np.percentile(comp, 95))), **fields)
 
 
 def _capped_density(density: float, max_samples: int, rec: _Geom, ref: _Geom) -> float:
@@ -439,9 +424,13 @@ def _capped_density(density: float, max_samples: int, rec: _Geom, ref: _Geom) ->
 
 def _align(rec: _Geom, rec_pts, rec_nrm, ref_pts, ref_nrm, method: str, threshold: float,
            rng) -> tuple:
-    """The reconstruction moved onto the reference (``icp`` or ``global``), and the report
-    fields of the alignment."""
+    """The reconstruction moved onto the reference (``icp`` or ``global``; ``none`` leaves
+    it), and the report fields of the alignment."""
     from reconstruct.registration import register
+
+    if check_choice(method, "align", ("none", "icp", "global")) == "none":
+        return rec, rec_pts, rec_nrm, {}
+    check_positive(threshold, "icp_threshold")
 
     reg = register(rec_pts, ref_pts, method=method, reference_normals=ref_nrm,
                    threshold=threshold, rng=rng)
