@@ -110,6 +110,9 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
         write_image(fig / f"amplify_{tag}.png",
                     _to_u8(np.where(r.mask[..., None], r.radiance * kk, 0.08)))
         out["amplify"][tag] = f"figures/amplify_{tag}.png"
+    for tag in ("before", "after"):  # the amplifier's own views: in colour, by part
+        if (root / "amplify" / f"{tag}.png").is_file():
+            out["amplify"][f"{tag} (colour)"] = f"amplify/{tag}.png"
     out["plots"], out["curves"] = _plots(fig, dists, tau)
     _colorbar(fig / "error_scale.png", tau)
     out["plots"]["error scale"] = "figures/error_scale.png"
@@ -289,8 +292,11 @@ scores it in the frame its calibration gave. Time: capture plus reconstruction.<
 <p>Recipe <code>{html.escape(str(amp['recipe']))}</code>{recipe_link}
 ({html.escape(', '.join(s['kind'] for s in amp['steps']))}): {amp['input']['triangles']:,} to
 {amp['output']['triangles']:,} triangles (<a href="{html.escape(amp['mesh'])}">mesh</a>,
-<a href="amplify/report.json">report</a>). Close-up on the scanned object:</p>
+<a href="amplify/report.json">report</a>). Close-up on the scanned object, then the whole
+scene in colour by part (ground, objects, plants):</p>
 <div>{_img(fig['amplify']['before'], 'before')}{_img(fig['amplify']['after'], 'after')}</div>
+<div>{''.join(_img(fig['amplify'][k], k) for k in ('before (colour)', 'after (colour)')
+             if k in fig['amplify'])}</div>
 
 <h2>Animation on the amplified mesh</h2>
 <div>{_video(anim['particles']['video'], 'snow settling (particles, recipe snow)')}

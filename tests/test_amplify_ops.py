@@ -323,3 +323,23 @@ def _sky_seen(mesh, points):
     rs.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
     rays = np.hstack([points + [0, 0, 1e-6], np.tile([0.0, 0.0, 1.0], (len(points), 1))])
     return ~rs.test_occlusions(o3d.core.Tensor(rays.astype(np.float32))).numpy().astype(bool)
+
+
+def test_plants_need_the_sky_and_a_gentle_slope():
+    """A level ground half under a roof: no root under the roof (its upward ray would hit
+    it), none on the roof's vertical sides, every root on the surface."""
+    from core.meshes import merge_meshes
+
+    ground = heightfield_to_mesh(np.zeros((21, 21)), spacing=0.1)           # 2 m x 2 m
+    roof = o3d.geometry.TriangleMesh.create_box(1.0, 2.0, 0.05).translate((0.0, 0.0, 0.6))
+    mesh = merge_meshes([ground, roof])
+    res = scatter_plants(mesh, rng=_rng(), density=20.0, height=0.1, slope_max_deg=30.0,
+                         variants=1, max_plants=1000)
+    p = res.positions
+    on_ground = p[:, 2] < 0.3
+    assert on_ground.sum() > 10 and (~on_ground).sum() > 3      # ground and roof top
+    assert np.all(p[on_ground, 0] > 1.0 - 1e-9)                   # none under the roof
+    assert np.allclose(p[~on_ground, 2], 0.65)                    # the roof's top, level
+    free = scatter_plants(mesh, rng=_rng(), density=20.0, height=0.1, slope_max_deg=30.0,
+                          variants=1, max_plants=1000, need_sky=False)
+    assert np.any((free.positions[:, 2] < 0.3) & (free.positions[:, 0] < 1.0))

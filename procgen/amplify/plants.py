@@ -29,9 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.frames import rotation_to
-from core.meshes import face_normals, make_mesh, surface_area
+from core.meshes import bbox_diagonal, face_normals, make_mesh, surface_area
 from core.sampling import sample_surface
 from core.validate import check_finite, check_int, check_positive, check_range, check_rng
+from procgen.amplify.snow import sky_visible
 from procgen.amplify.surface import mesh_input
 
 __all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "upward_slope"]
@@ -160,7 +161,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
                    slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
                    variants: int = 6, steps: int | None = None, sides: int = 6,
                    max_plants: int = 400, upright: bool = True, min_plants: int = 0,
-                   max_candidates: int = 2_000_000) -> ScatterResult:
+                   max_candidates: int = 2_000_000, need_sky: bool = True) -> ScatterResult:
     """Plant a varied forest on ``mesh``.
 
     Parameters
@@ -191,6 +192,9 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         Keep at most this many (the first drawn).
     upright : bool
         Grow along +z (True) or along the surface normal.
+    need_sky : bool
+        Plant only where the upward ray from the surface leaves the mesh (nothing under
+        an overhang, a roof or a branch).
     min_plants : int
         A floor: when the Poisson draw leaves fewer plants than this (a small mesh, a
         low density), more candidates are drawn uniformly by area until the floor is
@@ -215,6 +219,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     min_plants = min(check_int(min_plants, "min_plants", 0), max_plants)
     fn = face_normals(v, f)
     area = surface_area(v, f)
+    diag = bbox_diagonal(v)
     slope_ok = upward_slope(fn) <= smax + 1e-9
     eligible_area = float(area[slope_ok].sum())
     lam = dens * float(area.sum())
@@ -227,6 +232,8 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         p, _, t = sample_surface(v, f, n, rng=rng, return_index=True)
         rel = np.clip((p[:, 2] - z0) / (z1 - z0), 0.0, 1.0) if z1 > z0 else np.zeros(len(p))
         ok = slope_ok[t] & (rel >= a_lo) & (rel <= a_hi)
+        if need_sky and ok.any():  # no plant under an overhang
+            ok[ok] = sky_visible(v, f, fn[t[ok]], points=p[ok], offset=1e-6 * diag)
         return p[ok], t[ok]
 
     n_cand = int(rng.poisson(lam))

@@ -48,9 +48,10 @@ class SnowResult:
 
 
 def sky_visible(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray, *,
-                offset: float) -> np.ndarray:
-    """Which vertices' upward rays (+z, started ``offset`` off the surface along the
-    normal) leave the mesh without hitting it."""
+                offset: float, points: np.ndarray | None = None) -> np.ndarray:
+    """Which points' upward rays (+z, started ``offset`` off the surface along their
+    ``normals``) leave the mesh ``(vertices, triangles)`` without hitting it; the points
+    are the vertices unless given."""
     import open3d as o3d
 
     tmesh = o3d.t.geometry.TriangleMesh()
@@ -58,7 +59,7 @@ def sky_visible(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray
     tmesh.triangle.indices = o3d.core.Tensor(np.asarray(triangles, np.int32))
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(tmesh)
-    origin = vertices + offset * normals
+    origin = (vertices if points is None else points) + offset * normals
     rays = np.hstack([origin, np.tile([0.0, 0.0, 1.0], (len(origin), 1))]).astype(np.float32)
     hit = scene.test_occlusions(o3d.core.Tensor(rays)).numpy()
     return ~hit.astype(bool)
