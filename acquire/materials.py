@@ -1,4 +1,7 @@
-"""Surface materials: constant albedo, solid procedural textures, UV image textures.
+"""Surface materials: constant albedo, solid procedural textures, UV image textures, and
+a reflectance model (:mod:`acquire.brdf`): Lambertian, a GGX conductor (metal: the albedo
+is its normal-incidence reflectance) or a GGX-coated dielectric (plastic, varnish: the
+albedo is the diffuse base under a clear coat of refractive index ``ior``).
 
 Solid textures are evaluated at points in the OBJECT frame, so they move with the
 object (a turntable scan sees the same texture at every angle).
@@ -10,10 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.validate import check_array, check_choice, check_positive
+from acquire.brdf import BRDFS, dielectric_f0, ggx
+from core.validate import check_array, check_choice, check_positive, check_range
 from procgen.noise import SOLID_TEXTURES, fbm
 
-__all__ = ["Material", "MATERIAL_KINDS"]
+__all__ = ["Material", "MATERIAL_KINDS", "BRDFS"]
 
 MATERIAL_KINDS = ("constant", "solid", "image")
 
@@ -33,7 +37,7 @@ def solid_texture_names() -> tuple[str, ...]:
 
 @dataclass(eq=False)
 class Material:
-    """A Lambertian material.
+    """A material: where its colour comes from, and how it reflects.
 
     Parameters
     ----------
@@ -50,6 +54,12 @@ class Material:
         Noise permutation of the solid texture.
     image : (h, w, 3) uint8, optional
         The 'image' texture, addressed by per-vertex UVs (u right, v down, in [0, 1]).
+    brdf : {'lambert', 'conductor', 'dielectric'}
+        The reflectance model (:mod:`acquire.brdf`).
+    roughness : float
+        GGX roughness in (0, 1] (alpha = roughness^2): 0.05 a polished part, 1 matte.
+    ior : float
+        Refractive index of a dielectric's coat (1.5: plastics, varnish).
     """
 
     kind: str = "constant"
@@ -59,9 +69,15 @@ class Material:
     contrast: float = 0.8
     seed: int | None = None
     image: np.ndarray | None = None
+    brdf: str = "lambert"
+    roughness: float = 0.5
+    ior: float = 1.5
 
     def __post_init__(self):
         check_choice(self.kind, "kind", MATERIAL_KINDS)
+        check_choice(self.brdf, "brdf", BRDFS)
+        self.roughness = check_range(self.roughness, "roughness", 0.0, 1.0, lo_open=True)
+        self.ior = check_range(self.ior, "ior", 1.0, 4.0, lo_open=True)
         self.albedo = np.clip(check_array(self.albedo, "albedo", shape=(3,)), 0, 1)
         self.scale = check_positive(self.scale, "scale")
         if self.kind == "solid":
@@ -91,6 +107,20 @@ class Material:
         if uvs is None:
             raise ValueError("uvs: an 'image' material needs per-vertex UVs on its mesh")
         return _bilinear(self.image, uvs)
+
+
+    def reflectance(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray,
+                    albedo: np.ndarray) -> np.ndarray:
+        """``pi`` times the BRDF ``(k, 3)`` for light from ``wi`` seen from ``wo`` at
+        normals ``n`` (the renderer's convention: a Lambertian surface reflects its
+        ``albedo`` times the irradiance)."""
+        if self.brdf == "lambert":
+            up = (np.einsum("ij,ij->i", wi, n) > 0) & (np.einsum("ij,ij->i", wo, n) > 0)
+            return np.where(up[:, None], albedo, 0.0)
+        if self.brdf == "conductor":
+            return np.pi * ggx(wi, wo, n, roughness=self.roughness, f0=albedo)
+        return np.pi * ggx(wi, wo, n, roughness=self.roughness, f0=dielectric_f0(self.ior),
+                           diffuse=albedo)
 
 
 def _bilinear(img: np.ndarray, uvs: np.ndarray) -> np.ndarray:

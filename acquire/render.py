@@ -249,8 +249,15 @@ def visibility(scene: RenderScene, light, points: np.ndarray, geo_normals: np.nd
     return ~occluded.astype(bool)
 
 
-def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None) -> np.ndarray:
-    """Lambertian radiance ``(n, 3)`` at the hits; the scene background on misses."""
+def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
+          view_dirs: np.ndarray | None = None) -> np.ndarray:
+    """Radiance ``(n, 3)`` at the hits (direct light with shadows plus an ambient term);
+    the scene background on misses.
+
+    Lambertian surfaces reflect ``albedo * irradiance``; a GGX material
+    (:class:`acquire.materials.Material` ``brdf``) reflects ``pi f(wi, wo) * irradiance``
+    per light, which needs the rays' ``view_dirs`` (from the camera; any length).
+    """
     lights = scene.lights if lights is None else lights
     ambient = scene.ambient if ambient is None else ambient
     n = len(hits.hit)
@@ -259,15 +266,39 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None) -> np.nd
     if h.size == 0:
         return out
     P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
-    E = np.full((h.size, 3), float(ambient))
+    alb = albedo(scene, hits)[h]
+    glossy = [i for i, o in enumerate(scene.objects) if o.material.brdf != "lambert"]
+    if not glossy or view_dirs is None:  # Lambertian only: albedo times irradiance
+        E = np.full((h.size, 3), float(ambient))
+        for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+            E[lit[vis]] += irr[lit[vis]]
+        out[h] = alb * E
+        return out
+    wo = -np.asarray(view_dirs, np.float64)[h]
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    rad = alb * float(ambient)
+    for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+        k = lit[vis]
+        wi = light.shadow_rays(P[k])[0]
+        wi = wi / np.linalg.norm(wi, axis=1, keepdims=True)
+        refl = np.empty((k.size, 3))
+        for i, obj in enumerate(scene.objects):
+            sel = np.flatnonzero(hits.obj[h[k]] == i)
+            if sel.size:
+                refl[sel] = obj.material.reflectance(wi[sel], wo[k[sel]], N[k[sel]],
+                                                     alb[k[sel]])
+        rad[k] += refl * irr[k]
+    out[h] = rad
+    return out
+
+
+def _lit(scene: RenderScene, lights, P, N, G):
+    """Per light: itself, the hits it could light, which of those it reaches, irradiance."""
     for light in lights:
         irr = light.irradiance(P, N)
         lit = np.flatnonzero(np.any(irr > 0, axis=1))
         if lit.size:
-            vis = visibility(scene, light, P[lit], G[lit])
-            E[lit[vis]] += irr[lit[vis]]
-    out[h] = albedo(scene, hits)[h] * E
-    return out
+            yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
 
 
 def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=None,
@@ -288,7 +319,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     px = camera.pixel_grid(supersample=s)
     o, d = camera.rays(px)
     hits = cast(scene, o, d)
-    rad = shade(scene, hits, lights=lights, ambient=ambient)
+    rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d)
     radiance = rad.reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
     if s == 1:
         centre = hits

@@ -113,6 +113,17 @@ def _material(tbl, *, path, prefix, seed) -> Material:
             kw[key] = require(tbl, key, float, path=path, prefix=prefix)
     if "texture" in tbl:
         kw["texture"] = require(tbl, "texture", str, path=path, prefix=prefix)
+    if "brdf" in tbl:
+        kw["brdf"] = require(tbl, "brdf", str, path=path, prefix=prefix)
+    for key in ("roughness", "ior"):
+        if key in tbl:
+            kw[key] = require(tbl, key, float, path=path, prefix=prefix)
+    known = {"kind", "albedo", "scale", "contrast", "texture", "seed", "brdf", "roughness",
+             "ior"}
+    for key in tbl:
+        if key not in known:
+            raise InputError(f"unknown key; expected one of {', '.join(sorted(known))}",
+                             path=path, field=f"{prefix}.{key}")
     kw["seed"] = require(tbl, "seed", int, path=path, prefix=prefix, default=seed)
     try:
         return Material(**kw)
