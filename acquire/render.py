@@ -270,7 +270,7 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     glossy = [i for i, o in enumerate(scene.objects) if o.material.brdf != "lambert"]
     if not glossy or view_dirs is None:  # Lambertian only: albedo times irradiance
         E = np.full((h.size, 3), float(ambient))
-        for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+        for _light, lit, vis, irr in _lit(scene, lights, P, N, G):
             E[lit[vis]] += irr[lit[vis]]
         out[h] = alb * E
         return out
