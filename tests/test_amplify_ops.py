@@ -343,3 +343,25 @@ def test_plants_need_the_sky_and_a_gentle_slope():
     free = scatter_plants(mesh, rng=_rng(), density=20.0, height=0.1, slope_max_deg=30.0,
                           variants=1, max_plants=1000, need_sky=False)
     assert np.any((free.positions[:, 2] < 0.3) & (free.positions[:, 0] < 1.0))
+
+
+@pytest.mark.parametrize("hurst", [0.5, 0.8])
+def test_displacement_detail_has_the_recipes_hurst_exponent(hurst):
+    """fBm displacement of a flat grid: the offsets' variogram over the middle octaves
+    grows as r**(2H) with H within 0.1 of the one asked for; smoothed over the first
+    octave's wavelength, the surface stays within 0.5 % of the diagonal of the input."""
+    from scipy.ndimage import uniform_filter
+
+    n = 480
+    plane = heightfield_to_mesh(np.zeros((n, n)), spacing=1.0)
+    res = displace(plane, rng=_rng(2), noise="fbm", amplitude=0.3, wavelength=300.0,
+                   octaves=10, hurst=hurst)
+    z = res.offset.reshape(n, n)
+    rs = np.array([2, 4, 8, 16, 32])
+    g = [np.mean((z[:, r:] - z[:, :-r]) ** 2) + np.mean((z[r:, :] - z[:-r, :]) ** 2)
+         for r in rs]
+    h_est = np.polyfit(np.log(rs), np.log(g), 1)[0] / 2
+    assert abs(h_est - hurst) < 0.1, h_est
+    lam = int(300 * float(np.mean(res.scale)))   # first-octave wavelength, in grid steps
+    smooth = uniform_filter(z, size=min(lam, n), mode="reflect")
+    assert np.abs(smooth).max() < 0.005 * np.sqrt(2) * (n - 1)

@@ -61,6 +61,7 @@ SPECS: dict[str, dict[str, _F]] = {
         "scale": _F(str, "local", choices=("local", "global")),
         "wavelength": _F(float, 4.0, 0.0, 1e6, lo_open=True),
         "octaves": _F(int, 5, 1, 16),
+        "hurst": _F(float, 1.0, 0.0, 1.0, lo_open=True),   # octave gain 2**-hurst
         "mask": _F(str, "none", choices=("none", "slope", "curvature")),
         "mask_range": _F(list, [20.0, 40.0], 0.0, 1e6, length=2),
         "invert_mask": _F(bool, False),

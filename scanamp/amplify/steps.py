@@ -82,7 +82,8 @@ def _displace(state: State, step, rng, **_):
     target = p["edge"] * mean_edge if p["edge"] > 0 else None
     res = displace(state.surface, rng=rng, target_edge=target,
                    noise=p["noise"], amplitude=p["amplitude"], scale=p["scale"],
-                   wavelength=p["wavelength"], octaves=p["octaves"], mask=p["mask"],
+                   wavelength=p["wavelength"], octaves=p["octaves"], hurst=p["hurst"],
+                   mask=p["mask"],
                    mask_range=tuple(p["mask_range"]), invert_mask=p["invert_mask"],
                    max_triangles=p["max_triangles"])
     state.surface = res.mesh
