@@ -365,3 +365,18 @@ def test_displacement_detail_has_the_recipes_hurst_exponent(hurst):
     lam = int(300 * float(np.mean(res.scale)))   # first-octave wavelength, in grid steps
     smooth = uniform_filter(z, size=min(lam, n), mode="reflect")
     assert np.abs(smooth).max() < 0.005 * np.sqrt(2) * (n - 1)
+
+
+def test_a_vine_walk_that_bounces_back_still_sweeps():
+    """A walk that steps off and straight back (a crease) has a zero central-difference
+    tangent there: the turning point goes, the tube is built (the monstree mesh failed so)."""
+    from procgen.amplify.vines import _untangled
+    from procgen.sweeps import sweep
+
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0], [0, 1, 0], [0, 1, 0], [0, 2, 0.0]])
+    q = _untangled(p, 1e-6)
+    np.testing.assert_array_equal(q, [[0, 0, 0], [0, 1, 0], [0, 2, 0]])
+    with pytest.raises(ValueError, match="repeated points"):
+        sweep(np.array([[1.0, 0], [0, 1], [-1, 0]]), p[:3])
+    v, f = sweep(np.array([[1.0, 0], [0, 1], [-1, 0]]) * 0.1, q)
+    assert len(f) > 0

@@ -141,6 +141,21 @@ def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: fl
     return [P[i] for i in range(count)], [N[i] for i in range(count)]
 
 
+def _untangled(path: np.ndarray, min_gap: float) -> np.ndarray:
+    """The path without repeated points and without the turning points of exact
+    back-and-forth steps (where a walk bounced off a crease and came back: the sweep's
+    tangent there would be zero)."""
+    path = path[np.r_[True, np.linalg.norm(np.diff(path, axis=0), axis=1) > min_gap]]
+    while len(path) > 2:
+        central = np.linalg.norm(path[2:] - path[:-2], axis=1)
+        bad = np.flatnonzero(central <= min_gap)
+        if bad.size == 0:
+            break
+        path = np.delete(path, bad[:1] + 1, axis=0)  # one at a time: neighbours change
+        path = path[np.r_[True, np.linalg.norm(np.diff(path, axis=0), axis=1) > min_gap]]
+    return path
+
+
 def grow_vines(mesh, *, rng: np.random.Generator, count: int = 12, length: float = 1.0,
                step: float = 0.02, radius: float = 0.005, wander_deg: float = 25.0,
                slope_max_deg: float = 90.0, sides: int = 6, taper: float = 0.6) -> VineResult:
@@ -167,9 +182,7 @@ def grow_vines(mesh, *, rng: np.random.Generator, count: int = 12, length: float
     vs, fs, off = [], [], 0
     min_gap = 1e-3 * float(step)
     for P, N in zip(paths, normals, strict=True):
-        lifted = P + r * N
-        keep = np.r_[True, np.linalg.norm(np.diff(lifted, axis=0), axis=1) > min_gap]
-        lifted = lifted[keep]
+        lifted = _untangled(P + r * N, min_gap)
         if len(lifted) < 2:
             continue
         t = np.linspace(0.0, 1.0, len(lifted))
