@@ -81,7 +81,11 @@ def _remesh(ms, edge: float, report: dict) -> None:
         ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(1.2 * needed),
                                                     preservetopology=False)
         report["decimated_to"] = int(ms.current_mesh().face_number())
-    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(edge), iterations=3)
+    # vertices are reprojected onto the input surface after every pass; pymeshlab's extra
+    # surface-distance check on each edge operation made the passes 25x slower on thin
+    # parts (24 s instead of 1 s on the demo scene's 47k triangles) for no closer result
+    ms.meshing_isotropic_explicit_remeshing(targetlen=pymeshlab.PureValue(edge), iterations=3,
+                                            checksurfdist=False, reprojectflag=True)
 
 
 def clean_mesh(mesh, options: CleanOptions | None = None):
