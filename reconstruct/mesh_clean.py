@@ -112,8 +112,14 @@ def clean_mesh(mesh, options: CleanOptions | None = None):
                         "area": total, "diagonal": diag},
               "floaters": {"removed": int(small.sum()),
                            "area_fraction": float(areas[small].sum() / total)}}
+    # pymeshlab works on the mesh scaled to a unit diagonal about its centre and rounded to
+    # 2^-30 of it, so the same mesh at any scale or place gives pymeshlab the same numbers
+    # and is cleaned to the same triangles (its discrete choices follow the last bits)
+    centre = 0.5 * (V0.max(0) + V0.min(0))
+    unit = max(diag, 1e-300)
+    Vn = np.round((V0 - centre) / unit * 2.0 ** 30) / 2.0 ** 30
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(V0, F0[keep_tri]))
+    ms.add_mesh(pymeshlab.Mesh(Vn, F0[keep_tri]))
     ms.meshing_remove_unreferenced_vertices()
     ms.meshing_remove_duplicate_vertices()
     ms.meshing_remove_duplicate_faces()
@@ -125,7 +131,7 @@ def clean_mesh(mesh, options: CleanOptions | None = None):
     after = _boundary_edges(ms.current_mesh().face_matrix())
     report["holes"] = {"boundary_edges_before": before, "boundary_edges_after": after}
     if opt.remesh:
-        _remesh(ms, opt.edge_fraction * diag, report)
+        _remesh(ms, opt.edge_fraction, report)
     if opt.smooth_steps > 0:
         ms.apply_coord_taubin_smoothing(stepsmoothnum=int(opt.smooth_steps))
     # remeshing a real reconstruction can leave non-manifold spots; orientation needs none
@@ -140,7 +146,7 @@ def clean_mesh(mesh, options: CleanOptions | None = None):
                     str(exc).splitlines()[-1])
         report["oriented"] = False
     m = ms.current_mesh()
-    V, F = m.vertex_matrix(), m.face_matrix()
+    V, F = m.vertex_matrix() * unit + centre, m.face_matrix()
     out = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(V, float)),
                                     o3d.utility.Vector3iVector(np.asarray(F, np.int32)))
     _, out_areas = component_areas(out)

@@ -113,3 +113,18 @@ def test_a_dense_scan_is_decimated_before_remeshing_and_stays_on_its_surface():
     r = np.linalg.norm(np.asarray(out.vertices), axis=1)
     assert np.percentile(np.abs(r - 0.5), 99) < 0.005 * rep["input"]["diagonal"]
     assert rep["holes"]["boundary_edges_after"] == 0
+
+
+def test_the_same_scan_at_any_scale_and_place_is_cleaned_alike():
+    """Scale and offset the noisy scan: the cleaned triangles are the same, the vertices
+    the same up to that scale and offset (so the steps after it see the same mesh)."""
+    from reconstruct.mesh_clean import clean_mesh
+
+    a, _ = _noisy_scan(0.01)
+    b, _ = _noisy_scan(100.0)
+    b.translate((1000.0, -50.0, 7.0))
+    oa, _ = clean_mesh(a)
+    ob, _ = clean_mesh(b)
+    np.testing.assert_array_equal(np.asarray(oa.triangles), np.asarray(ob.triangles))
+    va = np.asarray(oa.vertices) * 1e4 + [1000.0, -50.0, 7.0]
+    np.testing.assert_allclose(np.asarray(ob.vertices), va, atol=1e-9 * 100)
