@@ -611,7 +611,8 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
             "methods": rows,
             "best": best,
             "amplify": {"recipe": amp_rep["recipe"], "recipe_path": amp_rep["recipe_path"],
-                        "steps": [{k: s[k] for k in ("kind", "params", "seconds")}
+                        "steps": [{k: s[k] for k in ("kind", "params", "seconds", "after",
+                                                     "plants") if k in s}
                                   for s in amp_rep["steps"]],
                         "input": amp_rep["input"],
                         "output": amp_rep["output"], "folder": "amplify",

@@ -73,8 +73,11 @@ def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
     from core.mesh_io import read_mesh
 
     amp = report["amplify"]
-    assert amp["output"]["triangles"] > amp["input"]["triangles"]  # the forest was added
-    assert [s["kind"] for s in amp["steps"]] == ["displace", "scatter"]
+    assert [s["kind"] for s in amp["steps"]] == ["clean", "displace", "scatter"]
+    cleaned = amp["steps"][0]["after"]["triangles"]
+    assert amp["steps"][2]["plants"] > 0                              # the forest was added
+    assert amp["output"]["triangles"] > amp["steps"][1]["after"]["triangles"] > cleaned
+    assert "before (colour)" in report["figures"]["amplify"]
     best = read_mesh(demo_out / "recon" / f"{report['best']}_aligned.ply")
     assert len(best.triangles) == amp["input"]["triangles"]
     assert report["animations"]["particles"]["frames"] == report["settings"]["snow_frames"]
