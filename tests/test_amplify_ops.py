@@ -380,3 +380,26 @@ def test_a_vine_walk_that_bounces_back_still_sweeps():
         sweep(np.array([[1.0, 0], [0, 1], [-1, 0]]), p[:3])
     v, f = sweep(np.array([[1.0, 0], [0, 1], [-1, 0]]) * 0.1, q)
     assert len(f) > 0
+
+
+def test_vines_start_on_walls_and_climb():
+    """A tall box on a ground: walks started on slopes of 60 degrees and more begin on
+    the box's sides and, leaning toward up, end higher than they began; without walls to
+    start on they start anywhere instead of failing."""
+    from core.meshes import merge_meshes
+    from procgen.amplify import surface_walks
+
+    ground = heightfield_to_mesh(np.zeros((11, 11)), spacing=0.4)         # 4 m x 4 m
+    tower = o3d.geometry.TriangleMesh.create_box(0.6, 0.6, 2.0).translate((1.7, 1.7, 0.0))
+    tower = tower.subdivide_midpoint(3)
+    mesh = merge_meshes([ground, tower])
+    paths, normals = surface_walks(mesh, rng=_rng(), count=20, length=1.0, step=0.05,
+                                   slope_min_deg=60.0, climb=0.8)
+    starts = np.array([p[0] for p in paths])
+    n0 = np.array([n[0] for n in normals])
+    assert np.all(np.abs(n0[:, 2]) < 0.5)                         # on the walls
+    rise = np.array([p[-1, 2] - p[0, 2] for p in paths])
+    assert np.median(rise) > 0.5 and np.all(starts[:, 2] >= 0.0)
+    flat, _ = surface_walks(ground, rng=_rng(), count=3, length=0.5, step=0.05,
+                            slope_min_deg=60.0)
+    assert len(flat) == 3

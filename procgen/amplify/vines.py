@@ -79,7 +79,8 @@ def _tangent(d, n):
 
 
 def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: float = 1.0,
-                  step: float = 0.02, wander_deg: float = 25.0, slope_max_deg: float = 90.0
+                  step: float = 0.02, wander_deg: float = 25.0, slope_max_deg: float = 90.0,
+                  slope_min_deg: float = 0.0, climb: float = 0.0
                   ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Noise-driven walks on the surface; returns ``(paths, normals)``, each a list of
     ``count`` arrays ``(k, 3)`` with ``k = ceil(length / step) + 1``.
@@ -95,6 +96,12 @@ def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: fl
         Largest turn per step (degrees, 0 to 180).
     slope_max_deg : float
         Start only where the upward slope is at most this (0 to 180; 90 allows walls).
+    slope_min_deg : float
+        ... and at least this (60: start on walls); when no surface is that steep, the
+        walks start anywhere within ``slope_max_deg`` instead.
+    climb : float
+        In [0, 1]: how much each step turns toward up (+z along the surface): 0 wanders,
+        1 climbs straight up a wall.
     """
     rng = check_rng(rng)
     v, f = mesh_input(mesh)
@@ -105,10 +112,15 @@ def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: fl
         raise ValueError(f"step: expected at most length = {L:g}, got {h:g}")
     wander = np.radians(check_range(wander_deg, "wander_deg", 0.0, 180.0))
     smax = check_range(slope_max_deg, "slope_max_deg", 0.0, 180.0)
+    smin = check_range(slope_min_deg, "slope_min_deg", 0.0, 180.0)
+    climb = check_range(climb, "climb", 0.0, 1.0)
     fn = face_normals(v, f)
-    ok = upward_slope(fn) <= smax + 1e-9
+    slope = upward_slope(fn)
+    ok = slope <= smax + 1e-9
     if not ok.any():
         raise ValueError(f"slope_max_deg: no surface is gentler than {smax:g} degrees")
+    if (ok & (slope >= smin - 1e-9)).any():
+        ok &= slope >= smin - 1e-9
     keep = np.flatnonzero(ok)
     starts, _, tri = sample_surface(v, f[keep], count, rng=rng, return_index=True)
     n = fn[keep][tri]
@@ -127,6 +139,11 @@ def surface_walks(mesh, *, rng: np.random.Generator, count: int = 12, length: fl
                                  seed=seed) * 2.0, -1.0, 1.0)
         c, s = np.cos(a)[:, None], np.sin(a)[:, None]
         d = c * d + s * np.cross(n, d)
+        if climb > 0:  # lean toward up along the surface
+            up, un = _tangent(np.tile([0.0, 0.0, 1.0], (len(n), 1)), n)
+            lean = (1.0 - climb) * d + climb * up / np.maximum(un, 1e-300)[:, None]
+            ln = np.linalg.norm(lean, axis=1, keepdims=True)
+            d = np.where((un > 1e-6)[:, None] & (ln > 1e-12), lean / np.maximum(ln, 1e-300), d)
         p_new, n_new = project(p + h * d)
         moved, mn = _tangent(p_new - p, n_new)
         # keep heading where the projection stalled (a crease or a boundary)
@@ -158,7 +175,8 @@ def _untangled(path: np.ndarray, min_gap: float) -> np.ndarray:
 
 def grow_vines(mesh, *, rng: np.random.Generator, count: int = 12, length: float = 1.0,
                step: float = 0.02, radius: float = 0.005, wander_deg: float = 25.0,
-               slope_max_deg: float = 90.0, sides: int = 6, taper: float = 0.6) -> VineResult:
+               slope_max_deg: float = 90.0, sides: int = 6, taper: float = 0.6,
+               slope_min_deg: float = 0.0, climb: float = 0.0) -> VineResult:
     """Vines on ``mesh``: :func:`surface_walks` swept into tubes.
 
     Parameters
@@ -176,7 +194,8 @@ def grow_vines(mesh, *, rng: np.random.Generator, count: int = 12, length: float
     sides = check_int(sides, "sides", 3, 64)
     tp = check_range(taper, "taper", 0.0, 1.0)
     paths, normals = surface_walks(mesh, rng=rng, count=count, length=length, step=step,
-                                   wander_deg=wander_deg, slope_max_deg=slope_max_deg)
+                                   wander_deg=wander_deg, slope_max_deg=slope_max_deg,
+                                   slope_min_deg=slope_min_deg, climb=climb)
     ang = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
     circle = np.c_[np.cos(ang), np.sin(ang)]
     vs, fs, off = [], [], 0

@@ -102,6 +102,8 @@ SPECS: dict[str, dict[str, _F]] = {
         "step": _F(float, 0.01, 0.0, 0.1, lo_open=True),      # relative
         "wander_deg": _F(float, 25.0, 0.0, 180.0),
         "slope_max_deg": _F(float, 90.0, 0.0, 90.0),
+        "slope_min_deg": _F(float, 0.0, 0.0, 90.0),   # start on walls (falls back)
+        "climb": _F(float, 0.0, 0.0, 1.0),            # lean toward up each step
         "sides": _F(int, 6, 3, 32),
         "taper": _F(float, 0.6, 0.0, 1.0),
         "merge": _F(bool, True),

@@ -153,6 +153,7 @@ def _sweep(state: State, step, rng, **_):
     res = grow_vines(state.surface, rng=rng, count=p["count"], length=length,
                      step=min(stp, length), radius=p["radius"] * diag,
                      wander_deg=p["wander_deg"], slope_max_deg=p["slope_max_deg"],
+                     slope_min_deg=p["slope_min_deg"], climb=p["climb"],
                      sides=p["sides"], taper=p["taper"])
     name = state.place("vines", res.mesh, p["color"], p["merge"])
     return {"vines": len(res.paths), "length": length, "radius": p["radius"] * diag,
