@@ -83,6 +83,7 @@ class DemoSettings:
     render_size : (2,) int           comparison renders
     amplify_recipe : str or None     :func:`scanamp.amplify.run` recipe (name or TOML path;
                                      None: ``scanamp/demo_amplify.toml``, displace + forest)
+    turntable : int                  frames of the amplified result's turntable (0: none)
     snow_frames : int                particle frames (the shipped ``snow`` recipe)
     boids : (2,) int                 boids and steps (the shipped ``flock`` recipe)
     anim_size : (2,) int             animation width, height
@@ -105,6 +106,7 @@ class DemoSettings:
     curve_samples: int = 40_000
     render_size: tuple = (400, 300)
     amplify_recipe: str | None = None
+    turntable: int = 36
     snow_frames: int = 48
     boids: tuple = (200, 120)
     anim_size: tuple = (320, 240)
@@ -126,7 +128,7 @@ SCALES: dict[str, DemoSettings] = {
                          stereo_angles_deg=(0.0, 180.0), stereo_calib=(5, 3), sfm_views=12,
                          sfm_size=(320, 240), eval_max_samples=30_000, curve_samples=10_000,
                          render_size=(200, 150), snow_frames=8, boids=(40, 16),
-                         anim_size=(160, 120)),
+                         anim_size=(160, 120), turntable=0),
 }
 
 
@@ -576,7 +578,7 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
 
         t = time.perf_counter()
         amp_dir = amplify_run(tmp / "recon" / f"{best}_aligned.ply", recipe, tmp / "amplify",
-                              seed=seed)
+                              seed=seed, turntable=st.turntable)
         timings["amplify"] = time.perf_counter() - t
         from core.files import read_json
         from core.mesh_io import read_mesh

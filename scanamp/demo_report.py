@@ -113,6 +113,8 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
     for tag in ("before", "after"):  # the amplifier's own views: in colour, by part
         if (root / "amplify" / f"{tag}.png").is_file():
             out["amplify"][f"{tag} (colour)"] = f"amplify/{tag}.png"
+    if (root / "amplify" / "turntable.mp4").is_file():
+        out["amplify"]["turntable"] = "amplify/turntable.mp4"
     out["plots"], out["curves"] = _plots(fig, dists, tau)
     _colorbar(fig / "error_scale.png", tau)
     out["plots"]["error scale"] = "figures/error_scale.png"
@@ -296,7 +298,8 @@ scores it in the frame its calibration gave. Time: capture plus reconstruction.<
 scene in colour by part (ground, objects, plants):</p>
 <div>{_img(fig['amplify']['before'], 'before')}{_img(fig['amplify']['after'], 'after')}</div>
 <div>{''.join(_img(fig['amplify'][k], k) for k in ('before (colour)', 'after (colour)')
-             if k in fig['amplify'])}</div>
+             if k in fig['amplify'])}{_video(fig['amplify']['turntable'], 'turntable')
+             if 'turntable' in fig['amplify'] else ''}</div>
 
 <h2>Animation on the amplified mesh</h2>
 <div>{_video(anim['particles']['video'], 'snow settling (particles, recipe snow)')}
