@@ -321,6 +321,25 @@ def score_peaks(cols: np.ndarray, truth: np.ndarray, *, gate_px: float = 2.0) ->
     return out
 
 
+# -- amplified scenes through a scanner (scanamp.study.amplified) ---------------------------
+def _load_amplified(path: Path):
+    from core.config import load_config
+    from scanamp.study.amplified import AmplifiedLaserConfig
+
+    return load_config(AmplifiedLaserConfig, path)
+
+
+def _run_amplified(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
+    from scanamp.study.amplified import run_amplified
+
+    bundle, _ = _scene(scene)
+    report = run_amplified(bundle, cap_cfg, rec_cfg, seed=seed, work=work,
+                           scene_path=_scene_path(scene))
+    if not report.pop("ok"):
+        raise RunFailed(report.pop("message") or "laser failed", report)
+    return report
+
+
 @dataclass
 class _TestConfig:
     """Test-only kind: ``y = x**2``; ``sleep`` seconds; ``fail_above``: raise when x >
@@ -378,6 +397,8 @@ KINDS: dict[str, Kind] = {
     "sfm": Kind("sfm", _load("sfm"), _recon("sfm"), _execute("sfm"),
                 ("registered_fraction", "metrics.poses.rotation_error_deg.mean",
                  "metrics.poses.ate_fraction_of_scene", "metrics.mesh.fscore")),
+    "amplified-laser": Kind("amplified-laser", _load_amplified, _recon("laser"),
+                            _run_amplified, _LASER_METRICS),
     "peak-detector": Kind("peak-detector", _load("laser"), _recon("laser"), _run_peaks,
                           ("peak_error.rms_px", "peak_error.detection_rate",
                            "peak_error.outlier_rate")),
