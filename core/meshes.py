@@ -26,6 +26,7 @@ __all__ = [
     "to_pyvista",
     "from_pyvista",
     "surface_area",
+    "compact",
     "is_closed",
     "unique_edges",
     "edge_lengths",
@@ -117,6 +118,18 @@ def transform_mesh(mesh, world_from_local: np.ndarray) -> "o3d.geometry.Triangle
     out = copy.deepcopy(mesh)
     out.transform(T)
     return out
+
+
+def compact(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices some triangle uses and the triangles renumbered onto them:
+    ``(used (k,) int64, triangles (m, 3) int64)``, so ``vertices[used], triangles`` is the
+    submesh without unused vertices.
+
+    >>> compact(np.array([[4, 2, 7]]))[1].tolist()
+    [[1, 0, 2]]
+    """
+    used, inverse = np.unique(np.asarray(triangles, np.int64), return_inverse=True)
+    return used, inverse.reshape(-1, 3)
 
 
 def surface_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.config import Config, option
+from core.meshes import surface_area
 
 __all__ = ["CleanOptions", "clean_mesh", "component_areas"]
 
@@ -74,8 +75,7 @@ def _remesh(ms, edge: float, report: dict) -> None:
 
     m = ms.current_mesh()
     V, F = m.vertex_matrix(), m.face_matrix()
-    area = 0.5 * float(np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
-                                      axis=1).sum())
+    area = float(surface_area(V, F).sum())
     needed = int(area / (np.sqrt(3.0) / 4.0 * edge * edge)) + 1
     if len(F) > 1.5 * needed:
         ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(1.2 * needed),

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.meshes import bbox_diagonal, edge_lengths, make_mesh, vertex_normals
+from core.meshes import bbox_diagonal, edge_lengths, make_mesh, surface_area, vertex_normals
 from core.validate import (
     check_choice,
     check_finite,
@@ -110,8 +110,7 @@ def subdivide_to_edge(vertices: np.ndarray, triangles: np.ndarray, target_edge: 
                          f"than {max_triangles}")
     # no triangle of longest edge <= t is larger than the equilateral one, sqrt(3)/4 t^2:
     # a target below this bound cannot fit the budget whatever the mesh
-    area = 0.5 * float(np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]],
-                                               v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+    area = float(surface_area(v, f).sum())
     t = max(t, float(np.sqrt(area / (np.sqrt(3.0) / 4.0 * max_triangles))))
     while True:
         out = split_long_edges(v, f, t, attributes, max_triangles=max_triangles)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.meshes import make_mesh, vertex_normals
+from core.meshes import compact, make_mesh, vertex_normals
 from core.validate import check_positive, check_range, check_rng
 from procgen.amplify.surface import mesh_input, smoothstep
 from procgen.noise.fractal import fbm
@@ -107,7 +107,6 @@ def snow_cover(mesh, *, rng: np.random.Generator, depth: float, slope_max_deg: f
     covered = np.all(d[f] > 0, axis=1)
     layer = None
     if covered.any():
-        used, inverse = np.unique(f[covered], return_inverse=True)
-        top = v[used] + np.outer(d[used], [0.0, 0.0, 1.0])
-        layer = make_mesh(top, inverse.reshape(-1, 3))
+        used, tris = compact(f[covered])
+        layer = make_mesh(v[used] + np.outer(d[used], [0.0, 0.0, 1.0]), tris)
     return SnowResult(mesh=layer, depth=d, sky=sky)

@@ -17,7 +17,7 @@ import numpy as np
 
 from core.files import write_toml
 from core.mesh_io import write_mesh
-from core.meshes import make_mesh
+from core.meshes import compact, make_mesh
 
 __all__ = ["write_scene"]
 
@@ -36,9 +36,9 @@ def write_scene(folder: Path, vertices: np.ndarray, triangles: np.ndarray,
     tri_label = labels[triangles[:, 0]]
     for k in sorted(np.unique(tri_label)):
         f = triangles[tri_label == k]
-        used, inverse = np.unique(f, return_inverse=True)
+        used, tris = compact(f)
         name = names[int(k)]
-        write_mesh(folder / "parts" / f"{name}.ply", make_mesh(vs[used], inverse.reshape(-1, 3)))
+        write_mesh(folder / "parts" / f"{name}.ply", make_mesh(vs[used], tris))
         rgb = np.round(colors[used].mean(axis=0), 4).tolist()
         objects.append({"name": name, "shape": "mesh", "path": f"parts/{name}.ply",
                         "material": {"kind": "constant", "albedo": rgb}})

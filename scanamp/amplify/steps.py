@@ -115,10 +115,10 @@ def _refine_terrain(state: State, step, rng, **_):
 
 def _submesh(v: np.ndarray, f: np.ndarray):
     """The triangles ``f`` of vertices ``v`` as their own mesh (unused vertices dropped)."""
-    from core.meshes import make_mesh
+    from core.meshes import compact, make_mesh
 
-    used, inverse = np.unique(f, return_inverse=True)
-    return make_mesh(v[used], inverse.reshape(-1, 3))
+    used, tris = compact(f)
+    return make_mesh(v[used], tris)
 
 
 def _scatter(state: State, step, rng, *, recipe=None, **_):

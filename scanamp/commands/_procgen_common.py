@@ -99,16 +99,16 @@ def write_parts(out: Path, parts, *, label_of: dict[str, str]) -> Path:
     part label per vertex (``labels.json`` beside it names them, the ids of
     :data:`scanamp.amplify.labels.LABELS`); an ``.obj`` with the geometry only."""
     from core.mesh_io import write_labeled_mesh, write_mesh
-    from core.meshes import make_mesh, mesh_arrays
+    from core.meshes import compact, make_mesh, mesh_arrays
     from scanamp.amplify.labels import LABELS
 
     ids = {name: k for k, name in LABELS.items()}
     vs, fs, cs, ls, n = [], [], [], [], 0
     for mesh, kind, rgb in parts:
         v, f = mesh_arrays(mesh)
-        used, inverse = np.unique(f, return_inverse=True)  # drop unused vertices
+        used, tris = compact(f)  # drop unused vertices
         vs.append(v[used])
-        fs.append(inverse.reshape(-1, 3) + n)
+        fs.append(tris + n)
         cs.append(np.tile(np.asarray(rgb, float), (len(used), 1)))
         ls.append(np.full(len(used), ids[label_of[kind]]))
         n += len(used)
