@@ -44,12 +44,6 @@ __all__ = ["run", "run_variants", "amplify", "load_recipe", "parse_recipe", "rec
            "KINDS", "Recipe", "Step", "State"]
 
 
-def _homogeneous(R: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = R
-    return T
-
-
 def _counts(mesh) -> dict:
     return {"vertices": len(mesh.vertices), "triangles": len(mesh.triangles)}
 
@@ -74,15 +68,6 @@ def amplify(mesh, recipe, *, seed: int = 0, out_dir: str | os.PathLike | None = 
                         "seconds": time.perf_counter() - t0, **info})
         log.info("step %d %s: %s -> %s", step.index, step.kind, before, state.counts())
     return state, reports
-
-
-def _moved(mesh, R: np.ndarray):
-    """A copy of ``mesh`` rotated by ``R (3, 3)`` about the origin."""
-    import copy
-
-    out = copy.deepcopy(mesh)
-    out.rotate(R, center=(0.0, 0.0, 0.0))
-    return out
 
 
 def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
@@ -129,8 +114,8 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
     v, f = mesh_arrays(mesh)
-    from core.frames import rotation_between
-    from core.meshes import make_mesh
+    from core.frames import rigid, rotation_between
+    from core.meshes import make_mesh, transform_mesh
     from reconstruct.up import estimate_up, find_camera_model
 
     cameras = find_camera_model(mesh_path) if up is None else None
@@ -162,7 +147,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         write_mesh(tmp / "mesh.gltf", final)
         files = ["mesh.ply", "labels.json", "mesh.gltf"]
         if state.parts or state.parts_unmerged:
-            write_mesh(tmp / "surface.ply", _moved(state.surface, back))
+            write_mesh(tmp / "surface.ply", transform_mesh(state.surface, rigid(back)))
             files.append("surface.ply")
             used = set()
             for name, m, _ in state.parts + state.parts_unmerged:
@@ -170,7 +155,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
                 while name in used:
                     name, k = f"{base}_{k}", k + 1
                 used.add(name)
-                write_mesh(tmp / f"{name}.ply", _moved(m, back))
+                write_mesh(tmp / f"{name}.ply", transform_mesh(m, rigid(back)))
                 files.append(f"{name}.ply")
         after = surface_parts(state.surface)[1] + [(m, c) for _, m, c in
                                                    state.parts + state.parts_unmerged]
@@ -192,7 +177,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
             "seed": int(seed),
             "up": up_est.to_dict(),
             "upright_from_mesh": to_upright.tolist(),
-            "scene_from_mesh": (scene_from_upright @ _homogeneous(to_upright)).tolist(),
+            "scene_from_mesh": (scene_from_upright @ rigid(to_upright)).tolist(),
             "input": _counts(mesh),
             "output": _counts(final),
             "surface": _counts(state.surface),
