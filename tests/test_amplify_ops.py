@@ -214,10 +214,30 @@ def test_scatter_grows_varied_plants_from_one_grammar():
     from procgen.amplify import grow_variants
 
     shapes = grow_variants(rng=_rng(6), variants=4)
-    sizes = {len(v) for v, _ in shapes}
+    sizes = {len(v) for v, _, _ in shapes}
     assert len(sizes) > 1                                    # the seeds give different plants
-    for v, _ in shapes:
+    for v, f, leaf in shapes:
         assert v[:, 2].min() == pytest.approx(0.0) and v[:, 2].max() == pytest.approx(1.0)
+        assert 0 < leaf.sum() < len(v)                       # bark and leaves
+        assert np.all(leaf[f].all(axis=1) | ~leaf[f].any(axis=1))   # no mixed triangle
+    assert len(res.leaf) == len(res.mesh.vertices) and res.leaf.any()
+
+
+def test_tip_leaves_sit_on_the_tips_at_45_degrees():
+    from procgen.amplify.plants import tip_leaves
+
+    # a trunk (0) with two children (1, 2): only 1 and 2 are tips
+    starts = np.array([[0, 0, 0], [0, 0, 1], [0, 0, 1]], float)
+    ends = np.array([[0, 0, 1], [0, 1, 2], [1, 0, 1]], float)
+    v, f = tip_leaves(starts, ends, np.array([-1, 0, 0]), count=3, size=0.2)
+    assert v.shape == (2 * 3 * 4, 3) and f.shape == (2 * 3 * 4, 3)
+    blades = v.reshape(2, 3, 4, 3)
+    assert np.allclose(blades[0, :, 0], ends[1]) and np.allclose(blades[1, :, 0], ends[2])
+    axis = blades[:, :, 2] - blades[:, :, 0]                 # base to tip of each blade
+    assert np.allclose(np.linalg.norm(axis, axis=-1), 0.2)
+    h = (ends[1:] - starts[1:]) / np.linalg.norm(ends[1:] - starts[1:], axis=1)[:, None]
+    cos = np.einsum("tkc,tc->tk", axis / 0.2, h)
+    assert np.allclose(cos, np.cos(np.radians(45.0)))
 
 
 def test_vines_walk_on_the_surface():

@@ -51,8 +51,8 @@ def test_run_writes_mesh_renders_and_report(small_mesh, tmp_path):
     assert rep["steps"][1]["plants"] > 0
     final = read_mesh(out / "mesh.ply")
     assert len(final.triangles) == rep["output"]["triangles"]
-    parts = sum(len(read_mesh(out / f"{n}.ply").triangles) for n in ("surface", "plants",
-                                                                      "vines"))
+    parts = sum(len(read_mesh(out / f"{n}.ply").triangles) for n in ("surface", "bark",
+                                                                      "leaf", "vines"))
     assert parts == len(final.triangles)
     # every vertex labelled and coloured: the parts' labels count their vertices exactly
     from core.mesh_io import read_labeled_mesh
@@ -61,13 +61,16 @@ def test_run_writes_mesh_renders_and_report(small_mesh, tmp_path):
     lm = read_labeled_mesh(out / "mesh.ply")
     assert lm["names"] == LABELS
     ids = {name: k for k, name in LABELS.items()}
-    for part, label in (("plants", "plant"), ("vines", "vine")):
+    assert rep["steps"][1]["parts"] == ["bark", "leaf"]
+    for part, label in (("bark", "bark"), ("leaf", "leaf"), ("vines", "vine")):
         n = len(read_mesh(out / f"{part}.ply").vertices)
         assert int((lm["labels"] == ids[label]).sum()) == n
     assert int(np.isin(lm["labels"], [ids["ground"], ids["object"]]).sum()) == \
         len(read_mesh(out / "surface.ply").vertices)
-    plant_rgb = lm["colors"][lm["labels"] == ids["plant"]]
-    assert np.all(plant_rgb == np.round(np.array([0.35, 0.5, 0.2]) * 255))
+    leaf_rgb = lm["colors"][lm["labels"] == ids["leaf"]]
+    assert np.all(leaf_rgb == np.round(np.array([0.35, 0.5, 0.2]) * 255))
+    bark_rgb = lm["colors"][lm["labels"] == ids["bark"]]
+    assert np.all(bark_rgb == np.round(np.array([0.42, 0.3, 0.2]) * 255))
     assert len(read_mesh(out / "mesh.gltf").triangles) == len(final.triangles)
     before, after = read_image(out / "before.png"), read_image(out / "after.png")
     assert before.shape == after.shape == (48, 64, 3) and np.any(before != after)
@@ -81,7 +84,7 @@ def test_same_seed_same_bytes(small_mesh, tmp_path):
     a = run(small_mesh, recipe, tmp_path / "a", seed=7)
     b = run(small_mesh, recipe, tmp_path / "b", seed=7)
     c = run(small_mesh, recipe, tmp_path / "c", seed=8)
-    for name in ("mesh.ply", "surface.ply", "plants.ply", "after.png"):
+    for name in ("mesh.ply", "surface.ply", "bark.ply", "leaf.ply", "after.png"):
         assert (a / name).read_bytes() == (b / name).read_bytes()
     assert (a / "mesh.ply").read_bytes() != (c / "mesh.ply").read_bytes()
 
@@ -181,7 +184,7 @@ def test_plants_stand_along_the_meshes_own_up(tmp_path, seed):
     rep = json.loads((out / "report.json").read_text())
     assert rep["up"]["source"] == "mesh"
     assert np.degrees(np.arccos(np.clip(np.dot(rep["up"]["up"], up), -1, 1))) < 5.0
-    pv, _ = mesh_arrays(read_mesh(out / "plants.ply"))
+    pv = np.vstack([mesh_arrays(read_mesh(out / f"{n}.ply"))[0] for n in ("bark", "leaf")])
     h = pv @ up                                  # heights along the true up
     ground_top = float((v @ R.T @ up).max())
     height = 0.1 * np.sqrt(2.0)                  # 0.1 of the 1.41 m diagonal
@@ -214,7 +217,7 @@ def test_variants_scene_and_turntable(small_mesh, tmp_path):
     assert sum(1 for _ in reader) == 6
     scene = build_scene(str(out / "seed_3" / "scene.toml"))
     names = [o.name for o in scene.render_scene.objects]
-    assert "plant" in names and set(names) <= {"ground", "object", "plant"}
+    assert "bark" in names and set(names) <= {"ground", "object", "bark", "leaf"}
     v, f = mesh_arrays(scene.gt_mesh())
     assert abs(v[:, 2].min()) < 1e-9
     assert len(f) == len(read_mesh(out / "seed_3" / "mesh.ply").triangles)

@@ -24,7 +24,7 @@ doi:10.1145/280814.280898
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,7 +35,8 @@ from core.validate import check_finite, check_int, check_positive, check_range, 
 from procgen.amplify.snow import sky_visible
 from procgen.amplify.surface import mesh_input
 
-__all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "upward_slope"]
+__all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "tip_leaves",
+           "upward_slope"]
 
 # A small 3-D stochastic tree: each apex branches in three, in two, or grows on.
 TREE_GRAMMAR = """\
@@ -61,13 +62,43 @@ def _grammar(grammar):
     return load_grammar(grammar)
 
 
+def tip_leaves(starts: np.ndarray, ends: np.ndarray, parents: np.ndarray, *, count: int,
+               size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Leaves at the branch tips: ``count`` two-sided diamond blades of length ``size`` at
+    the end of every segment no other segment continues, spread around the segment by
+    the golden angle and raised 45 degrees from it (phyllotaxis). Returns
+    ``(vertices (4 count t, 3), triangles (4 count t, 3))`` for ``t`` tips."""
+    starts, ends = np.asarray(starts, np.float64), np.asarray(ends, np.float64)
+    tips = np.setdiff1d(np.arange(len(starts)), np.asarray(parents, np.int64))
+    if count == 0 or len(tips) == 0:
+        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+    h = ends[tips] - starts[tips]
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    # any unit vector across each tip, then turned by the golden angle per leaf
+    a = np.where(np.abs(h[:, [2]]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    u = np.cross(h, a)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(h, u)
+    phi = np.radians(137.508) * np.arange(count)
+    side = (np.cos(phi)[None, :, None] * u[:, None] + np.sin(phi)[None, :, None] * w[:, None])
+    axis = np.sqrt(0.5) * (h[:, None] + side)                     # 45 degrees off the tip
+    across = np.cross(axis, side) * 0.25 * size
+    base = np.broadcast_to(ends[tips][:, None], axis.shape)
+    blade = np.stack([base, base + 0.5 * size * axis + across, base + size * axis,
+                      base + 0.5 * size * axis - across], axis=2).reshape(-1, 3)
+    quad = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]])   # both sides
+    tris = (quad[None] + 4 * np.arange(len(tips) * count)[:, None, None]).reshape(-1, 3)
+    return blade, tris
+
+
 def grow_variants(grammar=None, *, rng: np.random.Generator, variants: int = 6,
-                  steps: int | None = None, sides: int = 6) -> list[tuple[np.ndarray,
-                                                                            np.ndarray]]:
+                  steps: int | None = None, sides: int = 6, leaves: int = 4,
+                  leaf_size: float = 0.07) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Derive ``variants`` plants from one grammar with independent seeds.
 
-    Each is returned as ``(vertices (k, 3), triangles (t, 3))`` normalised to stand on the
-    origin (lowest point at z = 0, trunk base at x = y = 0) with height 1.
+    Each is returned as ``(vertices (k, 3), triangles (t, 3), leaf (k,) bool)``
+    normalised to stand on the origin (lowest point at z = 0, trunk base at x = y = 0)
+    with height 1; ``leaf`` marks the leaf vertices (the rest is bark).
 
     Parameters
     ----------
@@ -79,25 +110,41 @@ def grow_variants(grammar=None, *, rng: np.random.Generator, variants: int = 6,
         Derivation steps (default: the grammar's ``n``).
     sides : int
         Tube resolution.
+    leaves : int
+        Leaves at each branch tip (:func:`tip_leaves`), 0 to 16; a grammar's own
+        ``{ . }`` polygons are leaves too.
+    leaf_size : float
+        Leaf length over the plant's (branch) height.
     """
     from procgen.lsystem import derive, interpret, tube_arrays
+    from procgen.lsystem.geometry import polygon_arrays
 
     rng = check_rng(rng)
     g = _grammar(grammar)
     variants = check_int(variants, "variants", 1, 1024)
     sides = check_int(sides, "sides", 3, 64)
+    leaves = check_int(leaves, "leaves", 0, 16)
+    leaf_size = check_range(leaf_size, "leaf_size", 0.0, 1.0, lo_open=True)
     out = []
     for seed in rng.integers(0, 2 ** 63 - 1, size=variants):
         r = interpret(derive(g, steps, rng=np.random.default_rng(int(seed))), g)
         if len(r) == 0:
             raise ValueError("grammar: the derived plant draws no segment")
         v, f = tube_arrays(r, sides=sides)
+        span = float(v[:, 2].max() - v[:, 2].min())
+        lv, lf = tip_leaves(r.starts, r.ends, r.parents, count=leaves, size=leaf_size * span)
+        pv, pf = polygon_arrays(r)
+        n_bark, n_tips = len(v), len(lv)
+        f = np.vstack([np.asarray(f, np.int64), lf + n_bark,
+                       np.asarray(pf, np.int64) + n_bark + n_tips])
+        v = np.vstack([v, lv, pv])
+        leaf = np.arange(len(v)) >= n_bark
         base = r.starts[0]
         v = v - [base[0], base[1], v[:, 2].min()]
         height = float(v[:, 2].max())
         if height <= 0:
             raise ValueError("grammar: the derived plant has no height (a flat drawing)")
-        out.append((v / height, np.asarray(f, np.int64)))
+        out.append((v / height, f, leaf))
     return out
 
 
@@ -115,6 +162,8 @@ class ScatterResult:
     ----------
     mesh : open3d.geometry.TriangleMesh or None
         All plants in one mesh (None when nothing was planted).
+    leaf : (n,) bool
+        Which vertices of ``mesh`` belong to leaves (the rest is bark).
     positions : (k, 3) float64
         Plant bases on the surface.
     triangle : (k,) int64
@@ -137,6 +186,7 @@ class ScatterResult:
     candidates: int
     eligible_area: float
     truncated: bool
+    leaf: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
 
 def _altitude_span(mesh, v: np.ndarray, f: np.ndarray, area: np.ndarray,
@@ -161,7 +211,8 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
                    slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
                    variants: int = 6, steps: int | None = None, sides: int = 6,
                    max_plants: int = 400, upright: bool = True, min_plants: int = 0,
-                   max_candidates: int = 2_000_000, need_sky: bool = True) -> ScatterResult:
+                   max_candidates: int = 2_000_000, need_sky: bool = True, leaves: int = 4,
+                   leaf_size: float = 0.07) -> ScatterResult:
     """Plant a varied forest on ``mesh``.
 
     Parameters
@@ -199,6 +250,9 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         A floor: when the Poisson draw leaves fewer plants than this (a small mesh, a
         low density), more candidates are drawn uniformly by area until the floor is
         met, provided some surface satisfies the rules (up to 16 extra rounds).
+    leaves, leaf_size : int, float
+        Leaves per branch tip and their length over the plant height (see
+        :func:`grow_variants`).
     max_candidates : int
         Refuse a density that needs more candidate points than this.
 
@@ -257,10 +311,12 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     heights = h_mean * (1.0 + jit * rng.uniform(-1.0, 1.0, size=k))
     if k == 0:
         return ScatterResult(None, pts, tri, heights, var_id, n_cand, eligible_area, truncated)
-    shapes = grow_variants(grammar, rng=rng, variants=variants, steps=steps, sides=sides)
-    vs, fs, off = [], [], 0
+    shapes = grow_variants(grammar, rng=rng, variants=variants, steps=steps, sides=sides,
+                           leaves=leaves, leaf_size=leaf_size)
+    vs, fs, ls, off = [], [], [], 0
     for i in range(k):
-        pv, pf = shapes[var_id[i]]
+        pv, pf, pl = shapes[var_id[i]]
+        ls.append(pl)
         c, s = np.cos(yaw[i]), np.sin(yaw[i])
         R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         if not upright:
@@ -271,4 +327,5 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
         fs.append(pf + off)
         off += len(pv)
     plants = make_mesh(np.vstack(vs), np.vstack(fs))
-    return ScatterResult(plants, pts, tri, heights, var_id, n_cand, eligible_area, truncated)
+    return ScatterResult(plants, pts, tri, heights, var_id, n_cand, eligible_area, truncated,
+                         leaf=np.concatenate(ls))

@@ -92,8 +92,11 @@ SPECS: dict[str, dict[str, _F]] = {
         "sides": _F(int, 6, 3, 32),
         "max_plants": _F(int, 400, 1, 100_000),
         "upright": _F(bool, True),
+        "leaves": _F(int, 4, 0, 16),                      # leaves per branch tip
+        "leaf_size": _F(float, 0.07, 0.0, 1.0, lo_open=True),  # over the plant height
         "merge": _F(bool, True),
-        "color": _F(list, [0.35, 0.5, 0.2], 0.0, 1.0, length=3),
+        "color": _F(list, [0.35, 0.5, 0.2], 0.0, 1.0, length=3),        # leaves
+        "bark_color": _F(list, [0.42, 0.3, 0.2], 0.0, 1.0, length=3),
     },
     "sweep": {
         "count": _F(int, 12, 1, 10_000),

@@ -134,13 +134,21 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
                          slope_max_deg=p["slope_max_deg"],
                          altitude_range=tuple(p["altitude_range"]), variants=p["variants"],
                          steps=p["steps"], sides=p["sides"], max_plants=p["max_plants"],
-                         upright=p["upright"], min_plants=p["min_plants"])
-    name = state.place("plants", res.mesh, p["color"], p["merge"])
+                         upright=p["upright"], min_plants=p["min_plants"],
+                         leaves=p["leaves"], leaf_size=p["leaf_size"])
+    names = []
+    if res.mesh is not None:   # bark and leaves as two parts, so each keeps its label
+        v, f = mesh_arrays(res.mesh)
+        on_leaf = res.leaf[f].all(axis=1)
+        for kind, sel, color in (("bark", ~on_leaf, p["bark_color"]),
+                                 ("leaf", on_leaf, p["color"])):
+            if sel.any():
+                names.append(state.place(kind, _submesh(v, f[sel]), color, p["merge"]))
     return {"plants": len(res.positions), "candidates": res.candidates,
             "density_per_m2": density,
             "eligible_area": res.eligible_area, "truncated": res.truncated,
             "plant_height_mean": float(res.heights.mean()) if len(res.heights) else 0.0,
-            "part": name}
+            "parts": [n for n in names if n is not None]}
 
 
 def _sweep(state: State, step, rng, **_):
