@@ -36,7 +36,9 @@ from procgen.noise.fractal import fbm, turbulence
 from procgen.noise.fractal import gain as _gain
 
 __all__ = ["sphere_sdf", "egg_sdf", "sweep_sdf", "mesh_sdf", "shell_sdf", "isosurface",
-           "hypertexture", "fractal_egg", "architexture"]
+           "hypertexture", "fractal_egg", "architexture", "watertight", "SHELL_VOXELS"]
+
+SHELL_VOXELS = 1.5  # half-width of the shell built around an open mesh, in voxels
 
 
 def sphere_sdf(center=(0.0, 0.0, 0.0), radius: float = 1.0) -> Callable:
@@ -145,6 +147,33 @@ def shell_sdf(mesh, thickness: float) -> Callable:
 
     sdf.bounds = (v.min(axis=0) - thickness, v.max(axis=0) + thickness)
     return sdf
+
+
+def watertight(mesh, *, resolution: int = 128):
+    """A closed version of ``mesh`` for what needs an inside (colliders, particles):
+    the mesh itself when it is closed, else the surface of its shell of half-width
+    ``SHELL_VOXELS`` voxels (:func:`shell_sdf`) by marching cubes on a grid of
+    ``resolution`` voxels along the longest side (a voxel remesh).
+
+    Returns ``(mesh, half_width)``: half-width 0 when the input was closed.
+    """
+    from core.meshes import is_closed
+
+    v, f = mesh_arrays(mesh)
+    if len(f) == 0:
+        raise ValueError("mesh: expected a mesh with faces, got 0 triangles")
+    if is_closed(f):
+        return mesh, 0.0
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
+            or not 16 <= resolution <= 512:
+        raise ValueError(f"resolution: expected an integer in [16, 512], got {resolution!r}")
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    pad = 0.1 * float(np.max(hi - lo))
+    step = (float(np.max(hi - lo)) + 2 * pad) / (resolution - 1)
+    half = SHELL_VOXELS * step
+    solid = hypertexture(shell_sdf(mesh, half), bounds=(lo - pad, hi + pad),
+                         resolution=resolution, amplitude=0.0)
+    return solid, half
 
 
 def isosurface(values, level: float, *, origin=(0.0, 0.0, 0.0), spacing=1.0):

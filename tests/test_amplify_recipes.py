@@ -221,3 +221,49 @@ def test_variants_scene_and_turntable(small_mesh, tmp_path):
     v, f = mesh_arrays(scene.gt_mesh())
     assert abs(v[:, 2].min()) < 1e-9
     assert len(f) == len(read_mesh(out / "seed_3" / "mesh.ply").triangles)
+
+
+def test_an_open_scan_collides_as_its_closed_shell(tmp_path, caplog):
+    """A reconstruction is open (a ground sheet with a mound): the cloth step builds a
+    closed shell to collide with instead of warning that inside/outside is unreliable,
+    and the draped cloth rests on the shell, above the surface and never below it."""
+    import logging
+
+    from procgen.terrain import heightfield_to_mesh
+
+    x = np.linspace(-1, 1, 25)
+    hf = 0.3 * np.exp(-(x[:, None] ** 2 + x[None, :] ** 2) / 0.2)
+    path = tmp_path / "mound.ply"
+    write_mesh(path, heightfield_to_mesh(hf, spacing=2.0 / 24))   # 2 m x 2 m, open
+    recipe = {"step": [{"kind": "animate", "simulation": "cloth", "recipe": "drape",
+                        "frames": 6, "size": 0.5, "render": False, "collider_resolution": 64}],
+              "render": {"width": 32, "height": 24}}
+    with caplog.at_level(logging.WARNING):
+        out = run(path, recipe, tmp_path / "out", seed=0)
+    assert "not closed" not in caplog.text
+    rep = json.loads((out / "report.json").read_text())["steps"][0]
+    assert rep["collider"]["closed_input"] is False
+    half = rep["collider"]["shell_half_width"]
+    assert 0 < half < 0.1 * np.sqrt(8.0)
+    cloth, _ = mesh_arrays(read_mesh(out / "cloth.ply"))
+    v, f = mesh_arrays(read_mesh(path))
+
+    # over the mound the cloth never sinks into the surface: it rests on the shell
+    h = _height_over(v, f, cloth)
+    h = h[np.isfinite(h)]
+    assert len(h) > 0.25 * len(cloth)            # the cloth is larger than the mound
+    assert h.min() == pytest.approx(half, rel=0.25)
+
+
+def _height_over(v, f, points):
+    """Height of ``points`` over the surface ``(v, f)`` along +z (ray cast down)."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(v.astype(np.float32)),
+                        o3d.core.Tensor(f.astype(np.uint32)))
+    top = float(v[:, 2].max()) + 10.0
+    rays = np.zeros((len(points), 6), np.float32)
+    rays[:, :2], rays[:, 2], rays[:, 5] = points[:, :2], top, -1.0
+    t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+    return points[:, 2] - (top - t)

@@ -18,11 +18,10 @@ import numpy as np
 from core.meshes import is_closed
 from core.validate import check_int, check_positive, check_rng
 from procgen.amplify.surface import mesh_input
-from procgen.implicit import hypertexture, shell_sdf
+from procgen.implicit import SHELL_VOXELS, hypertexture, shell_sdf
 
 __all__ = ["HyperResult", "hypertexture_mesh", "SHELL_VOXELS"]
 
-SHELL_VOXELS = 1.5  # half-width of the shell built around an open mesh, in voxels
 
 
 @dataclass

@@ -138,6 +138,8 @@ SPECS: dict[str, dict[str, _F]] = {
         "width": _F(int, 320, 16, 4096),
         "height": _F(int, 240, 16, 4096),
         "render": _F(bool, True),
+        # an open mesh collides as its closed shell, voxels along its longest side
+        "collider_resolution": _F(int, 128, 16, 512),
     },
 }
 

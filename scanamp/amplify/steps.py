@@ -222,6 +222,7 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
 
     from core.files import read_json
     from core.mesh_io import write_mesh
+    from procgen.implicit import watertight
 
     if out_dir is None:
         raise ValueError("out_dir: an animate step needs an output folder")
@@ -234,6 +235,8 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
         name, k = f"animation_{k}", k + 1
     seed = int(rng.integers(0, 2 ** 31 - 1))
     mesh = state.merged()
+    # the simulations need an inside: an open reconstruction collides as its thin shell
+    solid, shell = watertight(mesh, resolution=p["collider_resolution"])
     if sim == "boids":
         from scanamp.boids_run import run_boids
         from simulate.boids import load_recipe as load_boids
@@ -246,14 +249,14 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
             changes["n"] = p["n"]
         r = dataclasses.replace(r, **changes)
         size = p["size"] if p["size"] is not None else r.obstacle_size
-        collider, T = (_fit(mesh, sim, size) if p["fit"] else (mesh, np.eye(4)))
+        collider, T = (_fit(solid, sim, size) if p["fit"] else (solid, np.eye(4)))
         run_boids(r, out_dir / name, mesh=collider, render=p["render"], width=p["width"],
                   height=p["height"])
     else:
         from scanamp.simulation_run import run_simulation
 
         size = p["size"] if p["size"] is not None else 0.6
-        collider, T = (_fit(mesh, sim, size) if p["fit"] else (mesh, np.eye(4)))
+        collider, T = (_fit(solid, sim, size) if p["fit"] else (solid, np.eye(4)))
         with tempfile.TemporaryDirectory(prefix="scanamp-amplify-") as td:
             mesh_path = write_mesh(Path(td) / "collider.ply", collider)
             run_simulation(sim, sub, out_dir / name, mesh_path=mesh_path,
@@ -265,6 +268,8 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     shown = _last_frame(state, sim, out_dir / name, np.linalg.inv(T), mesh)
     return {"animation": name, "simulation": sim, "sub_recipe": str(sub), "seed": seed,
             "sim_from_mesh": T.tolist(), "last_frame_part": shown,
+            "collider": {"closed_input": shell == 0.0, "shell_half_width": shell,
+                         "triangles": len(solid.triangles)},
             "result": {key: sub_report[key] for key in keys if key in sub_report}}
 
 
