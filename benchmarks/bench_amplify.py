@@ -28,7 +28,13 @@ os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-RECIPES = ("displace", "terrain", "forest", "vines", "hypertexture", "snow", "drape", "flock")
+def _shipped() -> tuple[str, ...]:
+    from scanamp.amplify import recipe_names
+
+    return tuple(recipe_names())
+
+
+RECIPES = _shipped()   # every shipped recipe
 
 
 def _added_size(out: Path, inp_v, inp_f, up) -> float:

@@ -170,6 +170,8 @@ class City:
         All buildings and flat road ribbons as one mesh.
     part : (n,) int8
         What each vertex belongs to: 0 a building, 1 a street, 2 a highway.
+    owner : (n,) int64
+        Index of the building (in ``buildings``) or road (in ``edges``) of each vertex.
     heights : (b,) float64
         Height of each building's top (its tallest solid), metres.
     """
@@ -184,6 +186,7 @@ class City:
     vertices: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     triangles: np.ndarray = field(default_factory=lambda: np.empty((0, 3), np.int64))
     part: np.ndarray = field(default_factory=lambda: np.empty(0, np.int8))
+    owner: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     heights: np.ndarray = field(default_factory=lambda: np.empty(0))
     density: object = None
     water: object = None
@@ -444,10 +447,12 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
     city.heights = np.array(heights)
     city.footprints = np.array(fps).reshape(-1, 4)
     city.lot_frames = np.array(frames).reshape(-1, 2)
-    vs, fs = [], []
+    vs, fs, owners = [], [], []
     count = 0
-    for solid, fp, fr in zip(solids, city.footprints, city.lot_frames, strict=True):
+    for i, (solid, fp, fr) in enumerate(zip(solids, city.footprints, city.lot_frames,
+                                            strict=True)):
         v, f = csg_mesh(solid, voxel=cfg.voxel)
+        owners.append(np.full(len(v), i, np.int64))
         c, s = np.cos(fr[0]), np.sin(fr[0])
         v = v @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + [fp[0], fp[1], 0]
         vs.append(v)
@@ -455,7 +460,8 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
         count += len(v)
     # roads as flat ribbons slightly above the ground
     parts = [np.zeros(count, np.int8)]
-    for (p, q), hw in zip(zip(a, b, strict=True), highway, strict=True):
+    for e, ((p, q), hw) in enumerate(zip(zip(a, b, strict=True), highway, strict=True)):
+        owners.append(np.full(4, e, np.int64))
         d = q - p
         n = np.array([-d[1], d[0]]) / max(np.linalg.norm(d), 1e-12) * (
             HIGHWAY_HALF_WIDTH if hw else STREET_HALF_WIDTH)
@@ -466,6 +472,7 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None) ->
         parts.append(np.full(4, 2 if hw else 1, np.int8))
         count += 4
     city.part = np.concatenate(parts)
+    city.owner = np.concatenate(owners)
     city.vertices = np.vstack(vs)
     city.triangles = np.vstack(fs).astype(np.int64)
     return city

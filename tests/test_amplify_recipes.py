@@ -13,7 +13,8 @@ from core.validate import InputError
 from scanamp.amplify import KINDS, load_recipe, recipe_names, run
 from scanamp.cli import main
 
-SHIPPED = {"displace", "terrain", "forest", "vines", "hypertexture", "snow", "drape", "flock"}
+SHIPPED = {"displace", "terrain", "forest", "vines", "hypertexture", "snow", "drape", "flock",
+           "city"}
 
 
 @pytest.fixture(scope="module")
@@ -267,3 +268,28 @@ def _height_over(v, f, points):
     rays[:, :2], rays[:, 2], rays[:, 5] = points[:, :2], top, -1.0
     t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
     return points[:, 2] - (top - t)
+
+
+def test_city_recipe_lays_labelled_roads_buildings_and_roofs(tmp_path):
+    """The shipped city recipe on a scan's ground with an object on it: roads, buildings
+    and roofs each carry their label, and the object keeps its place and label."""
+    from core.mesh_io import read_labeled_mesh
+    from core.meshes import merge_meshes
+    from procgen.terrain import heightfield_to_mesh
+    from scanamp.amplify.labels import LABELS
+
+    x = np.linspace(0, 1, 41)
+    ground = heightfield_to_mesh(0.01 * np.sin(5 * x)[:, None] * np.ones(41), spacing=0.025)
+    rock = o3d.geometry.TriangleMesh.create_sphere(0.12, resolution=12)
+    rock.translate((0.7, 0.7, 0.05))
+    path = tmp_path / "scan.ply"
+    write_mesh(path, merge_meshes([ground, rock]))
+    out = run(path, "city", tmp_path / "out", seed=1)
+    rep = json.loads((out / "report.json").read_text())["steps"][-1]
+    assert rep["parts"] == ["road", "building", "roof"] and rep["buildings_laid"] > 0
+    lm = read_labeled_mesh(out / "mesh.ply")
+    ids = {name: k for k, name in LABELS.items()}
+    for part in ("road", "building", "roof"):
+        n = len(read_mesh(out / f"{part}.ply").vertices)
+        assert n > 0 and int((lm["labels"] == ids[part]).sum()) == n
+    assert (lm["labels"] == ids["object"]).sum() > 0          # the rock is still there

@@ -10,11 +10,13 @@
 - :func:`grow_vines` — tubes swept along noise-driven walks on the surface.
 - :func:`snow_cover` — a snow layer where the surface is level enough and sees the sky.
 - :func:`hypertexture_mesh` — the mesh's signed distance plus noise, re-meshed.
+- :func:`lay_city` — a procedural city fitted over a ground and laid on its relief.
 
 Every operator takes the canonical mesh, keyword-only options and ``rng``, and returns a
 small result object holding the new mesh and what a test needs to check it.
 """
 
+from procgen.amplify.city_layout import CityLayout, lay_city
 from procgen.amplify.displacement import DisplaceResult, displace, subdivide_to_edge
 from procgen.amplify.hyper import HyperResult, hypertexture_mesh
 from procgen.amplify.plants import TREE_GRAMMAR, ScatterResult, grow_variants, scatter_plants
@@ -34,4 +36,5 @@ __all__ = [
     "grow_vines", "surface_walks", "VineResult",
     "snow_cover", "SnowResult",
     "hypertexture_mesh", "HyperResult",
+    "lay_city", "CityLayout",
 ]

@@ -15,6 +15,7 @@ from typing import Any
 
 from core.files import read_toml, require
 from core.validate import InputError
+from procgen.city import CityConfig
 from reconstruct.mesh_clean import CleanOptions
 
 __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_names",
@@ -22,7 +23,7 @@ __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_nam
 
 RECIPE_DIR = Path(__file__).parent / "recipes"
 KINDS = ("clean", "displace", "refine-terrain", "scatter", "sweep", "snow", "hypertexture",
-         "animate")
+         "city", "animate")
 
 _INF = float("inf")
 
@@ -43,6 +44,7 @@ class _F:
 
 _NOISE3 = ("fbm", "turbulence", "ridged")
 _CLEAN = CleanOptions()  # the clean step's defaults are the library's, declared once
+_CITY = CityConfig()
 
 # Sizes marked "relative" are fractions of the current mesh's bounding-box diagonal.
 SPECS: dict[str, dict[str, _F]] = {
@@ -127,6 +129,19 @@ SPECS: dict[str, dict[str, _F]] = {
         "resolution": _F(int, 96, 8, 512),
         "bias": _F(float, 0.5, 0.0, 1.0, lo_open=True, hi_open=True),
         "gain": _F(float, 0.5, 0.0, 1.0, lo_open=True, hi_open=True),
+    },
+    "city": {
+        # the city's map in city metres spans the ground's longer side (scale-free)
+        "size": _F(float, 600.0, 100.0, 100_000.0),
+        "centres": _F(int, _CITY.centres, 1, 50),
+        "parks": _F(int, _CITY.parks, 0, 100),
+        "river_width": _F(float, 0.0, 0.0, 10_000.0),           # city metres; 0: none
+        "max_segments": _F(int, _CITY.max_segments, 1, 100_000),
+        "max_slope_deg": _F(float, 20.0, 0.0, 90.0, hi_open=True),  # under a building
+        "road_step": _F(float, 10.0, 0.0, 1000.0, lo_open=True),    # city metres
+        "road_color": _F(list, [0.27, 0.27, 0.29], 0.0, 1.0, length=3),
+        "building_color": _F(list, [0.82, 0.78, 0.7], 0.0, 1.0, length=3),
+        "roof_color": _F(list, [0.62, 0.32, 0.25], 0.0, 1.0, length=3),
     },
     "animate": {
         "simulation": _F(str, ..., choices=("particles", "cloth", "boids")),

@@ -195,6 +195,30 @@ def _hypertexture(state: State, step, rng, **_):
     return {"voxel": res.voxel, "amplitude_m": p["amplitude"] * diag, "inside": res.inside}
 
 
+def _city(state: State, step, rng, **_):
+    from procgen.amplify.city_layout import lay_city
+    from procgen.city import CityConfig
+    from reconstruct.ground import ground_mask
+
+    p = step.params
+    v, f = mesh_arrays(state.surface)
+    on_ground = ground_mask(v, f)[f].sum(axis=1) >= 2
+    if not on_ground.any():
+        raise ValueError("surface: no ground found to lay a city on")
+    cfg = CityConfig(size=p["size"], centres=p["centres"], parks=p["parks"],
+                     river_width=p["river_width"], max_segments=p["max_segments"])
+    lay = lay_city(v, f[on_ground], rng=rng, config=cfg, object_v=v,
+                   object_f=f[~on_ground], max_slope_deg=p["max_slope_deg"],
+                   road_step=p["road_step"])
+    parts = [state.place(kind, mesh, p[f"{kind}_color"], True)
+             for kind, mesh in (("road", lay.roads), ("building", lay.walls),
+                                ("roof", lay.roofs))]
+    return {"road_segments": len(lay.city.edges), "road_segments_laid": lay.roads_kept,
+            "buildings": len(lay.city.buildings), "buildings_laid": lay.buildings_kept,
+            "units_per_city_metre": lay.scale, "road_lift": lay.lift,
+            "parts": [n for n in parts if n is not None]}
+
+
 def _fit(mesh, simulation: str, size: float):
     """Move and scale ``mesh`` into a simulation recipe's frame; returns (mesh, 4x4)."""
     import copy
@@ -328,5 +352,6 @@ EXECUTORS = {
     "sweep": _sweep,
     "snow": _snow,
     "hypertexture": _hypertexture,
+    "city": _city,
     "animate": _animate,
 }
