@@ -33,7 +33,7 @@ import numpy as np
 
 __all__ = ["lambert", "ggx", "ggx_d", "smith_g", "schlick", "dielectric_f0", "BRDFS"]
 
-BRDFS = ("lambert", "conductor", "dielectric")
+BRDFS = ("lambert", "conductor", "dielectric", "subsurface")
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -88,18 +88,24 @@ class LaserSheet:
         return LaserSheet(R @ self.origin + t, R @ self.normal, R @ self.direction,
                           self.fan_angle, self.thickness, self.power, self.color, self.speckle)
 
-    def profile(self, points: np.ndarray) -> np.ndarray:
-        """Unshadowed, cosine-free irradiance factor ``(n,)`` at ``points (n, 3)``."""
+    def fan(self, points: np.ndarray) -> np.ndarray:
+        """The sheet's peak irradiance factor ``(n,)`` at ``points (n, 3)``: ``power / r``
+        inside the fan, 0 outside, without the Gaussian across the sheet or the cosine
+        (what a translucent surface spreads around the stripe)."""
         d = points - self.origin
-        s = d @ self.normal
         along = d @ self.direction
         side = np.cross(self.normal, self.direction)
         lateral = d @ side
         r = np.sqrt(along * along + lateral * lateral)
         in_fan = (along > 0) & (np.abs(np.arctan2(lateral, along)) <= 0.5 * self.fan_angle)
+        return np.where(in_fan, self.power / np.maximum(r, 1e-9), 0.0)
+
+    def profile(self, points: np.ndarray) -> np.ndarray:
+        """Unshadowed, cosine-free irradiance factor ``(n,)`` at ``points (n, 3)``."""
+        s = (points - self.origin) @ self.normal
         g = np.exp(-0.5 * (s / self.thickness) ** 2)
         g[np.abs(s) > _CUTOFF * self.thickness] = 0.0
-        return np.where(in_fan, self.power * g / np.maximum(r, 1e-9), 0.0)
+        return self.fan(points) * g
 
     # -- light protocol ---------------------------------------------------------------
     def irradiance(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -215,6 +221,7 @@ class LaserRenderer:
         self.dirs_cam = dirs_cam
         self.exact = exact_ambient or any(o.material.kind == "image" for o in scene.objects)
         self._vertex_albedo = None
+        self._reach = None   # how far from the sheet translucent objects glow (m)
 
     def _ambient_albedo(self, hit_idx, points, ans, ch):
         from acquire.render import Hits, albedo
@@ -245,7 +252,11 @@ class LaserRenderer:
                      ch: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Of the pixels near the sheet (rays ``directions`` from ``origin``): which the
         laser lights and their radiance, and every pixel's exact signed distance to the
-        sheet's plane (float64 hits, NaN where nothing is hit; speckle drawn here)."""
+        sheet's plane (float64 hits, NaN where nothing is hit; speckle drawn here).
+
+        Surfaces reflect by their material (:meth:`acquire.materials.Material.reflectance`:
+        Lambertian, or GGX seen from the camera); subsurface materials spread the stripe
+        by their dipole profile (:func:`_subsurface_light`)."""
         from acquire.render import albedo, cast, visibility
 
         scene = self.scene
@@ -253,26 +264,39 @@ class LaserRenderer:
         dn = directions.astype(np.float64)
         hits = cast(scene, np.broadcast_to(origin, dn.shape), dn)
         ok = np.flatnonzero(hits.hit)
-        e = np.zeros(len(dn))
         P, N, G = hits.points[ok], hits.normals[ok], hits.geo_normals[ok]
-        e_ok = laser.irradiance(P, N)[:, ch]
-        has = np.flatnonzero(e_ok > 0)
-        keep = np.zeros(len(P), bool)
-        if has.size:
-            keep[has[visibility(scene, laser, P[has], G[has])]] = True
-        e[ok] = np.where(keep, e_ok, 0.0)
         signed = np.full(len(dn), np.nan)
         signed[ok] = P @ n_pl - d_pl
+        alb = albedo(scene, type(hits)(*(getattr(hits, f)[ok] for f in _HIT_FIELDS)))
+        obj = hits.obj[ok]
+        rad = np.zeros(len(dn))
+        translucent = np.isin(obj, [i for i, o in enumerate(scene.objects)
+                                    if o.material.brdf == "subsurface"])
+        # surfaces: the irradiance where the sheet falls, reflected toward the camera
+        e = np.where(translucent, 0.0, laser.irradiance(P, N)[:, ch])
+        has = np.flatnonzero(e > 0)
+        if has.size:
+            has = has[visibility(scene, laser, P[has], G[has])]
+            wi = laser.origin - P[has]
+            wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+            wo = -dn[ok[has]] / np.linalg.norm(dn[ok[has]], axis=1, keepdims=True)
+            for i, o in enumerate(scene.objects):
+                k = has[obj[has] == i]
+                if k.size:
+                    j = np.searchsorted(has, k)
+                    rad[ok[k]] = e[k] * o.material.reflectance(wi[j], wo[j], N[k],
+                                                               alb[k])[:, ch]
+        if translucent.any():
+            k = np.flatnonzero(translucent)
+            rad[ok[k]] = _subsurface_light(scene, laser, P[k], N[k], G[k], obj[k], alb[k, ch],
+                                           signed[ok[k]], ch)
         if laser.speckle > 0:
             if rng is None:
                 raise ValueError("rng: a laser with speckle needs a random generator")
-            k = 1.0 / laser.speckle ** 2
-            e = e * rng.gamma(k, 1.0 / k, size=e.shape)
-        sel = np.flatnonzero(e > 0)
-        hl = type(hits)(*(getattr(hits, f)[sel] for f in
-                          ("hit", "t", "points", "normals", "geo_normals", "obj", "tri", "bary")))
-        rad = e[sel] * albedo(scene, hl)[:, ch] if sel.size else np.zeros(0)
-        return sel, rad, signed
+            kk = 1.0 / laser.speckle ** 2
+            rad = rad * rng.gamma(kk, 1.0 / kk, size=rad.shape)
+        sel = np.flatnonzero(rad > 0)
+        return sel, rad[sel], signed
 
     def frame(self, cam_from_world: np.ndarray, laser: LaserSheet | None, *,
               ambient: float | None = None, rng: np.random.Generator | None = None,
@@ -320,7 +344,10 @@ class LaserRenderer:
         ch = channel if laser is None else int(np.argmax(laser.color))
         if laser is not None:
             n_pl, d_pl = laser.plane
-            s, near = _near_sheet(t, rays, n_pl, d_pl, _CUTOFF * laser.thickness)
+            if self._reach is None:
+                self._reach = subsurface_reach(scene, ch)
+            s, near = _near_sheet(t, rays, n_pl, d_pl,
+                                  _CUTOFF * laser.thickness + self._reach)
         else:
             near = np.zeros(0, np.int64)
         if near.size:
@@ -336,6 +363,61 @@ class LaserRenderer:
                 pts = origin + t[hit_idx, None].astype(np.float64) * rays[hit_idx, 3:]
             rad[hit_idx] += amb * self._ambient_albedo(hit_idx, pts, ans, ch)
         return LaserFrame(rad.reshape(H, W).astype(np.float32), stripe, depth.reshape(H, W), lit)
+
+
+_HIT_FIELDS = ("hit", "t", "points", "normals", "geo_normals", "obj", "tri", "bary")
+
+
+def subsurface_reach(scene, channel: int, *, fraction: float = 0.01) -> float:
+    """How far (m) from the sheet's plane a translucent object of ``scene`` still sends
+    light back: the largest :meth:`acquire.subsurface.Dipole.reach` (0 without one)."""
+    reach = [o.material.dipole(channel).reach(fraction) for o in scene.objects
+             if o.material.brdf == "subsurface"]
+    return max(reach, default=0.0)
+
+
+def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch):
+    """Exit radiance of the sheet's light that entered a translucent surface, at the
+    points ``P`` (normals ``N``, geometric ``G``) of objects ``obj`` with albedo ``alb``
+    in channel ``ch`` and signed distances ``s`` to the sheet's plane.
+
+    Locally the surface is its tangent plane and the stripe the line where the sheet
+    crosses it; the light enters along that line, lit where the stripe's point nearest
+    the exit point sees the laser (its shadow ray), and leaves by the dipole's line
+    profile shifted along the refracted ray (:func:`acquire.subsurface.stripe_radiance`).
+    A textured albedo scales the exit light by its ratio to the material's base albedo.
+    """
+    from acquire.render import visibility
+    from acquire.subsurface import stripe_radiance
+
+    n_pl = laser.normal
+    mt = n_pl[None, :] - (N @ n_pl)[:, None] * N          # sheet normal along the surface
+    across = np.linalg.norm(mt, axis=1)
+    u_hat = mt / np.maximum(across, 1e-12)[:, None]
+    entry = P - (s / np.maximum(across, 1e-6) ** 2)[:, None] * mt   # the stripe, nearest
+    d_in = entry - laser.origin
+    d_in /= np.maximum(np.linalg.norm(d_in, axis=1, keepdims=True), 1e-300)
+    cos_i = np.clip(-np.einsum("ij,ij->i", d_in, N), 0.0, 1.0)
+    tang = d_in + cos_i[:, None] * N                     # the ray's direction in the surface
+    tlen = np.linalg.norm(tang, axis=1)
+    e0 = laser.fan(entry) * cos_i
+    lit = np.flatnonzero(e0 > 0)
+    out = np.zeros(len(P))
+    if lit.size == 0:
+        return out
+    lit = lit[visibility(scene, laser, entry[lit], G[lit])]
+    for i, o in enumerate(scene.objects):
+        k = lit[obj[lit] == i]
+        if k.size == 0:
+            continue
+        m = o.material
+        dip = m.dipole(ch)
+        sin_t = np.sqrt(1.0 - cos_i[k] ** 2) / m.ior        # Snell, into the material
+        shift = m.mfp * sin_t * np.einsum("ij,ij->i", tang[k], u_hat[k]) / np.maximum(
+            tlen[k], 1e-12)
+        tex = alb[k] / max(float(m.albedo[ch]), 1e-12)
+        out[k] = e0[k] * tex * stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
+    return out
 
 
 def _true_stripe(s, depth, lit_idx, H, W):

@@ -54,12 +54,19 @@ class Material:
         Noise permutation of the solid texture.
     image : (h, w, 3) uint8, optional
         The 'image' texture, addressed by per-vertex UVs (u right, v down, in [0, 1]).
-    brdf : {'lambert', 'conductor', 'dielectric'}
-        The reflectance model (:mod:`acquire.brdf`).
+    brdf : {'lambert', 'conductor', 'dielectric', 'subsurface'}
+        The reflectance model (:mod:`acquire.brdf`); ``subsurface`` is a translucent
+        material (marble, wax, skin) whose albedo is its diffuse reflectance and whose
+        light spreads under the surface by the dipole profile (:mod:`acquire.subsurface`):
+        a laser stripe widens and shifts; under broad light it looks Lambertian.
     roughness : float
         GGX roughness in (0, 1] (alpha = roughness^2): 0.05 a polished part, 1 matte.
     ior : float
-        Refractive index of a dielectric's coat (1.5: plastics, varnish).
+        Refractive index of a dielectric's coat or of a translucent material (1.5:
+        plastics, varnish; marble 1.49).
+    mfp : float
+        Mean free path of a subsurface material, metres (1 / reduced extinction; marble
+        about 0.4 mm, skin 1 mm, wax several mm).
     """
 
     kind: str = "constant"
@@ -72,12 +79,14 @@ class Material:
     brdf: str = "lambert"
     roughness: float = 0.5
     ior: float = 1.5
+    mfp: float = 1e-3
 
     def __post_init__(self):
         check_choice(self.kind, "kind", MATERIAL_KINDS)
         check_choice(self.brdf, "brdf", BRDFS)
         self.roughness = check_range(self.roughness, "roughness", 0.0, 1.0, lo_open=True)
         self.ior = check_range(self.ior, "ior", 1.0, 4.0, lo_open=True)
+        self.mfp = check_range(self.mfp, "mfp", 0.0, 1.0, lo_open=True)
         self.albedo = np.clip(check_array(self.albedo, "albedo", shape=(3,)), 0, 1)
         self.scale = check_positive(self.scale, "scale")
         if self.kind == "solid":
@@ -114,13 +123,21 @@ class Material:
         """``pi`` times the BRDF ``(k, 3)`` for light from ``wi`` seen from ``wo`` at
         normals ``n`` (the renderer's convention: a Lambertian surface reflects its
         ``albedo`` times the irradiance)."""
-        if self.brdf == "lambert":
+        if self.brdf in ("lambert", "subsurface"):   # diffusion under broad light
             up = (np.einsum("ij,ij->i", wi, n) > 0) & (np.einsum("ij,ij->i", wo, n) > 0)
             return np.where(up[:, None], albedo, 0.0)
         if self.brdf == "conductor":
             return np.pi * ggx(wi, wo, n, roughness=self.roughness, f0=albedo)
         return np.pi * ggx(wi, wo, n, roughness=self.roughness, f0=dielectric_f0(self.ior),
                            diffuse=albedo)
+
+
+    def dipole(self, channel: int):
+        """The :class:`acquire.subsurface.Dipole` of a subsurface material in one colour
+        channel (its base albedo there)."""
+        from acquire.subsurface import Dipole
+
+        return Dipole(float(self.albedo[channel]), float(self.mfp), float(self.ior))
 
 
 def _bilinear(img: np.ndarray, uvs: np.ndarray) -> np.ndarray:

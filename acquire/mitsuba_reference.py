@@ -93,6 +93,9 @@ def _bsdf(material) -> dict:
     if material.brdf == "conductor":
         return {"type": "roughconductor", "distribution": "ggx", "alpha": alpha,
                 "material": "none", "specular_reflectance": _rgb(material.albedo)}
+    if material.brdf != "dielectric":
+        raise ValueError(f"material.brdf: {material.brdf!r} is not described to Mitsuba "
+                         f"(lambert, conductor and dielectric are)")
     return {"type": "roughplastic", "distribution": "ggx", "alpha": alpha,
             "int_ior": float(material.ior), "ext_ior": 1.0, "nonlinear": False,
             "diffuse_reflectance": _rgb(material.albedo)}
