@@ -10,12 +10,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-RECIPES = ("displace", "terrain", "forest", "vines", "hypertexture", "snow", "drape", "flock")
-
 
 def main(argv):
     from core.image_io import write_image
+    from scanamp.amplify import recipe_names
     from scanamp.amplify.views import contact_sheet
+
+    RECIPES = recipe_names()  # noqa: N806 - every shipped recipe
 
     bench = Path(argv[0])
     out = Path(argv[1]) if len(argv) > 1 else Path(__file__).parent / "img"
@@ -27,7 +28,7 @@ def main(argv):
         images = [runs[0][1] / "before.png"] + [d / "after.png" for _, d in runs]
         captions = [f"{name}: input"] + [r for r, _ in runs]
         path = out / f"amplify_{name}.png"
-        write_image(path, contact_sheet(images, captions, columns=3, width=300))
+        write_image(path, contact_sheet(images, captions, columns=5, width=300))
         sys.stdout.write(f"{path}\n")
 
 
