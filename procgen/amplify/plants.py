@@ -211,8 +211,8 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
                    slope_max_deg: float = 30.0, altitude_range=(0.0, 1.0),
                    variants: int = 6, steps: int | None = None, sides: int = 6,
                    max_plants: int = 400, upright: bool = True, min_plants: int = 0,
-                   max_candidates: int = 2_000_000, need_sky: bool = True, leaves: int = 4,
-                   leaf_size: float = 0.07) -> ScatterResult:
+                   max_candidates: int = 2_000_000, need_sky: bool = True, leaves: int = 5,
+                   leaf_size: float = 0.1) -> ScatterResult:
     """Plant a varied forest on ``mesh``.
 
     Parameters

@@ -131,7 +131,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     import open3d as o3d
 
     from core.mesh_io import write_labeled_mesh
-    from scanamp.amplify.labels import LABELS, labelled_arrays, surface_parts
+    from scanamp.amplify.labels import LABELS, labelled_arrays, part_material, surface_parts
     from scanamp.amplify.scene_export import write_scene
     from scanamp.amplify.views import render_parts
 
@@ -157,7 +157,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
                 used.add(name)
                 write_mesh(tmp / f"{name}.ply", transform_mesh(m, rigid(back)))
                 files.append(f"{name}.ply")
-        after = surface_parts(state.surface)[1] + [(m, c) for _, m, c in
+        after = surface_parts(state.surface)[1] + [(m, c, part_material(n)) for n, m, c in
                                                    state.parts + state.parts_unmerged]
         write_image(tmp / "after.png", render_parts(after, **view))
         files += ["before.png", "after.png", "scene.toml", "parts"]

@@ -15,7 +15,8 @@ import numpy as np
 
 from core.meshes import mesh_arrays
 
-__all__ = ["LABELS", "COLORS", "label_of_part", "labelled_arrays", "surface_parts"]
+__all__ = ["LABELS", "COLORS", "PART_MATERIALS", "label_of_part", "part_material",
+           "labelled_arrays", "surface_parts"]
 
 # label id -> name; fixed, so a label means the same thing in every output
 LABELS = {0: "surface", 1: "ground", 2: "object", 3: "plant", 4: "vine", 5: "snow",
@@ -26,6 +27,22 @@ _PART_KIND = {"plants": "plant", "vines": "vine", "snow": "snow", "cloth": "clot
               "boids": "boid"}
 COLORS = {"ground": (0.55, 0.5, 0.38), "object": (0.74, 0.7, 0.64),
           "surface": (0.72, 0.68, 0.6)}
+
+
+# how each kind of part reflects (acquire.materials.Material fields besides its colour):
+# waxy leaves and painted walls under a clear coat, translucent snow (a laser stripe
+# spreads in it), metal drones; the rest Lambertian
+PART_MATERIALS = {"leaf": {"brdf": "dielectric", "roughness": 0.45},
+                  "vine": {"brdf": "dielectric", "roughness": 0.45},
+                  "building": {"brdf": "dielectric", "roughness": 0.6},
+                  "roof": {"brdf": "dielectric", "roughness": 0.35},
+                  "snow": {"brdf": "subsurface", "mfp": 2e-3},
+                  "boid": {"brdf": "conductor", "roughness": 0.3}}
+
+
+def part_material(name: str) -> dict:
+    """The material fields (no colour) of a part, by its label (:data:`PART_MATERIALS`)."""
+    return dict(PART_MATERIALS.get(LABELS[label_of_part(name)], {}))
 
 
 def label_of_part(name: str) -> int:

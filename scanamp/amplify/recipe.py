@@ -8,6 +8,7 @@ Shipped recipes live in ``scanamp/amplify/recipes/*.toml`` and are addressed by 
 from __future__ import annotations
 
 import copy
+import inspect
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any
 
 from core.files import read_toml, require
 from core.validate import InputError
+from procgen.amplify.plants import scatter_plants
 from procgen.city import CityConfig
 from reconstruct.mesh_clean import CleanOptions
 
@@ -45,6 +47,7 @@ class _F:
 _NOISE3 = ("fbm", "turbulence", "ridged")
 _CLEAN = CleanOptions()  # the clean step's defaults are the library's, declared once
 _CITY = CityConfig()
+_PLANTS = inspect.signature(scatter_plants).parameters   # the library's plant defaults
 
 # Sizes marked "relative" are fractions of the current mesh's bounding-box diagonal.
 SPECS: dict[str, dict[str, _F]] = {
@@ -94,8 +97,8 @@ SPECS: dict[str, dict[str, _F]] = {
         "sides": _F(int, 6, 3, 32),
         "max_plants": _F(int, 400, 1, 100_000),
         "upright": _F(bool, True),
-        "leaves": _F(int, 4, 0, 16),                      # leaves per branch tip
-        "leaf_size": _F(float, 0.07, 0.0, 1.0, lo_open=True),  # over the plant height
+        "leaves": _F(int, _PLANTS["leaves"].default, 0, 16),        # per branch tip
+        "leaf_size": _F(float, _PLANTS["leaf_size"].default, 0.0, 1.0, lo_open=True),
         "merge": _F(bool, True),
         "color": _F(list, [0.35, 0.5, 0.2], 0.0, 1.0, length=3),        # leaves
         "bark_color": _F(list, [0.42, 0.3, 0.2], 0.0, 1.0, length=3),

@@ -2,7 +2,8 @@
 
 ``scene.toml`` beside the result lists one object per part label (ground, object, plant,
 snow, ...), each a ``shape = "mesh"`` object reading ``parts/LABEL.ply`` with a constant
-material of the part's colour. The meshes are in the upright frame (up +z) moved so the
+material of the part's colour and its kind's reflectance
+(:data:`scanamp.amplify.labels.PART_MATERIALS`: glossy leaves and walls, translucent snow). The meshes are in the upright frame (up +z) moved so the
 scene stands on z = 0 centred on the turntable axis, where the scanners' rigs look; the
 object order follows the labels, so a capture's ground-truth object ids name the parts
 (``scene.toml``'s objects, in order). ``scene_from_mesh`` maps the input mesh's frame
@@ -18,6 +19,7 @@ import numpy as np
 from core.files import write_toml
 from core.mesh_io import write_mesh
 from core.meshes import compact, make_mesh
+from scanamp.amplify.labels import PART_MATERIALS
 
 __all__ = ["write_scene"]
 
@@ -41,7 +43,8 @@ def write_scene(folder: Path, vertices: np.ndarray, triangles: np.ndarray,
         write_mesh(folder / "parts" / f"{name}.ply", make_mesh(vs[used], tris))
         rgb = np.round(colors[used].mean(axis=0), 4).tolist()
         objects.append({"name": name, "shape": "mesh", "path": f"parts/{name}.ply",
-                        "material": {"kind": "constant", "albedo": rgb}})
+                        "material": {"kind": "constant", "albedo": rgb,
+                                     **PART_MATERIALS.get(name, {})}})
     extent = float(np.linalg.norm(hi - lo))
     write_toml(folder / "scene.toml", {
         "scene": {"name": "amplified", "seed": 0, "ambient": 0.15},

@@ -55,19 +55,22 @@ def tight_camera(points: np.ndarray, *, width: int, height: int, fov_deg: float,
 def render_parts(parts, *, width: int = 320, height: int = 240, elevation_deg: float = 30.0,
                  azimuth_deg: float = -60.0, fov_deg: float = 45.0,
                  camera: Camera | None = None) -> np.ndarray:
-    """Render ``parts`` (a list of ``(mesh, rgb albedo)``) to an ``(h, w, 3) uint8`` image.
+    """Render ``parts`` (a list of ``(mesh, rgb albedo)`` or ``(mesh, rgb albedo,
+    material fields)``, e.g. ``{"brdf": "dielectric", "roughness": 0.4}``) to an
+    ``(h, w, 3) uint8`` image.
 
     ``camera`` defaults to :func:`tight_camera` of all the parts' vertices.
     """
     objects = []
     allv = []
-    for k, (mesh, color) in enumerate(parts):
+    for k, (mesh, color, *fields) in enumerate(parts):
         v, f = mesh_arrays(mesh)
         if len(f) == 0:
             continue
         allv.append(v)
+        mat = Material(albedo=np.asarray(color, float), **(fields[0] if fields else {}))
         objects.append(SceneObject(name=f"part{k}", mesh=make_mesh(v, f), object_id=k,
-                                   material=Material(albedo=np.asarray(color, float))))
+                                   material=mat))
     if not objects:
         raise ValueError("parts: expected at least one mesh with triangles")
     if camera is None:
@@ -87,7 +90,7 @@ def turntable(parts, path, *, frames: int = 36, width: int = 480, height: int = 
     views one full turn apart, each framed as :func:`render_parts` frames the first."""
     from scanamp.animation import write_frames
 
-    allv = np.vstack([mesh_arrays(m)[0] for m, _ in parts])
+    allv = np.vstack([mesh_arrays(p[0])[0] for p in parts])
     azimuths = -60.0 + 360.0 * np.arange(frames) / frames
     cams = [tight_camera(allv, width=width, height=height, fov_deg=fov_deg,
                          elevation_deg=elevation_deg, azimuth_deg=a) for a in azimuths]
