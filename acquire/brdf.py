@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["lambert", "ggx", "ggx_d", "smith_g", "schlick", "dielectric_f0", "BRDFS"]
+__all__ = ["lambert", "ggx", "ggx_d", "smith_g", "schlick", "dielectric_f0", "BRDFS",
+           "sample_mixture", "mixture_pdf"]
 
 BRDFS = ("lambert", "conductor", "dielectric", "subsurface")
 
@@ -93,3 +94,55 @@ def ggx(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, *, roughness: float, f0,
         t = (1.0 - schlick(f0, ci)) * (1.0 - schlick(f0, co))
         out = out + t * np.asarray(diffuse, float) / np.pi
     return np.where(up[:, None], out, 0.0)
+
+
+def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents ``(t, b)`` completing each normal of ``n (k, 3)`` to a frame."""
+    a = np.where(np.abs(n[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t = np.cross(n, a)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return t, np.cross(n, t)
+
+
+def mixture_pdf(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, *, roughness: float,
+                p_spec: float) -> np.ndarray:
+    """Density (1/sr) of :func:`sample_mixture` at ``wi``: ``p_spec`` times the GGX
+    normal sampling's ``D(h) (n.h) / (4 |wo.h|)`` plus ``1 - p_spec`` times the cosine
+    density ``max(n.wi, 0) / pi``."""
+    alpha = max(float(roughness), 1e-3) ** 2
+    ci = _dot(wi, n)
+    pdf = (1.0 - p_spec) * np.clip(ci, 0.0, None) / np.pi
+    if p_spec > 0:
+        h = wi + wo
+        h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-300)
+        ch = _dot(n, h)
+        pdf = pdf + p_spec * ggx_d(ch, alpha) * np.clip(ch, 0.0, None) / np.maximum(
+            4.0 * np.abs(_dot(wo, h)), 1e-12)
+    return pdf
+
+
+def sample_mixture(wo: np.ndarray, n: np.ndarray, u: np.ndarray, *, roughness: float,
+                   p_spec: float) -> tuple[np.ndarray, np.ndarray]:
+    """Importance-sample light directions ``wi (k, 3)`` for views ``wo`` at normals ``n``
+    with uniform numbers ``u (k, 3)``: with probability ``p_spec`` by the GGX normal
+    distribution (the half vector drawn from ``D(h) (n.h)``, ``wi`` its mirror of
+    ``wo``), else cosine-weighted; returns ``(wi, pdf)`` with the mixture's density
+    (one-sample multiple importance sampling, the balance heuristic). Directions below
+    the surface have their density but reflect nothing (the BRDFs are 0 there)."""
+    alpha = max(float(roughness), 1e-3) ** 2
+    t, b = _basis(n)
+    spec = u[:, 2] < p_spec
+    # cosine-weighted (Malley)
+    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.clip(1.0 - u[:, 0], 0,
+                                                                       None))], 1)
+    # GGX half vectors
+    ch = np.sqrt((1.0 - u[:, 0]) / (1.0 + (alpha * alpha - 1.0) * u[:, 0]))
+    sh = np.sqrt(np.clip(1.0 - ch * ch, 0.0, None))
+    hl = np.stack([sh * np.cos(phi), sh * np.sin(phi), ch], 1)
+    to_world = np.stack([t, b, n], axis=2)                  # columns t, b, n
+    d = np.einsum("kij,kj->ki", to_world, local)
+    h = np.einsum("kij,kj->ki", to_world, hl)
+    mirror = 2.0 * _dot(wo, h)[:, None] * h - wo
+    wi = np.where(spec[:, None], mirror, d)
+    return wi, mixture_pdf(wi, wo, n, roughness=roughness, p_spec=p_spec)

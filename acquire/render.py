@@ -21,7 +21,7 @@ from acquire.scene import RenderScene
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Hits", "Render", "cast", "render", "shade"]
+__all__ = ["Hits", "Render", "cast", "render", "shade", "one_bounce"]
 
 
 @dataclass
@@ -250,14 +250,80 @@ def visibility(scene: RenderScene, light, points: np.ndarray, geo_normals: np.nd
 
 
 def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
-          view_dirs: np.ndarray | None = None) -> np.ndarray:
+          view_dirs: np.ndarray | None = None, bounces: int = 0,
+          rng: np.random.Generator | None = None) -> np.ndarray:
     """Radiance ``(n, 3)`` at the hits (direct light with shadows plus an ambient term);
     the scene background on misses.
 
     Lambertian surfaces reflect ``albedo * irradiance``; a GGX material
     (:class:`acquire.materials.Material` ``brdf``) reflects ``pi f(wi, wo) * irradiance``
     per light, which needs the rays' ``view_dirs`` (from the camera; any length).
+    ``bounces = 1`` adds one bounce of indirect light (:func:`one_bounce`; needs
+    ``view_dirs`` and ``rng``).
     """
+    out = _direct(scene, hits, lights=lights, ambient=ambient, view_dirs=view_dirs)
+    if bounces:
+        if view_dirs is None or rng is None:
+            raise ValueError("bounces: indirect light needs the view directions and an rng")
+        h = np.flatnonzero(hits.hit)
+        out[h] += one_bounce(scene, hits, h, np.asarray(view_dirs, np.float64)[h],
+                             lights=lights, rng=rng)
+    return out
+
+
+def _p_spec(material) -> float:
+    """Probability of sampling a material's specular lobe (0: cosine only)."""
+    return {"conductor": 1.0, "dielectric": 0.5}.get(material.brdf, 0.0)
+
+
+def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
+               lights=None, rng: np.random.Generator) -> np.ndarray:
+    """Indirect radiance ``(len(rows), 3)`` at the hits ``rows``: light that reached
+    another surface directly and is reflected once more toward ``view_dirs``.
+
+    One direction per hit is drawn by the material (:func:`acquire.brdf.sample_mixture`:
+    cosine for Lambertian, GGX normals for metals, both for a coated dielectric) and the
+    surface it meets is lit by direct light only (no ambient, no further bounce); the
+    estimate is ``(pi f / pi) L cos / pdf``. Rays that meet nothing bring nothing (the
+    background is a backdrop, not a light). Averaged over the supersampled rays of a
+    pixel; seeded by ``rng``.
+    """
+    from acquire.brdf import sample_mixture
+
+    lights = scene.lights if lights is None else lights
+    P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
+    obj = hits.obj[rows]
+    wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
+    alb = albedo(scene, Hits(*(getattr(hits, f)[rows] for f in
+                               ("hit", "t", "points", "normals", "geo_normals", "obj", "tri",
+                                "bary"))))
+    u = rng.random((len(rows), 3))
+    wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
+    refl = np.zeros((len(rows), 3))
+    for i, o in enumerate(scene.objects):
+        sel = np.flatnonzero(obj == i)
+        if sel.size:
+            m = o.material
+            wi[sel], pdf[sel] = sample_mixture(wo[sel], N[sel], u[sel],
+                                               roughness=m.roughness, p_spec=_p_spec(m))
+            refl[sel] = m.reflectance(wi[sel], wo[sel], N[sel], alb[sel])
+    cos = np.einsum("ij,ij->i", wi, N)
+    go = np.flatnonzero((pdf > 0) & (cos > 0) & (np.einsum("ij,ij->i", wi, G) > 0)
+                        & np.any(refl > 0, axis=1))
+    out = np.zeros((len(rows), 3))
+    if go.size == 0:
+        return out
+    eps = 1e-6 * float(np.linalg.norm(np.ptp(scene.bounds(), axis=0))) + 1e-9
+    sec = cast(scene, P[go] + eps * G[go], wi[go])
+    L = _direct(scene, sec, lights=lights, ambient=0.0, view_dirs=wi[go])
+    L[~sec.hit] = 0.0
+    out[go] = refl[go] / np.pi * L * (cos[go] / pdf[go])[:, None]
+    return out
+
+
+def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
+            view_dirs: np.ndarray | None = None) -> np.ndarray:
+    """Direct light and the ambient term (see :func:`shade`)."""
     lights = scene.lights if lights is None else lights
     ambient = scene.ambient if ambient is None else ambient
     n = len(hits.hit)
@@ -302,7 +368,7 @@ def _lit(scene: RenderScene, lights, P, N, G):
 
 
 def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=None,
-           ambient=None) -> Render:
+           ambient=None, bounces: int = 0, seed: int = 0) -> Render:
     """Render ``scene`` from ``camera``.
 
     Parameters
@@ -313,13 +379,21 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
         s x s rays per pixel for anti-aliasing (1 = one centre ray).
     lights, ambient : optional
         Override the scene's lights / ambient term (e.g. the laser alone).
+    bounces : {0, 1}
+        One bounce of indirect light (inter-reflections), one importance-sampled
+        direction per supersampled ray: noise falls as ``1 / supersample``.
+    seed : int
+        Seeds the indirect directions (same seed, same bytes).
     """
+    if bounces not in (0, 1):
+        raise ValueError(f"bounces: expected 0 or 1, got {bounces!r}")
     s = int(supersample)
     H, W = camera.height, camera.width
     px = camera.pixel_grid(supersample=s)
     o, d = camera.rays(px)
     hits = cast(scene, o, d)
-    rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d)
+    rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d, bounces=bounces,
+                rng=np.random.default_rng(seed) if bounces else None)
     radiance = rad.reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
     if s == 1:
         centre = hits
