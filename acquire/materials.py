@@ -17,9 +17,23 @@ from acquire.brdf import BRDFS, dielectric_f0, ggx
 from core.validate import check_array, check_choice, check_positive, check_range
 from procgen.noise import SOLID_TEXTURES, fbm
 
-__all__ = ["Material", "MATERIAL_KINDS", "BRDFS"]
+__all__ = ["Material", "MATERIAL_KINDS", "BRDFS", "MATERIAL_PRESETS"]
 
 MATERIAL_KINDS = ("constant", "solid", "image")
+
+# Named reflectances (fields of Material besides its colour and texture), the rows of a
+# material study: matte, a plastic's glossy coat at three roughnesses, polished metal,
+# and translucent materials from marble-like to wax-like mean free paths.
+MATERIAL_PRESETS = {
+    "matte": {"brdf": "lambert"},
+    "glossy-0.1": {"brdf": "dielectric", "roughness": 0.1},
+    "glossy-0.3": {"brdf": "dielectric", "roughness": 0.3},
+    "glossy-0.6": {"brdf": "dielectric", "roughness": 0.6},
+    "metal": {"brdf": "conductor", "roughness": 0.15},
+    "subsurface-0.3mm": {"brdf": "subsurface", "mfp": 0.3e-3},
+    "subsurface-1mm": {"brdf": "subsurface", "mfp": 1e-3},
+    "subsurface-3mm": {"brdf": "subsurface", "mfp": 3e-3},
+}
 
 
 def _fbm_texture(points: np.ndarray, *, scale: float, seed: int | None,

@@ -219,6 +219,13 @@ def _cli_error(capsys, *argv):
     ("[study]\nkind='sfm'\n[base]\nviewz = 3\n[sweep]\nviews = [6, 12]\n", "base.viewz"),
     ("[study]\nkind='lidar'\n[sweep]\nx = [1]\n", "study.kind"),
     ("[study]\nkind='_test'\nmode='random'\nn=3\n[sweep]\nx = [1, 2]\n", "sweep.x"),
+    ("[study]\nkind='laser'\n[sweep]\n'material.preset' = ['matte', 'velvet']\n",
+     "sweep.material.preset"),
+    ("[study]\nkind='laser'\n[sweep]\n'material.shine' = [1, 2]\n", "sweep.material.shine"),
+    ("[study]\nkind='laser'\n[sweep]\n'material.roughness' = [0.5, 2.0]\n",
+     "sweep.material.roughness"),
+    ("[study]\nkind='laser'\n[base]\n'material.object' = 'teapot'\n"
+     "[sweep]\n'material.preset' = ['matte']\n", "base.material.object"),
 ])
 def test_bad_study_exits_2_with_one_line_naming_file_and_field(tmp_path, capsys, text, field):
     spec = _spec(tmp_path, text)
@@ -244,3 +251,18 @@ def test_a_metric_no_run_reports_is_warned_about_with_a_suggestion(tmp_path, cap
     warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(warned) == 1, warned
     assert "metric yy is in none of the 6 finished runs' reports; did you mean y?" in warned[0]
+
+
+def test_material_overrides_change_the_scanned_object_only():
+    from scanamp.study.kinds import _scene, material_overrides
+
+    m = material_overrides({"material.preset": "subsurface-1mm", "material.ior": 1.3,
+                            "rig.steps": 10})
+    assert m == {"brdf": "subsurface", "mfp": 1e-3, "ior": 1.3}
+    plain, _ = _scene("object")
+    changed, _ = _scene("object", m)
+    mats = {o.name: o.material for o in changed.render_scene.objects}
+    before = {o.name: o.material for o in plain.render_scene.objects}
+    assert mats["object"].brdf == "subsurface" and mats["object"].mfp == 1e-3
+    assert mats["object"].kind == before["object"].kind            # its texture is kept
+    assert all(mats[n].brdf == before[n].brdf for n in mats if n != "object")

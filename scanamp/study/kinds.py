@@ -35,7 +35,15 @@ import numpy as np
 from core.files import read_toml, write_toml
 from core.validate import InputError
 
-__all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", "get_metric"]
+__all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", "get_metric",
+           "material_overrides", "MATERIAL_KEYS"]
+
+# ``material.*`` overrides change the scanned object's material in the scene (any kind
+# that captures a scene): its reflectance model and parameters, the rest of it (colour,
+# texture) kept. ``material.preset`` names a set of them
+# (:data:`acquire.materials.MATERIAL_PRESETS`); ``material.object`` names the object
+# (default: ``object``).
+MATERIAL_KEYS = ("object", "preset", "brdf", "roughness", "ior", "mfp", "albedo")
 
 
 @dataclass(frozen=True)
@@ -56,6 +64,8 @@ def split_overrides(overrides: dict) -> tuple[dict, dict]:
     cap: dict = {}
     rec: dict = {}
     for key, value in overrides.items():
+        if key.startswith("material."):
+            continue            # the scene's, not a config's: material_overrides
         if key.startswith("reconstruct."):
             rec[key[len("reconstruct."):]] = value
             continue
@@ -144,12 +154,47 @@ def build_configs(kind: Kind, overrides: dict, toml_path: Path) -> tuple[Any, An
     return cap_cfg, rec_cfg
 
 
+def material_overrides(overrides: dict) -> dict:
+    """The ``material.*`` overrides of a run as ``{field: value}`` (checked: known
+    fields of :class:`acquire.materials.Material` and values it accepts)."""
+    from acquire.materials import MATERIAL_PRESETS, Material
+
+    out = {}
+    for key, value in overrides.items():
+        if not key.startswith("material."):
+            continue
+        name = key[len("material."):]
+        if name not in MATERIAL_KEYS:
+            raise InputError(f"unknown material field; expected one of "
+                             f"{', '.join(MATERIAL_KEYS)}", field=key)
+        out[name] = value
+    if "preset" in out:
+        preset = out.pop("preset")
+        if preset not in MATERIAL_PRESETS:
+            raise InputError(f"expected one of {', '.join(MATERIAL_PRESETS)}, got {preset!r}",
+                             field="material.preset")
+        out = {**MATERIAL_PRESETS[preset], **out}
+    fields = {k: v for k, v in out.items() if k != "object"}
+    if fields:
+        try:
+            Material(**{k: (np.asarray(v, float) if k == "albedo" else v)
+                        for k, v in fields.items()})
+        except (TypeError, ValueError) as exc:
+            name, sep, rest = str(exc).partition(": ")
+            raise InputError(rest if sep else str(exc),
+                             field=f"material.{name}" if sep else "material") from None
+    return out
+
+
 def validate_run(study, run) -> None:
     """Build one run's configs now; errors name the study file and the override key."""
     kind = KINDS[study.kind]
     with tempfile.TemporaryDirectory(prefix="scanamp-study-") as tmp:
         try:
             build_configs(kind, run.overrides, Path(tmp) / "capture.toml")
+            material_overrides(run.overrides)
+            if study.kind != "_test":
+                _scene(study.scene, material_overrides(run.overrides))
         except InputError as exc:
             raise InputError(exc.message, path=study.path,
                              field=_locate(exc.field, study, run)) from None
@@ -185,10 +230,25 @@ def get_metric(report: dict, key: str) -> Any:
 
 
 # -- the kinds ---------------------------------------------------------------------------
-def _scene(scene: str):
+def _scene(scene: str, material: dict | None = None):
+    """The scene bundle of a run, its scanned object's material changed by the run's
+    ``material.*`` overrides."""
+    import copy
+
     from data_synth.scenes import build_scene
 
     bundle = build_scene(scene)
+    if material:
+        fields = {k: v for k, v in material.items() if k != "object"}
+        name = material.get("object", "object")
+        spec = copy.deepcopy(bundle.spec)
+        objs = [o for o in spec.get("objects", []) if o.get("name") == name]
+        if not objs:
+            names = [o.get("name") for o in spec.get("objects", [])]
+            raise InputError(f"the scene has no object {name!r}; expected one of "
+                             f"{', '.join(map(str, names))}", field="material.object")
+        objs[0]["material"] = {**objs[0].get("material", {}), **fields}
+        bundle = build_scene(spec)
     info = {"path": scene, "name": bundle.name, "seed": bundle.seed}
     return bundle, info
 
@@ -204,8 +264,9 @@ def _execute(name: str):
 
     method = METHODS[name]
 
-    def execute(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
-        bundle, _ = _scene(scene)
+    def execute(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
+                material: dict | None = None) -> dict:
+        bundle, _ = _scene(scene, material)
         if name == "sfm":  # pycolmap's seed follows the run's
             rec_cfg = dataclasses.replace(rec_cfg, seed=seed)
         cap = method.capture(bundle, cap_cfg, work / "capture", rng=np.random.default_rng(seed),
@@ -244,13 +305,14 @@ class RunFailed(RuntimeError):
         self.report = report or {}
 
 
-def _run_peaks(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
+def _run_peaks(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
+               material: dict | None = None) -> dict:
     """Render the scan's laser frames, detect the stripe, score against the true centre."""
     from acquire.laser import LaserRenderer
     from core.progress import track
     from reconstruct.laser import extract_frames
 
-    bundle, _ = _scene(scene)
+    bundle, _ = _scene(scene, material)
     rng = np.random.default_rng(seed)
     rig, sensor = cap_cfg.rig, cap_cfg.sensor
     cam0, laser0 = rig.camera(), rig.laser()
@@ -329,10 +391,11 @@ def _load_amplified(path: Path):
     return load_config(AmplifiedLaserConfig, path)
 
 
-def _run_amplified(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path) -> dict:
+def _run_amplified(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
+                   material: dict | None = None) -> dict:
     from scanamp.study.amplified import run_amplified
 
-    bundle, _ = _scene(scene)
+    bundle, _ = _scene(scene, material)
     report = run_amplified(bundle, cap_cfg, rec_cfg, seed=seed, work=work,
                            scene_path=_scene_path(scene))
     if not report.pop("ok"):
@@ -370,7 +433,8 @@ class _TestRecon:
     scale: float = 1.0
 
 
-def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work: Path) -> dict:
+def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work: Path,
+              material: dict | None = None) -> dict:
     time.sleep(cfg.sleep)
     if cfg.x == cfg.crash_at:
         os._exit(9)  # a native crash, as a segfault in a C extension would end the worker

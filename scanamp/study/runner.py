@@ -59,7 +59,13 @@ def _task(study, run, record_dir: Path | None, keep_dir: Path | None) -> dict:
 def execute_run(task: dict) -> dict:
     """Execute one run (in a worker); returns its record (and writes it when the task
     names a ``record_path``). Never raises for a failing run: the error is recorded."""
-    from scanamp.study.kinds import KINDS, RunFailed, build_configs, get_metric
+    from scanamp.study.kinds import (
+        KINDS,
+        RunFailed,
+        build_configs,
+        get_metric,
+        material_overrides,
+    )
 
     if _PARENT_PID is not None and os.getppid() != _PARENT_PID:
         os._exit(3)  # orphaned by a killed study: do not start runs nobody will collect
@@ -79,7 +85,7 @@ def execute_run(task: dict) -> dict:
     try:
         cap_cfg, rec_cfg = build_configs(kind, task["overrides"], work / "capture.toml")
         report = kind.execute(cap_cfg, rec_cfg, scene=task["scene"], seed=task["seed"],
-                              work=work)
+                              work=work, material=material_overrides(task["overrides"]))
         rec.update(status="ok", error=None, report=report)
     except Exception as exc:  # a failing run is a result of the study, not its end
         log.debug("run %s failed", task["run_id"], exc_info=True)
