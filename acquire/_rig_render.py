@@ -33,8 +33,10 @@ def rig_lamp(cfg: RigConfig, intensity: float = 0.12) -> PointLight:
 
 
 def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersample: int = 2,
-                      ambient: float | None = None):
-    """Render one view under several light sets, casting the camera rays once.
+                      ambient: float | None = None, bounces: int = 0, rng=None):
+    """Render one view under several light sets, casting the camera rays once; surfaces
+    reflect by their material toward this camera (glossy highlights move between the
+    two cameras of a pair), with ``bounces = 1`` one bounce of indirect light (``rng``).
 
     Returns
     -------
@@ -45,8 +47,9 @@ def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersa
     H, W = camera.height, camera.width
     o, d = camera.rays(camera.pixel_grid(supersample=s))
     hits = cast(scene, o, d)
-    rads = [shade(scene, hits, lights=ls, ambient=ambient).reshape(H, W, s * s, 3).mean(axis=2)
-            .astype(np.float32) for ls in light_sets]
+    rads = [shade(scene, hits, lights=ls, ambient=ambient, view_dirs=d, bounces=bounces,
+                  rng=rng).reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
+            for ls in light_sets]
     if s == 1:
         centre = hits
     else:

@@ -56,26 +56,39 @@ def pattern_sequence(rig: RigConfig) -> tuple[list, dict]:
 
 
 def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector, patterns,
-                     sensor, rng, *, supersample: int, ambient: float):
-    """Sensor images of one view under each pattern, and the GT depth."""
+                     sensor, rng, *, supersample: int, ambient: float, bounces: int = 0):
+    """Sensor images of one view under each pattern, and the GT depth.
+
+    Each surface reflects the projector by its material toward the camera
+    (:func:`acquire.render.reflect_toward`); with ``bounces = 1`` light of the pattern
+    that reached another surface comes back once more (inter-reflections): the bounce
+    rays are drawn once per view (:func:`acquire.render.bounce_rays`), and each pattern
+    only changes what the surfaces they meet receive."""
+    from acquire.render import bounce_rays, reflect_toward
+
     s = int(supersample)
     H, W = camera.height, camera.width
     o, d = camera.rays(camera.pixel_grid(supersample=s))
     hits = cast(scene, o, d)
     h = np.flatnonzero(hits.hit)
     alb = albedo(scene, hits)[h].mean(axis=1)  # a monochrome sensor
-    px, factor = proj.footprint(hits.points[h], hits.normals[h])
-    lit = factor > 0
-    vis = np.zeros(len(h), bool)
-    if lit.any():
-        vis[lit] = visibility(scene, proj, hits.points[h][lit], hits.geo_normals[h][lit])
-    factor = factor * vis
+    px, factor = _lit_footprint(scene, proj, hits, h)
+    refl = reflect_toward(scene, hits, h, proj.camera.center, d[h]).mean(axis=1)
     base = np.zeros(len(hits.hit))
     base[h] = alb * ambient
+    second = None
+    if bounces:
+        b = bounce_rays(scene, hits, h, d[h], rng=rng)
+        k = np.flatnonzero(b.hits.hit)
+        px2, f2 = _lit_footprint(scene, proj, b.hits, k)
+        r2 = reflect_toward(scene, b.hits, k, proj.camera.center, b.wi[k]).mean(axis=1)
+        second = (h[b.rows[k]], b.weight[k].mean(axis=1) * r2 * f2, px2)
     out = []
     for pat in patterns:
         rad = base.copy()
-        rad[h] += alb * sample_bilinear(pat, px) * factor
+        rad[h] += refl * sample_bilinear(pat, px) * factor
+        if second is not None:
+            np.add.at(rad, second[0], second[1] * sample_bilinear(pat, second[2]))
         img = rad.reshape(H, W, s * s).mean(axis=2)
         out.append(sensor.apply(img, rng))
     o, d = camera.rays(camera.pixel_grid())
@@ -84,12 +97,25 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
     return out, depth
 
 
+def _lit_footprint(scene: RenderScene, proj: PatternProjector, hits, rows):
+    """Projector pixels of the hits ``rows`` and the light a white pixel brings them
+    (0 in the projector's shadow)."""
+    px, factor = proj.footprint(hits.points[rows], hits.normals[rows])
+    lit = factor > 0
+    vis = np.zeros(len(rows), bool)
+    if lit.any():
+        vis[lit] = visibility(scene, proj, hits.points[rows][lit],
+                              hits.geo_normals[rows][lit])
+    return px, factor * vis
+
+
 def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generator, *,
             scene_info: dict | None = None, seed: int | None = None,
             object_name: str | None = None) -> Path:
     """Render a structured-light capture folder (see the module docstring)."""
     sensor = dataclasses.replace(rig.sensor, mono=True)
-    shade = {"supersample": rig.render.supersample, "ambient": rig.render.ambient}
+    shade = {"supersample": rig.render.supersample, "ambient": rig.render.ambient,
+             "bounces": rig.render.bounces}
     cam, pcam = rig.sl_devices()
     pats, info = pattern_sequence(rig)
     proj = PatternProjector(pcam, pats[0], rig.projector.intensity)
@@ -128,7 +154,7 @@ def capture(scene: RenderScene, rig: RigConfig, out_dir, rng: np.random.Generato
             imgs, depth = _render_patterns(sc, cam, proj, pats, sensor, rng,
                                            **shade)
             _, pdepth = _render_patterns(sc, pcam, proj, [], sensor, rng, supersample=1,
-                                         ambient=0.0)
+                                         ambient=0.0, bounces=0)
             frames.append({"stage_angle_deg": float(ang), "camera": "cam",
                            "images": save(f"pose_{i:03d}", imgs)})
             g = [f"gt/pose_{i:03d}_cam_depth.npy", f"gt/pose_{i:03d}_proj_depth.npy"]

@@ -83,7 +83,8 @@ def _object_frames(scene, rig, left, right, lamps, proj, sensor, rng, tmp: Path)
         gt = {"depth": []}
         for name, cam in (("L", left), ("R", right)):
             rads, depth = render_light_sets(sc, cam, sets, supersample=rig.render.supersample,
-                                            ambient=rig.render.ambient)
+                                            ambient=rig.render.ambient,
+                                            bounces=rig.render.bounces, rng=rng)
             rel = f"images/pose_{i:03d}_{name}.png"
             write_image(tmp / rel, sensor.apply(rads[0], rng))
             fr["images"].append(rel)

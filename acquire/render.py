@@ -21,7 +21,8 @@ from acquire.scene import RenderScene
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Hits", "Render", "cast", "render", "shade", "one_bounce"]
+__all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
+           "bounce_rays", "reflect_toward"]
 
 
 @dataclass
@@ -271,32 +272,64 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     return out
 
 
+def reflect_toward(scene: RenderScene, hits: Hits, rows: np.ndarray, source: np.ndarray,
+                   view_dirs: np.ndarray) -> np.ndarray:
+    """``pi f`` ``(len(rows), 3)`` at the hits ``rows`` for light from the point
+    ``source`` (a projector's centre) seen along ``view_dirs``: a Lambertian surface's
+    albedo, a glossy one's view-dependent reflectance."""
+    sub = _subset(hits, rows)
+    alb = albedo(scene, sub)
+    wi = np.asarray(source, np.float64) - sub.points
+    wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
+    wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
+    out = alb.copy()
+    for i, o in enumerate(scene.objects):
+        sel = np.flatnonzero(sub.obj == i)
+        if sel.size and o.material.brdf not in ("lambert", "subsurface"):
+            out[sel] = o.material.reflectance(wi[sel], wo[sel], sub.normals[sel], alb[sel])
+    return out
+
+
 def _p_spec(material) -> float:
     """Probability of sampling a material's specular lobe (0: cosine only)."""
     return {"conductor": 1.0, "dielectric": 0.5}.get(material.brdf, 0.0)
 
 
-def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
-               lights=None, rng: np.random.Generator) -> np.ndarray:
-    """Indirect radiance ``(len(rows), 3)`` at the hits ``rows``: light that reached
-    another surface directly and is reflected once more toward ``view_dirs``.
+@dataclass
+class Bounce:
+    """Second-bounce rays drawn at some hits (:func:`bounce_rays`).
 
-    One direction per hit is drawn by the material (:func:`acquire.brdf.sample_mixture`:
-    cosine for Lambertian, GGX normals for metals, both for a coated dielectric) and the
-    surface it meets is lit by direct light only (no ambient, no further bounce); the
-    estimate is ``(pi f / pi) L cos / pdf``. Rays that meet nothing bring nothing (the
-    background is a backdrop, not a light). Averaged over the supersampled rays of a
-    pixel; seeded by ``rng``.
+    Attributes
+    ----------
+    rows : (k,) int64
+        Which of the given hits continue (the others reflect nothing indirect).
+    weight : (k, 3) float64
+        ``f cos / pdf`` of each (the factor on the radiance coming back along ``wi``).
+    wi : (k, 3) float64
+        The directions drawn, unit.
+    hits : Hits
+        Where they meet the scene (``hit`` False: nothing comes back).
     """
+
+    rows: np.ndarray
+    weight: np.ndarray
+    wi: np.ndarray
+    hits: Hits
+
+
+def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
+                rng: np.random.Generator) -> Bounce:
+    """One importance-sampled direction per hit of ``rows``, drawn by its material
+    (:func:`acquire.brdf.sample_mixture`: cosine for Lambertian, GGX normals for metals,
+    both for a coated dielectric), cast into the scene. What comes back along them is
+    the caller's (a light's direct light for :func:`one_bounce`, each pattern's for a
+    structured-light capture): the indirect radiance is ``weight * L``."""
     from acquire.brdf import sample_mixture
 
-    lights = scene.lights if lights is None else lights
     P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
     obj = hits.obj[rows]
     wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
-    alb = albedo(scene, Hits(*(getattr(hits, f)[rows] for f in
-                               ("hit", "t", "points", "normals", "geo_normals", "obj", "tri",
-                                "bary"))))
+    alb = albedo(scene, _subset(hits, rows))
     u = rng.random((len(rows), 3))
     wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
     refl = np.zeros((len(rows), 3))
@@ -310,15 +343,33 @@ def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.n
     cos = np.einsum("ij,ij->i", wi, N)
     go = np.flatnonzero((pdf > 0) & (cos > 0) & (np.einsum("ij,ij->i", wi, G) > 0)
                         & np.any(refl > 0, axis=1))
-    out = np.zeros((len(rows), 3))
-    if go.size == 0:
-        return out
     eps = 1e-6 * float(np.linalg.norm(np.ptp(scene.bounds(), axis=0))) + 1e-9
     sec = cast(scene, P[go] + eps * G[go], wi[go])
-    L = _direct(scene, sec, lights=lights, ambient=0.0, view_dirs=wi[go])
-    L[~sec.hit] = 0.0
-    out[go] = refl[go] / np.pi * L * (cos[go] / pdf[go])[:, None]
+    weight = refl[go] / np.pi * (cos[go] / pdf[go])[:, None]
+    return Bounce(rows=go, weight=weight, wi=wi[go], hits=sec)
+
+
+def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
+               lights=None, rng: np.random.Generator) -> np.ndarray:
+    """Indirect radiance ``(len(rows), 3)`` at the hits ``rows``: light that reached
+    another surface directly and is reflected once more toward ``view_dirs``
+    (:func:`bounce_rays`; the surface met is lit by direct light only, no ambient, no
+    further bounce). Rays that meet nothing bring nothing (the background is a backdrop,
+    not a light). Averaged over the supersampled rays of a pixel; seeded by ``rng``.
+    """
+    lights = scene.lights if lights is None else lights
+    b = bounce_rays(scene, hits, rows, view_dirs, rng=rng)
+    out = np.zeros((len(rows), 3))
+    if b.rows.size:
+        L = _direct(scene, b.hits, lights=lights, ambient=0.0, view_dirs=b.wi)
+        L[~b.hits.hit] = 0.0
+        out[b.rows] = b.weight * L
     return out
+
+
+def _subset(hits: Hits, rows: np.ndarray) -> Hits:
+    return Hits(*(getattr(hits, f)[rows] for f in ("hit", "t", "points", "normals",
+                                                   "geo_normals", "obj", "tri", "bary")))
 
 
 def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,

@@ -182,6 +182,8 @@ class RenderOptions(Config):
 
     supersample: int = option(2, range="[1, 8]", help="rays per pixel side")
     ambient: float = option(0.15, range="[0, inf)", help="ambient light level")
+    bounces: int = option(0, range="[0, 1]",
+                          help="indirect bounces: 1 renders inter-reflections (slower)")
 
 
 @dataclass

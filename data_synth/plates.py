@@ -1,4 +1,5 @@
-"""A flat plate under a laser sheet: the bench of material effects on triangulation.
+"""A flat plate under a laser sheet, and a concave groove: the benches of material and
+inter-reflection effects on triangulation.
 
 The plate lies on z = 0; the sheet comes in at ``incidence_deg`` from the normal in the
 xz plane and draws its stripe along y at x = 0; the camera looks down at the stripe from
@@ -21,7 +22,7 @@ from acquire.scene import RenderScene, SceneObject
 from core.meshes import make_mesh
 from core.validate import check_range
 
-__all__ = ["LaserPlate", "laser_plate"]
+__all__ = ["LaserPlate", "laser_plate", "v_groove"]
 
 
 @dataclass
@@ -65,3 +66,20 @@ def laser_plate(material: Material, *, incidence_deg: float = 30.0, view_deg: fl
     cam = Camera.look_at(eye, [0.0, 0.0, 0.0], up=(0.0, 1.0, 0.0), width=width,
                          height=height, fov_deg=fov_deg)
     return LaserPlate(scene, cam, laser)
+
+
+def v_groove(material: Material, *, opening_deg: float = 50.0, crease_y: float = 0.12,
+             face: float = 0.18, height: float = 0.25) -> RenderScene:
+    """A concave V-groove of two flat faces of ``material`` meeting at a vertical crease
+    (x = 0, y = ``crease_y``), opening by ``opening_deg`` toward -y, where the scanners'
+    rigs stand: each face lights the other (inter-reflections)."""
+    a = np.radians(0.5 * check_range(opening_deg, "opening_deg", 10.0, 170.0))
+    crease = np.array([0.0, crease_y, -0.05])
+    objs = []
+    for k, side in enumerate((-1.0, 1.0)):
+        d = np.array([side * np.sin(a), -np.cos(a), 0.0])
+        V = np.array([crease, crease + face * d, crease + face * d + [0, 0, height],
+                      crease + [0, 0, height]])
+        F = np.array([[0, 1, 2], [0, 2, 3]]) if side < 0 else np.array([[0, 2, 1], [0, 3, 2]])
+        objs.append(SceneObject(f"face{k}", make_mesh(V, F), material=material, object_id=k))
+    return RenderScene(objs, lights=[], ambient=0.0)

@@ -24,7 +24,7 @@ import numpy as np
 from acquire.camera import Camera
 
 __all__ = ["decode_gray_code", "decode_phase", "unwrap_with_gray", "triangulate_columns",
-           "projector_coords_at"]
+           "projector_coords_at", "gray_bit_errors"]
 
 
 def _stack(images, name):
@@ -83,6 +83,28 @@ def decode_gray_code(images: Sequence[np.ndarray], *, n_col_bits: int, n_row_bit
     col = np.where(valid, col, -1)
     row = np.where(valid, row, -1)
     return col, row, valid
+
+
+def gray_bit_errors(images: Sequence[np.ndarray], true_col: np.ndarray, *, n_bits: int,
+                    mask: np.ndarray | None = None) -> np.ndarray:
+    """Error rate of each column bit's decision (pattern brighter than its inverse)
+    against the true projector column ``true_col (H, W)`` (negative: unknown), counted
+    off the bit's transitions: pixels whose neighbouring projector columns (+-1) carry
+    the same bit, so a pixel straddling a stripe edge is not an error. ``images``: the
+    ``2 n_bits`` column captures (pattern, inverse per bit, MSB first). Returns
+    ``(n_bits,)`` (NaN for a bit that changes every column)."""
+    arr = _stack(images, "images")[: 2 * n_bits]
+    bits = arr[0::2] > arr[1::2]
+    c = np.asarray(true_col, np.int64)
+    ok = c >= 0 if mask is None else (c >= 0) & np.asarray(mask, bool)
+    out = np.full(n_bits, np.nan)
+    gray = [(x ^ (x >> 1)) for x in (c, np.maximum(c - 1, 0), c + 1)]
+    for k in range(n_bits):
+        b = [(g >> (n_bits - 1 - k)) & 1 for g in gray]
+        stable = ok & (b[0] == b[1]) & (b[0] == b[2]) & (c >= 1)
+        if stable.any():
+            out[k] = float(np.mean(bits[k][stable] != b[0][stable].astype(bool)))
+    return out
 
 
 def decode_phase(images: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
