@@ -130,7 +130,7 @@ def _calib_image(target, world_from_target, cam_hi, dirs_hi, s, laser, ambient, 
 def _scan_frames(scene, rig, cam0, laser0, sensor, positions, gt_depth, rng, tmp: Path):
     """The scan: one frame per stage reading, and the true stripe (for evaluation)."""
     # -- scan frames --------------------------------------------------------------------
-    renderer = LaserRenderer(scene, cam0)
+    renderer = LaserRenderer(scene, cam0, bounces=rig.bounces)
     frames, stripes, lit_counts = [], [], []
     key = "angle_deg" if rig.motion == "turntable" else "position_m"
     for k, pos in enumerate(track(positions, "laser scan")):

@@ -210,10 +210,16 @@ class LaserRenderer:
         interpolates per-vertex albedo for the ambient term only (far cheaper for
         procedural solid textures); laser-lit pixels always get the exact albedo, and
         image-textured objects (calibration boards) always take the exact path.
+    bounces : {0, 1}
+        1: the stripe's light also comes back by one bounce off glossy surfaces (metal,
+        coated dielectrics): the ghost stripes a concave shiny part shows. Every pixel
+        on a glossy object draws one direction by its material
+        (:func:`acquire.render.bounce_rays`); where it meets the sheet's light, that light
+        is reflected once more. Needs ``rng`` in :meth:`frame`.
     """
 
     def __init__(self, scene, camera, *, exact_ambient: bool = False,
-                 dirs_cam: np.ndarray | None = None):
+                 dirs_cam: np.ndarray | None = None, bounces: int = 0):
         self.scene = scene
         self.camera = camera
         if dirs_cam is None:
@@ -222,6 +228,9 @@ class LaserRenderer:
         self.exact = exact_ambient or any(o.material.kind == "image" for o in scene.objects)
         self._vertex_albedo = None
         self._reach = None   # how far from the sheet translucent objects glow (m)
+        if bounces not in (0, 1):
+            raise ValueError(f"bounces: expected 0 or 1, got {bounces!r}")
+        self.bounces = int(bounces)
 
     def _ambient_albedo(self, hit_idx, points, ans, ch):
         from acquire.render import Hits, albedo
@@ -298,6 +307,28 @@ class LaserRenderer:
         sel = np.flatnonzero(rad > 0)
         return sel, rad[sel], signed
 
+    def _ghosts(self, laser: LaserSheet, rays, hit_idx, origin, ch, rng) -> np.ndarray:
+        """The stripe's light coming back by one bounce off the glossy pixels."""
+        from acquire.render import bounce_rays, cast
+
+        scene = self.scene
+        out = np.zeros(len(rays))
+        glossy = [i for i, o in enumerate(scene.objects)
+                  if o.material.brdf in ("conductor", "dielectric")]
+        if not glossy:
+            return out
+        dn = rays[hit_idx, 3:].astype(np.float64)
+        hits = cast(scene, np.broadcast_to(origin, dn.shape), dn)
+        rows = np.flatnonzero(hits.hit & np.isin(hits.obj, glossy))
+        if rows.size == 0:
+            return out
+        b = bounce_rays(scene, hits, rows, dn[rows], rng=rng)
+        k = np.flatnonzero(b.hits.hit)
+        if k.size:
+            L = _laser_reflected(scene, laser, b.hits, k, b.wi[k], ch)
+            out[hit_idx[rows[b.rows[k]]]] = b.weight[k, ch] * L
+        return out
+
     def frame(self, cam_from_world: np.ndarray, laser: LaserSheet | None, *,
               ambient: float | None = None, rng: np.random.Generator | None = None,
               channel: int = 0) -> LaserFrame:
@@ -357,6 +388,11 @@ class LaserRenderer:
             rad[near[sel]] = rad_sel
             lit = int(sel.size)
             stripe = _true_stripe(s, depth, near[sel], H, W)
+        if laser is not None and self.bounces and hit_idx.size:
+            if rng is None:
+                raise ValueError("rng: a laser frame with bounces needs a random generator")
+            rad += self._ghosts(laser, rays, hit_idx, origin, ch, rng)
+            lit = int(np.count_nonzero(rad))
         if amb > 0 and hit_idx.size:
             pts = None
             if self.exact:
@@ -417,6 +453,23 @@ def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch):
             tlen[k], 1e-12)
         tex = alb[k] / max(float(m.albedo[ch]), 1e-12)
         out[k] = e0[k] * tex * stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
+    return out
+
+
+def _laser_reflected(scene, laser: LaserSheet, hits, rows, view_dirs, ch):
+    """Radiance ``(len(rows),)`` the sheet's direct light leaves at the hits ``rows``
+    back along the rays ``view_dirs`` that reached them."""
+    from acquire.render import reflect_toward, visibility
+
+    out = np.zeros(len(rows))
+    P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
+    e = laser.irradiance(P, N)[:, ch]
+    k = np.flatnonzero(e > 0)
+    if k.size == 0:
+        return out
+    k = k[visibility(scene, laser, P[k], G[k])]
+    refl = reflect_toward(scene, hits, rows[k], laser.origin, view_dirs[k])[:, ch]
+    out[k] = e[k] * refl
     return out
 
 

@@ -66,6 +66,9 @@ class LaserRig(Config):
     laser_power: float = option(0.35, range="[0, inf)", help="peak irradiance of the sheet")
     speckle: float = option(0.0, range="[0, 2]", help="speckle contrast of the stripe")
     ambient: float = option(0.05, range="[0, inf)", help="ambient light level")
+    bounces: int = option(0, range="[0, 1]",
+                          help="1: the stripe also returns by one bounce off glossy surfaces "
+                               "(ghost stripes on shiny concave parts; slower)")
     # motion
     motion: str = option("turntable", choices=("turntable", "stage"),
                          help="what carries the object between frames")
