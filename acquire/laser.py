@@ -47,8 +47,13 @@ class LaserSheet:
     color : (3,) float64
         Spectral colour (red for the usual 635-660 nm diode).
     speckle : float
-        Speckle contrast (std/mean of the multiplicative, unit-mean gamma noise per
-        pixel; 0 = off, 1 = fully developed speckle). Applied by the frame renderer.
+        Speckle contrast (0 = off, 1 = fully developed speckle). Applied by the frame
+        renderer: with ``speckle_grain`` as an image of grains that size
+        (:func:`acquire.speckle.speckle_field`), else as independent unit-mean gamma noise
+        per pixel of that contrast.
+    speckle_grain : float
+        Speckle grain diameter on the sensor, pixels (``2.44 lambda N / pitch``:
+        :func:`acquire.speckle.grain_px`); 0: independent pixels.
     """
 
     origin: np.ndarray
@@ -59,6 +64,7 @@ class LaserSheet:
     power: float = 0.35
     color: np.ndarray = None
     speckle: float = 0.0
+    speckle_grain: float = 0.0
 
     def __post_init__(self):
         self.origin = check_array(self.origin, "origin", shape=(3,))
@@ -75,6 +81,7 @@ class LaserSheet:
         self.color = (np.array([1.0, 0.0, 0.0]) if self.color is None
                       else check_array(self.color, "color", shape=(3,)))
         self.speckle = check_range(self.speckle, "speckle", 0.0, 2.0)
+        self.speckle_grain = check_range(self.speckle_grain, "speckle_grain", 0.0, None)
 
     # -- geometry ---------------------------------------------------------------------
     @property
@@ -86,7 +93,8 @@ class LaserSheet:
         """The same laser moved by the rigid transform ``new_from_old`` (4, 4)."""
         R, t = new_from_old[:3, :3], new_from_old[:3, 3]
         return LaserSheet(R @ self.origin + t, R @ self.normal, R @ self.direction,
-                          self.fan_angle, self.thickness, self.power, self.color, self.speckle)
+                          self.fan_angle, self.thickness, self.power, self.color, self.speckle,
+                          self.speckle_grain)
 
     def fan(self, points: np.ndarray) -> np.ndarray:
         """The sheet's peak irradiance factor ``(n,)`` at ``points (n, 3)``: ``power / r``
@@ -123,12 +131,13 @@ class LaserSheet:
                 "direction": self.direction.tolist(),
                 "fan_angle_deg": float(np.degrees(self.fan_angle)),
                 "thickness": self.thickness, "power": self.power, "color": self.color.tolist(),
-                "speckle": self.speckle}
+                "speckle": self.speckle, "speckle_grain": self.speckle_grain}
 
     @classmethod
     def from_dict(cls, d: dict) -> LaserSheet:
         return cls(d["origin"], d["normal"], d["direction"], np.radians(d["fan_angle_deg"]),
-                   d["thickness"], d["power"], d.get("color"), d.get("speckle", 0.0))
+                   d["thickness"], d["power"], d.get("color"), d.get("speckle", 0.0),
+                   d.get("speckle_grain", 0.0))
 
 
 def plane_of(laser: LaserSheet) -> np.ndarray:
@@ -299,7 +308,7 @@ class LaserRenderer:
             k = np.flatnonzero(translucent)
             rad[ok[k]] = _subsurface_light(scene, laser, P[k], N[k], G[k], obj[k], alb[k, ch],
                                            signed[ok[k]], ch)
-        if laser.speckle > 0:
+        if laser.speckle > 0 and laser.speckle_grain == 0:   # independent pixels
             if rng is None:
                 raise ValueError("rng: a laser with speckle needs a random generator")
             kk = 1.0 / laser.speckle ** 2
@@ -385,6 +394,8 @@ class LaserRenderer:
             sel, rad_sel, signed = self._sheet_light(laser, rays[near, 3:], origin, ch, rng)
             hit = np.isfinite(signed)
             s[near[hit]] = signed[hit]
+            if laser.speckle > 0 and laser.speckle_grain > 0 and sel.size:
+                rad_sel = rad_sel * _grains(near[sel], W, laser, rng)
             rad[near[sel]] = rad_sel
             lit = int(sel.size)
             stripe = _true_stripe(s, depth, near[sel], H, W)
@@ -454,6 +465,21 @@ def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch):
         tex = alb[k] / max(float(m.albedo[ch]), 1e-12)
         out[k] = e0[k] * tex * stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
     return out
+
+
+def _grains(idx: np.ndarray, W: int, laser: LaserSheet, rng) -> np.ndarray:
+    """The speckle factor at flat pixel indices ``idx`` of a ``W``-wide image: a field of
+    the laser's grain drawn over their bounding box (speckle is stationary, so the box
+    is all that is needed)."""
+    from acquire.speckle import speckle_field
+
+    if rng is None:
+        raise ValueError("rng: a laser with speckle needs a random generator")
+    r, c = idx // W, idx % W
+    r0, c0 = int(r.min()), int(c.min())
+    field = speckle_field((int(r.max()) - r0 + 1, int(c.max()) - c0 + 1),
+                          laser.speckle_grain, laser.speckle, rng)
+    return field[r - r0, c - c0]
 
 
 def _laser_reflected(scene, laser: LaserSheet, hits, rows, view_dirs, ch):

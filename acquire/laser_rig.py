@@ -25,6 +25,7 @@ import numpy as np
 from acquire.camera import Camera, look_at_cam_from_world
 from acquire.laser import LaserSheet
 from acquire.sensor import Sensor
+from acquire.speckle import grain_px
 from acquire.targets import ChArUcoTarget, target_from_dict
 from core.config import Config, option
 from core.frames import rotation_about
@@ -65,6 +66,13 @@ class LaserRig(Config):
                                     help="sheet thickness (Gaussian 1/e^2 width)")
     laser_power: float = option(0.35, range="[0, inf)", help="peak irradiance of the sheet")
     speckle: float = option(0.0, range="[0, 2]", help="speckle contrast of the stripe")
+    wavelength_nm: float = option(650.0, unit="nm", range="(0, inf)",
+                                  help="laser wavelength (the speckle grain)")
+    f_number: float = option(4.0, range="(0, inf)", help="camera lens f-number (speckle grain)")
+    pixel_pitch_um: float = option(3.45, unit="um", range="(0, inf)",
+                                   help="sensor pixel pitch (the speckle grain in pixels)")
+    independent_speckle: bool = option(False, help="speckle as independent pixels instead "
+                                                   "of grains of the lens's Airy disc")
     ambient: float = option(0.05, range="[0, inf)", help="ambient light level")
     bounces: int = option(0, range="[0, 1]",
                           help="1: the stripe also returns by one bounce off glossy surfaces "
@@ -121,7 +129,9 @@ class LaserRig(Config):
             [np.cos(th) * np.cos(el), np.sin(th) * np.cos(el), np.sin(el)])
         normal = np.array([-np.sin(th), np.cos(th), 0.0])
         return LaserSheet(origin, normal, self.aim - origin, np.radians(self.fan_angle_deg),
-                          self.laser_thickness, self.laser_power, None, self.speckle)
+                          self.laser_thickness, self.laser_power, None, self.speckle,
+                          0.0 if self.independent_speckle else grain_px(
+                              self.wavelength_nm, self.f_number, self.pixel_pitch_um))
 
     @property
     def baseline(self) -> float:
