@@ -285,7 +285,7 @@ class LaserRenderer:
         P, N, G = hits.points[ok], hits.normals[ok], hits.geo_normals[ok]
         signed = np.full(len(dn), np.nan)
         signed[ok] = P @ n_pl - d_pl
-        alb = albedo(scene, type(hits)(*(getattr(hits, f)[ok] for f in _HIT_FIELDS)))
+        alb = albedo(scene, hits.take(ok))
         obj = hits.obj[ok]
         rad = np.zeros(len(dn))
         translucent = np.isin(obj, [i for i, o in enumerate(scene.objects)
@@ -410,9 +410,6 @@ class LaserRenderer:
                 pts = origin + t[hit_idx, None].astype(np.float64) * rays[hit_idx, 3:]
             rad[hit_idx] += amb * self._ambient_albedo(hit_idx, pts, ans, ch)
         return LaserFrame(rad.reshape(H, W).astype(np.float32), stripe, depth.reshape(H, W), lit)
-
-
-_HIT_FIELDS = ("hit", "t", "points", "normals", "geo_normals", "obj", "tri", "bary")
 
 
 def subsurface_reach(scene, channel: int, *, fraction: float = 0.01) -> float:

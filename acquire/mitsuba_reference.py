@@ -257,12 +257,12 @@ def corner_scene(material: str = "lambert", *, light: str = "point", width: int 
     """A reference scene: a sphere of ``material`` (one of :data:`REFERENCE_MATERIALS`)
     in the corner of a matte floor and a matte wall, lit by a point light (``"point"``)
     or by a projector showing vertical stripes (``"projector"``), and its camera."""
+    import open3d as o3d
+
     from acquire.materials import Material
     from acquire.scene import SceneObject
     from core.meshes import make_mesh
     from core.validate import check_choice
-
-    import open3d as o3d
 
     mats = _materials()
     check_choice(material, "material", tuple(mats))

@@ -10,6 +10,7 @@ not occluded (cast shadows). Anti-aliasing by s x s supersampling; ground truth
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -49,6 +50,10 @@ class Hits:
     obj: np.ndarray
     tri: np.ndarray
     bary: np.ndarray
+
+    def take(self, rows: np.ndarray) -> Hits:
+        """The hits ``rows`` only (any index or mask)."""
+        return Hits(*(getattr(self, f.name)[rows] for f in dataclasses.fields(self)))
 
 
 @dataclass
@@ -277,7 +282,7 @@ def reflect_toward(scene: RenderScene, hits: Hits, rows: np.ndarray, source: np.
     """``pi f`` ``(len(rows), 3)`` at the hits ``rows`` for light from the point
     ``source`` (a projector's centre) seen along ``view_dirs``: a Lambertian surface's
     albedo, a glossy one's view-dependent reflectance."""
-    sub = _subset(hits, rows)
+    sub = hits.take(rows)
     alb = albedo(scene, sub)
     wi = np.asarray(source, np.float64) - sub.points
     wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
@@ -329,7 +334,7 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
     P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
     obj = hits.obj[rows]
     wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
-    alb = albedo(scene, _subset(hits, rows))
+    alb = albedo(scene, hits.take(rows))
     u = rng.random((len(rows), 3))
     wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
     refl = np.zeros((len(rows), 3))
@@ -365,11 +370,6 @@ def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.n
         L[~b.hits.hit] = 0.0
         out[b.rows] = b.weight * L
     return out
-
-
-def _subset(hits: Hits, rows: np.ndarray) -> Hits:
-    return Hits(*(getattr(hits, f)[rows] for f in ("hit", "t", "points", "normals",
-                                                   "geo_normals", "obj", "tri", "bary")))
 
 
 def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,

@@ -4,7 +4,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from core.meshes import make_mesh, mesh_arrays
+from core.meshes import mesh_arrays
 from procgen.amplify.city_layout import lay_city
 from procgen.terrain import heightfield_to_mesh
 

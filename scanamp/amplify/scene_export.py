@@ -3,7 +3,8 @@
 ``scene.toml`` beside the result lists one object per part label (ground, object, plant,
 snow, ...), each a ``shape = "mesh"`` object reading ``parts/LABEL.ply`` with a constant
 material of the part's colour and its kind's reflectance
-(:data:`scanamp.amplify.labels.PART_MATERIALS`: glossy leaves and walls, translucent snow). The meshes are in the upright frame (up +z) moved so the
+(:data:`scanamp.amplify.labels.PART_MATERIALS`: glossy leaves and walls, translucent snow).
+The meshes are in the upright frame (up +z) moved so the
 scene stands on z = 0 centred on the turntable axis, where the scanners' rigs look; the
 object order follows the labels, so a capture's ground-truth object ids name the parts
 (``scene.toml``'s objects, in order). ``scene_from_mesh`` maps the input mesh's frame
