@@ -34,7 +34,7 @@ import numpy as np
 __all__ = ["lambert", "ggx", "ggx_d", "smith_g", "schlick", "dielectric_f0", "BRDFS",
            "sample_mixture", "mixture_pdf"]
 
-BRDFS = ("lambert", "conductor", "dielectric", "subsurface")
+BRDFS = ("lambert", "conductor", "dielectric", "subsurface", "translucent")
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

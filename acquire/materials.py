@@ -72,12 +72,17 @@ class Material:
         The reflectance model (:mod:`acquire.brdf`); ``subsurface`` is a translucent
         material (marble, wax, skin) whose albedo is its diffuse reflectance and whose
         light spreads under the surface by the dipole profile (:mod:`acquire.subsurface`):
-        a laser stripe widens and shifts; under broad light it looks Lambertian.
+        a laser stripe widens and shifts; under broad light it looks Lambertian;
+        ``translucent`` is a thin sheet (a leaf, paper, a lampshade) that reflects
+        ``1 - transmission`` of its albedo diffusely and lets ``transmission`` of it
+        through, diffusely, to the other side.
     roughness : float
         GGX roughness in (0, 1] (alpha = roughness^2): 0.05 a polished part, 1 matte.
     ior : float
         Refractive index of a dielectric's coat or of a translucent material (1.5:
         plastics, varnish; marble 1.49).
+    transmission : float
+        Share of a thin translucent material's albedo sent through to the other side.
     mfp : float
         Mean free path of a subsurface material, metres (1 / reduced extinction; marble
         about 0.4 mm, skin 1 mm, wax several mm).
@@ -94,6 +99,7 @@ class Material:
     roughness: float = 0.5
     ior: float = 1.5
     mfp: float = 1e-3
+    transmission: float = 0.5
 
     def __post_init__(self):
         check_choice(self.kind, "kind", MATERIAL_KINDS)
@@ -101,6 +107,7 @@ class Material:
         self.roughness = check_range(self.roughness, "roughness", 0.0, 1.0, lo_open=True)
         self.ior = check_range(self.ior, "ior", 1.0, 4.0, lo_open=True)
         self.mfp = check_range(self.mfp, "mfp", 0.0, 1.0, lo_open=True)
+        self.transmission = check_range(self.transmission, "transmission", 0.0, 1.0)
         self.albedo = np.clip(check_array(self.albedo, "albedo", shape=(3,)), 0, 1)
         self.scale = check_positive(self.scale, "scale")
         if self.kind == "solid":
@@ -137,6 +144,10 @@ class Material:
         """``pi`` times the BRDF ``(k, 3)`` for light from ``wi`` seen from ``wo`` at
         normals ``n`` (the renderer's convention: a Lambertian surface reflects its
         ``albedo`` times the irradiance)."""
+        if self.brdf == "translucent":   # reflected on the lit side, else sent through
+            same = (np.einsum("ij,ij->i", wi, n) > 0) == (np.einsum("ij,ij->i", wo, n) > 0)
+            t = self.transmission
+            return albedo * np.where(same, 1.0 - t, t)[:, None]
         if self.brdf in ("lambert", "subsurface"):   # diffusion under broad light
             up = (np.einsum("ij,ij->i", wi, n) > 0) & (np.einsum("ij,ij->i", wo, n) > 0)
             return np.where(up[:, None], albedo, 0.0)

@@ -12,6 +12,7 @@ matched settings. What is described, and how:
 - materials: ``lambert`` -> ``diffuse``; ``conductor`` -> ``roughconductor`` (GGX,
   ``alpha = roughness^2``, a perfect conductor tinted by the albedo);
   ``dielectric`` -> ``roughplastic`` (GGX coat of the same index over the albedo);
+  (Mitsuba 3 has no diffuse transmitter, so thin translucent sheets are not described);
 - lights: point and directional lights, with the unit conversion of
   :mod:`acquire.lights` (our unit intensity head-on on white gives radiance 1, so
   Mitsuba's intensity is ``pi`` times ours); a pattern projector as Mitsuba's
@@ -292,3 +293,4 @@ def corner_scene(material: str = "lambert", *, light: str = "point", width: int 
     cam = Camera.look_at([0.3, -2.4, 1.3], [0.0, 0.3, 0.35], width=width, height=height,
                          fov_deg=50)
     return RenderScene(objects, lights=[lamp], ambient=0.0), cam
+

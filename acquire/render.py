@@ -338,18 +338,27 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
     u = rng.random((len(rows), 3))
     wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
     refl = np.zeros((len(rows), 3))
+    thin = np.zeros(len(rows), bool)
     for i, o in enumerate(scene.objects):
         sel = np.flatnonzero(obj == i)
         if sel.size:
             m = o.material
             wi[sel], pdf[sel] = sample_mixture(wo[sel], N[sel], u[sel],
                                                roughness=m.roughness, p_spec=_p_spec(m))
+            if m.brdf == "translucent":   # through the sheet with its transmission
+                t = m.transmission
+                through = u[sel, 2] < t
+                cn = np.einsum("ij,ij->i", wi[sel], N[sel])
+                wi[sel[through]] -= 2.0 * (cn[through])[:, None] * N[sel[through]]
+                pdf[sel] *= np.where(through, t, 1.0 - t)
+                thin[sel] = True
             refl[sel] = m.reflectance(wi[sel], wo[sel], N[sel], alb[sel])
     cos = np.einsum("ij,ij->i", wi, N)
-    go = np.flatnonzero((pdf > 0) & (cos > 0) & (np.einsum("ij,ij->i", wi, G) > 0)
-                        & np.any(refl > 0, axis=1))
+    cos = np.where(thin, np.abs(cos), cos)
+    side = np.sign(np.einsum("ij,ij->i", wi, G))
+    go = np.flatnonzero((pdf > 0) & (cos > 0) & (thin | (side > 0)) & np.any(refl > 0, axis=1))
     eps = 1e-6 * float(np.linalg.norm(np.ptp(scene.bounds(), axis=0))) + 1e-9
-    sec = cast(scene, P[go] + eps * G[go], wi[go])
+    sec = cast(scene, P[go] + eps * side[go, None] * G[go], wi[go])
     weight = refl[go] / np.pi * (cos[go] / pdf[go])[:, None]
     return Bounce(rows=go, weight=weight, wi=wi[go], hits=sec)
 
@@ -394,7 +403,9 @@ def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     wo = -np.asarray(view_dirs, np.float64)[h]
     wo /= np.linalg.norm(wo, axis=1, keepdims=True)
     rad = alb * float(ambient)
-    for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+    thin = np.isin(hits.obj[h], [i for i, o in enumerate(scene.objects)
+                                 if o.material.brdf == "translucent"])
+    for light, lit, vis, irr in _lit(scene, lights, P, N, G, two_sided=thin):
         k = lit[vis]
         wi = light.shadow_rays(P[k])[0]
         wi = wi / np.linalg.norm(wi, axis=1, keepdims=True)
@@ -409,10 +420,16 @@ def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     return out
 
 
-def _lit(scene: RenderScene, lights, P, N, G):
-    """Per light: itself, the hits it could light, which of those it reaches, irradiance."""
+def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
+    """Per light: itself, the hits it could light, which of those it reaches, irradiance.
+    ``two_sided`` marks hits lit from either side (thin translucent surfaces: the light
+    behind them arrives through them)."""
     for light in lights:
-        irr = light.irradiance(P, N)
+        if two_sided is not None and two_sided.any():
+            back = two_sided & (np.einsum("ij,ij->i", light.shadow_rays(P)[0], N) < 0)
+            irr = light.irradiance(P, np.where(back[:, None], -N, N))
+        else:
+            irr = light.irradiance(P, N)
         lit = np.flatnonzero(np.any(irr > 0, axis=1))
         if lit.size:
             yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
