@@ -30,9 +30,10 @@ COLORS = {"ground": (0.55, 0.5, 0.38), "object": (0.74, 0.7, 0.64),
 
 
 # how each kind of part reflects (acquire.materials.Material fields besides its colour):
-# waxy leaves and painted walls under a clear coat, translucent snow (a laser stripe
-# spreads in it), metal drones; the rest Lambertian
-PART_MATERIALS = {"leaf": {"brdf": "dielectric", "roughness": 0.45},
+# leaves that let light through, vines and painted walls under a clear coat, snow that a
+# laser stripe spreads in (subsurface),
+# metal drones; the rest Lambertian
+PART_MATERIALS = {"leaf": {"brdf": "translucent", "transmission": 0.3},
                   "vine": {"brdf": "dielectric", "roughness": 0.45},
                   "building": {"brdf": "dielectric", "roughness": 0.6},
                   "roof": {"brdf": "dielectric", "roughness": 0.35},
