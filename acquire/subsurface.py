@@ -172,6 +172,7 @@ def stripe_radiance(dipole: Dipole, s: np.ndarray, across: np.ndarray, shift: np
     u_tab, p_tab = line_profile(dipole)
     s = np.asarray(s, np.float64)
     m = np.maximum(np.asarray(across, np.float64), 1e-6)
+    shift = np.broadcast_to(np.asarray(shift, np.float64), s.shape)
     # entry points across the sheet: w = signed distance to the plane, from -5 to 5 sigma,
     # fine enough for both the Gaussian and the profile's core
     step = min(sigma / 4.0, 0.5 * dipole.mfp * float(np.min(m)) + 1e-300)
@@ -181,8 +182,7 @@ def stripe_radiance(dipole: Dipole, s: np.ndarray, across: np.ndarray, shift: np
     out = np.empty(len(s))
     for lo in range(0, len(s), 4096):       # bounded memory: (chunk, k) at a time
         sl = slice(lo, lo + 4096)
-        u = np.abs((s[sl, None] - w[None, :]) / m[sl, None] - np.asarray(shift)[sl, None]
-                   if np.ndim(shift) else (s[sl, None] - w[None, :]) / m[sl, None] - shift)
+        u = np.abs((s[sl, None] - w[None, :]) / m[sl, None] - shift[sl, None])
         p = np.interp(u, u_tab, p_tab, right=0.0)
         out[sl] = (p * g[None, :]).sum(axis=1) / m[sl]
     return out
