@@ -3,9 +3,13 @@
 Rays go through the distorted camera model; Embree finds the hit triangle in
 float32 and we re-intersect it in float64 (and onto an object's analytic shape
 when it has one), so ground-truth depth is exact to the geometry, not to float32.
-Shading is Lambertian: ambient plus each light's irradiance where the light is
-not occluded (cast shadows). Anti-aliasing by s x s supersampling; ground truth
-(z-depth, normals, object ids, mask, points) from each pixel's centre ray.
+Shading is by each object's material (:mod:`acquire.materials`: Lambertian, GGX metal
+or coated dielectric, thin translucent, subsurface): an ambient term plus each light's
+irradiance where the light is not occluded (cast shadows), reflected toward the camera,
+and on request one bounce of indirect light, importance-sampled and seeded
+(:func:`one_bounce`). Checked against Mitsuba 3 (:mod:`acquire.mitsuba_reference`).
+Anti-aliasing by s x s supersampling; ground truth (z-depth, normals, object ids, mask,
+points) from each pixel's centre ray.
 """
 
 from __future__ import annotations
