@@ -103,16 +103,14 @@ def _poses(cfg: PathConfig, target, radius, rng) -> np.ndarray:
 def _boost_textures(render_scene, factor: float):
     import dataclasses
 
-    from acquire.materials import Material
     from acquire.scene import RenderScene
 
     check_positive(factor, "texture_boost")
     objs = []
     for o in render_scene.objects:
         m = o.material
-        if m.kind == "solid":
-            m = Material("solid", albedo=m.albedo, texture=m.texture, scale=m.scale * factor,
-                         contrast=1.0, seed=m.seed)
+        if m.kind == "solid":   # finer texture, full contrast; its reflectance model kept
+            m = dataclasses.replace(m, scale=m.scale * factor, contrast=1.0)
         objs.append(dataclasses.replace(o, material=m))
     return RenderScene(objs, list(render_scene.lights), render_scene.ambient,
                        render_scene.background)
