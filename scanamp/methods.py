@@ -70,9 +70,12 @@ def scene_for_capture(scene: str, *, textureless: bool = False):
     bundle = build_scene(scene)
     if textureless:
         spec = copy.deepcopy(bundle.spec)
-        for obj in spec.get("objects", []):
+        for obj in spec.get("objects", []):   # no texture; the reflectance model kept
             mat = obj.get("material", {})
-            obj["material"] = {"kind": "constant", "albedo": mat.get("albedo", [0.7, 0.7, 0.7])}
+            keep = {k: v for k, v in mat.items()
+                    if k not in ("kind", "texture", "scale", "contrast", "seed", "albedo")}
+            obj["material"] = {"kind": "constant",
+                               "albedo": mat.get("albedo", [0.7, 0.7, 0.7]), **keep}
         bundle = build_scene(spec)
     return bundle
 

@@ -58,19 +58,3 @@ def test_a_shiny_groove_shows_a_ghost_stripe_with_the_bounce():
     assert len(rows) > 10 and np.median(apart) > 10      # a second stripe, elsewhere
     assert frame(1).tobytes() == ghost.tobytes() and frame(1, 1).tobytes() != ghost.tobytes()
 
-
-def test_sfm_texture_boost_keeps_the_reflectance_model():
-    """The SfM capture's texture boost made every object Lambertian (it rebuilt the
-    material from its colour and texture alone): a metal stayed matte in every SfM
-    capture, and a material study of SfM measured nothing."""
-    from acquire.capture_sfm import _boost_textures
-    from scanamp.study.kinds import _scene
-
-    bundle, _ = _scene("object", {"brdf": "conductor", "roughness": 0.15})
-    boosted = _boost_textures(bundle.render_scene, 2.0)
-    before = {o.name: o.material for o in bundle.render_scene.objects}
-    for o in boosted.objects:
-        m = before[o.name]
-        assert (o.material.brdf, o.material.roughness) == (m.brdf, m.roughness)
-        if m.kind == "solid":
-            assert o.material.scale == 2.0 * m.scale
