@@ -71,9 +71,10 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
     o, d = camera.rays(camera.pixel_grid(supersample=s))
     hits = cast(scene, o, d)
     h = np.flatnonzero(hits.hit)
-    alb = albedo(scene, hits)[h].mean(axis=1)  # a monochrome sensor
+    alb3 = albedo(scene, hits)[h]
+    alb = alb3.mean(axis=1)  # a monochrome sensor
     px, factor = _lit_footprint(scene, proj, hits, h)
-    refl = reflect_toward(scene, hits, h, proj.camera.center, d[h]).mean(axis=1)
+    refl = reflect_toward(scene, hits, h, proj.camera.center, d[h], alb=alb3).mean(axis=1)
     base = np.zeros(len(hits.hit))
     base[h] = alb * ambient
     second = None

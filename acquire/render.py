@@ -282,12 +282,13 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
 
 
 def reflect_toward(scene: RenderScene, hits: Hits, rows: np.ndarray, source: np.ndarray,
-                   view_dirs: np.ndarray) -> np.ndarray:
+                   view_dirs: np.ndarray, alb: np.ndarray | None = None) -> np.ndarray:
     """``pi f`` ``(len(rows), 3)`` at the hits ``rows`` for light from the point
     ``source`` (a projector's centre) seen along ``view_dirs``: a Lambertian surface's
-    albedo, a glossy one's view-dependent reflectance."""
+    albedo, a glossy one's view-dependent reflectance (``alb``: their albedo, when the
+    caller has it already)."""
     sub = hits.take(rows)
-    alb = albedo(scene, sub)
+    alb = albedo(scene, sub) if alb is None else np.asarray(alb, np.float64)
     wi = np.asarray(source, np.float64) - sub.points
     wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
     wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
