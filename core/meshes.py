@@ -27,6 +27,7 @@ __all__ = [
     "from_pyvista",
     "surface_area",
     "compact",
+    "submesh",
     "is_closed",
     "unique_edges",
     "edge_lengths",
@@ -130,6 +131,17 @@ def compact(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     used, inverse = np.unique(np.asarray(triangles, np.int64), return_inverse=True)
     return used, inverse.reshape(-1, 3)
+
+
+def submesh(vertices: np.ndarray, triangles: np.ndarray):
+    """The ``triangles`` of ``vertices`` as their own canonical mesh, unused vertices
+    dropped (:func:`compact`).
+
+    >>> len(submesh(np.zeros((9, 3)), np.array([[4, 2, 7]])).vertices)
+    3
+    """
+    used, tris = compact(triangles)
+    return make_mesh(np.asarray(vertices)[used], tris)
 
 
 def surface_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.meshes import compact, face_normals, make_mesh
+from core.meshes import face_normals, submesh
 from core.validate import check_array, check_range, check_rng
 
 __all__ = ["CityLayout", "lay_city"]
@@ -145,10 +145,7 @@ def _draped_roads(city, ground: _Ground, to_mesh_xy, step: float, lift: float):
 
 def _part(v: np.ndarray, f: np.ndarray):
     """The triangles ``f`` as their own mesh (None when there are none)."""
-    if len(f) == 0:
-        return None
-    used, tris = compact(f)
-    return make_mesh(v[used], tris)
+    return submesh(v, f) if len(f) else None
 
 
 def lay_city(ground_v: np.ndarray, ground_f: np.ndarray, *, rng: np.random.Generator,

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.meshes import bbox_diagonal, edge_lengths, mesh_arrays
+from core.meshes import bbox_diagonal, edge_lengths, mesh_arrays, submesh
 
 __all__ = ["State", "EXECUTORS"]
 
@@ -103,22 +103,14 @@ def _refine_terrain(state: State, step, rng, **_):
     v, f = mesh_arrays(state.surface)
     on_ground = ground_mask(v, f)[f].sum(axis=1) >= 2
     keep = p["objects"] == "keep" and on_ground.any() and not on_ground.all()
-    ground = _submesh(v, f[on_ground]) if keep else state.surface
+    ground = submesh(v, f[on_ground]) if keep else state.surface
     res = refine_terrain(ground, rng=rng, control_size=p["control_size"],
                          levels=p["levels"], hurst=p["hurst"], sigma=p["sigma"],
                          trim=p["trim"])
-    state.surface = merge_meshes([res.mesh, _submesh(v, f[~on_ground])]) if keep else res.mesh
+    state.surface = merge_meshes([res.mesh, submesh(v, f[~on_ground])]) if keep else res.mesh
     return {"control_shape": list(res.control.shape), "fine_shape": list(res.heights.shape),
             "control_hit_fraction": float(res.valid.mean()), "fine_spacing": res.spacing,
             "object_triangles_kept": int((~on_ground).sum()) if keep else 0}
-
-
-def _submesh(v: np.ndarray, f: np.ndarray):
-    """The triangles ``f`` of vertices ``v`` as their own mesh (unused vertices dropped)."""
-    from core.meshes import compact, make_mesh
-
-    used, tris = compact(f)
-    return make_mesh(v[used], tris)
 
 
 def _scatter(state: State, step, rng, *, recipe=None, **_):
@@ -143,7 +135,7 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
         for kind, sel, color in (("bark", ~on_leaf, p["bark_color"]),
                                  ("leaf", on_leaf, p["color"])):
             if sel.any():
-                names.append(state.place(kind, _submesh(v, f[sel]), color, p["merge"]))
+                names.append(state.place(kind, submesh(v, f[sel]), color, p["merge"]))
     return {"plants": len(res.positions), "candidates": res.candidates,
             "density_per_m2": density,
             "eligible_area": res.eligible_area, "truncated": res.truncated,
