@@ -25,7 +25,7 @@ from core.validate import check_array, check_positive
 
 __all__ = ["Light", "PointLight", "DirectionalLight"]
 
-_FAR = 1e6
+FAR = 1e6  # a directional light's shadow rays reach this far (m)
 
 
 class Light(Protocol):  # pragma: no cover - a protocol
@@ -80,4 +80,4 @@ class DirectionalLight:
         return (self.intensity * np.clip(cos, 0.0, None))[:, None] * self.color
 
     def shadow_rays(self, points):
-        return np.broadcast_to(-self.direction, points.shape).copy(), np.full(len(points), _FAR)
+        return np.broadcast_to(-self.direction, points.shape).copy(), np.full(len(points), FAR)

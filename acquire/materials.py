@@ -36,8 +36,11 @@ MATERIAL_PRESETS = {
 }
 
 
+FBM_OCTAVES = 5  # octaves of the 'fbm' solid texture
+
+
 def _fbm_texture(points: np.ndarray, *, scale: float, seed: int | None,
-                 octaves: int = 5) -> np.ndarray:
+                 octaves: int = FBM_OCTAVES) -> np.ndarray:
     """Multi-octave Perlin value in about [-1, 1], rich in features for matching."""
     p = points * scale
     norm = 2.0 - 0.5 ** (octaves - 1)  # sum of the octave amplitudes (gain 0.5)

@@ -26,8 +26,10 @@ from acquire.scene import RenderScene
 
 log = logging.getLogger(__name__)
 
+_SHADOW_OFFSET = 1e-5  # shadow rays start this far off the surface (m)
+
 __all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
-           "bounce_rays", "reflect_toward"]
+           "bounce_rays", "reflect_toward", "camera_rays"]
 
 
 @dataclass
@@ -158,20 +160,22 @@ def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hit
     """Cast rays ``origins + t * directions`` (both (n, 3) float64) into the scene."""
     import open3d as o3d
 
+    from acquire import _render_kernels as rk
+
     rs, _, lut = scene.raycasting()
     V, F, N, face_offset = scene.flat_arrays()
     n = len(origins)
     origins = np.ascontiguousarray(origins, np.float64)
     directions = np.ascontiguousarray(directions, np.float64)
-    rays = np.concatenate([origins, directions], axis=1).astype(np.float32)
-    ans = rs.cast_rays(o3d.core.Tensor(rays))
-    hit = np.isfinite(ans["t_hit"].numpy())
-    gid = ans["geometry_ids"].numpy().astype(np.int64)
-    pid = ans["primitive_ids"].numpy().astype(np.int64)
-    obj = np.full(n, -1, np.int64)
-    obj[hit] = lut[gid[hit]]
-    tri = np.where(hit, pid, -1)
-    face = np.where(hit, face_offset[np.maximum(obj, 0)] + pid, 0)
+    rays = np.empty((n, 6), np.float32)
+    rk.pack_rays(origins, directions, rays)
+    ans = rs.cast_rays(o3d.core.Tensor.from_numpy(rays))
+    hit = np.empty(n, bool)
+    obj = np.empty(n, np.int64)
+    tri = np.empty(n, np.int64)
+    face = np.empty(n, np.int64)
+    rk.resolve_hits(ans["t_hit"].numpy(), ans["geometry_ids"].numpy(),
+                    ans["primitive_ids"].numpy(), lut, face_offset, hit, obj, tri, face)
     t = np.full(n, np.inf)
     points = np.zeros((n, 3))
     normals = np.zeros((n, 3))
@@ -207,11 +211,45 @@ def _analytic_arrays(scene: RenderScene):
     return kind, pt, nrm, rad
 
 
+def _albedo_tables(scene: RenderScene):
+    """Per object, what :func:`acquire._render_kernels.albedo_fast` needs: the albedo
+    code (constant, 'fbm', or other), the object-from-world transform, the texture's
+    scale, contrast, colour and permutation."""
+    from acquire import _render_kernels as rk
+    from procgen.noise.perlin import perm_table
+
+    k = len(scene.objects)
+    code = np.zeros(k, np.int64)
+    Tinv = np.zeros((k, 3, 4))
+    scale, contrast = np.zeros(k), np.zeros(k)
+    base = np.zeros((k, 3))
+    perms = np.zeros((k, 512), np.int64)
+    for i, obj in enumerate(scene.objects):
+        m = obj.material
+        Tinv[i] = np.linalg.inv(obj.world_from_object)[:3]
+        scale[i], contrast[i], base[i] = m.scale, m.contrast, m.albedo
+        if m.kind == "constant":
+            code[i] = rk.CONSTANT
+        elif m.kind == "solid" and m.texture == "fbm":
+            code[i] = rk.FBM
+            perms[i] = perm_table(m.seed)
+    return code, Tinv, scale, contrast, base, perms
+
+
 def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:
     """Material albedo ``(n, 3)`` at the hits (0 on misses)."""
+    from acquire import _render_kernels as rk
+    from acquire.materials import FBM_OCTAVES
+
     out = np.zeros((len(hits.hit), 3))
+    code, Tinv, scale, contrast, base, perms = _albedo_tables(scene)
+    if np.any(code != rk.OTHER):
+        rk.albedo_fast(hits.points, hits.hit, np.maximum(hits.obj, 0), code, Tinv, scale,
+                       contrast, base, perms, FBM_OCTAVES, out)
     _, parts, _ = scene.raycasting()
     for i, obj in enumerate(scene.objects):
+        if code[i] != rk.OTHER:
+            continue
         sel = np.flatnonzero(hits.obj == i)
         if sel.size == 0:
             continue
@@ -243,7 +281,7 @@ def _shadow_rays(points, geo, dirs, max_t, offset):  # pragma: no cover
 
 
 def visibility(scene: RenderScene, light, points: np.ndarray, geo_normals: np.ndarray,
-               *, offset: float = 1e-5) -> np.ndarray:
+               *, offset: float = _SHADOW_OFFSET) -> np.ndarray:
     """``(n,) bool``: True where ``light`` reaches the surface points unoccluded."""
     import open3d as o3d
 
@@ -271,13 +309,14 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     ``bounces = 1`` adds one bounce of indirect light (:func:`one_bounce`; needs
     ``view_dirs`` and ``rng``).
     """
-    out = _direct(scene, hits, lights=lights, ambient=ambient, view_dirs=view_dirs)
+    if bounces and (view_dirs is None or rng is None):
+        raise ValueError("bounces: indirect light needs the view directions and an rng")
+    alb = albedo(scene, hits)
+    out = _direct(scene, hits, lights=lights, ambient=ambient, view_dirs=view_dirs, alb=alb)
     if bounces:
-        if view_dirs is None or rng is None:
-            raise ValueError("bounces: indirect light needs the view directions and an rng")
         h = np.flatnonzero(hits.hit)
         out[h] += one_bounce(scene, hits, h, np.asarray(view_dirs, np.float64)[h],
-                             lights=lights, rng=rng)
+                             lights=lights, rng=rng, alb=alb[h])
     return out
 
 
@@ -328,25 +367,30 @@ class Bounce:
 
 
 def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
-                rng: np.random.Generator) -> Bounce:
+                rng: np.random.Generator, alb: np.ndarray | None = None) -> Bounce:
     """One importance-sampled direction per hit of ``rows``, drawn by its material
     (:func:`acquire.brdf.sample_mixture`: cosine for Lambertian, GGX normals for metals,
     both for a coated dielectric), cast into the scene. What comes back along them is
     the caller's (a light's direct light for :func:`one_bounce`, each pattern's for a
-    structured-light capture): the indirect radiance is ``weight * L``."""
+    structured-light capture): the indirect radiance is ``weight * L``. ``alb``: the
+    albedo at the hits ``rows``, when the caller has it already."""
+    from acquire import _render_kernels as rk
     from acquire.brdf import sample_mixture
 
     P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
     obj = hits.obj[rows]
     wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
-    alb = albedo(scene, hits.take(rows))
+    alb = albedo(scene, hits.take(rows)) if alb is None else np.asarray(alb, np.float64)
     u = rng.random((len(rows), 3))
     wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
     refl = np.zeros((len(rows), 3))
     thin = np.zeros(len(rows), bool)
+    lam = np.array([o.material.brdf == "lambert" for o in scene.objects])
+    if lam.any():
+        rk.cosine_bounce(N, wo, u, lam, obj, alb, wi, pdf, refl)
     for i, o in enumerate(scene.objects):
         sel = np.flatnonzero(obj == i)
-        if sel.size:
+        if sel.size and not lam[i]:
             m = o.material
             wi[sel], pdf[sel] = sample_mixture(wo[sel], N[sel], u[sel],
                                                roughness=m.roughness, p_spec=_p_spec(m))
@@ -369,15 +413,17 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
 
 
 def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.ndarray, *,
-               lights=None, rng: np.random.Generator) -> np.ndarray:
+               lights=None, rng: np.random.Generator,
+               alb: np.ndarray | None = None) -> np.ndarray:
     """Indirect radiance ``(len(rows), 3)`` at the hits ``rows``: light that reached
     another surface directly and is reflected once more toward ``view_dirs``
     (:func:`bounce_rays`; the surface met is lit by direct light only, no ambient, no
     further bounce). Rays that meet nothing bring nothing (the background is a backdrop,
     not a light). Averaged over the supersampled rays of a pixel; seeded by ``rng``.
+    ``alb``: the albedo at the hits ``rows``, when the caller has it already.
     """
     lights = scene.lights if lights is None else lights
-    b = bounce_rays(scene, hits, rows, view_dirs, rng=rng)
+    b = bounce_rays(scene, hits, rows, view_dirs, rng=rng, alb=alb)
     out = np.zeros((len(rows), 3))
     if b.rows.size:
         L = _direct(scene, b.hits, lights=lights, ambient=0.0, view_dirs=b.wi)
@@ -387,24 +433,22 @@ def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.n
 
 
 def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
-            view_dirs: np.ndarray | None = None) -> np.ndarray:
-    """Direct light and the ambient term (see :func:`shade`)."""
+            view_dirs: np.ndarray | None = None, alb: np.ndarray | None = None) -> np.ndarray:
+    """Direct light and the ambient term (see :func:`shade`); ``alb`` the albedo at every
+    hit, when the caller has it."""
     lights = scene.lights if lights is None else lights
     ambient = scene.ambient if ambient is None else ambient
     n = len(hits.hit)
+    glossy = [i for i, o in enumerate(scene.objects) if o.material.brdf != "lambert"]
+    if not glossy or view_dirs is None:  # Lambertian only: albedo times irradiance
+        return _lambert(scene, hits, lights, float(ambient),
+                        albedo(scene, hits) if alb is None else alb)
     out = np.broadcast_to(scene.background, (n, 3)).astype(np.float64).copy()
     h = np.flatnonzero(hits.hit)
     if h.size == 0:
         return out
     P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
-    alb = albedo(scene, hits)[h]
-    glossy = [i for i, o in enumerate(scene.objects) if o.material.brdf != "lambert"]
-    if not glossy or view_dirs is None:  # Lambertian only: albedo times irradiance
-        E = np.full((h.size, 3), float(ambient))
-        for _light, lit, vis, irr in _lit(scene, lights, P, N, G):
-            E[lit[vis]] += irr[lit[vis]]
-        out[h] = alb * E
-        return out
+    alb = (albedo(scene, hits) if alb is None else alb)[h]
     wo = -np.asarray(view_dirs, np.float64)[h]
     wo /= np.linalg.norm(wo, axis=1, keepdims=True)
     rad = alb * float(ambient)
@@ -425,6 +469,52 @@ def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     return out
 
 
+def _lambert(scene: RenderScene, hits: Hits, lights, ambient: float,
+             alb: np.ndarray) -> np.ndarray:
+    """Radiance of a Lambertian scene: albedo times (ambient + each light's unoccluded
+    irradiance); point and directional lights in compiled kernels, any other light
+    (laser sheet, projector) through the light protocol."""
+    import open3d as o3d
+
+    from acquire import _render_kernels as rk
+    from acquire.lights import FAR, DirectionalLight, PointLight
+
+    n = len(hits.hit)
+    E = np.full((n, 3), ambient)
+    irr = np.empty(n)
+    rs = None
+    others = []
+    for light in lights:
+        if isinstance(light, PointLight):
+            kind, vec = rk.POINT, np.asarray(light.position, np.float64)
+        elif isinstance(light, DirectionalLight):
+            kind, vec = rk.DIRECTIONAL, np.asarray(light.direction, np.float64)
+        else:
+            others.append(light)
+            continue
+        rk.light_irradiance(hits.points, hits.normals, hits.hit, kind, vec,
+                            float(light.intensity), irr)
+        rows = np.flatnonzero(irr > 0)
+        if rows.size == 0:
+            continue
+        rays = np.empty((rows.size, 6), np.float32)
+        rk.light_shadow_rays(hits.points, hits.geo_normals, rows, kind, vec, FAR,
+                             _SHADOW_OFFSET, rays)
+        rs = rs or scene.raycasting()[0]
+        occluded = rs.test_occlusions(o3d.core.Tensor.from_numpy(rays), tnear=0.0,
+                                      tfar=1.0 - 1e-6).numpy()
+        rk.add_light(E, rows, irr, occluded, np.asarray(light.color, np.float64))
+    if others:
+        h = np.flatnonzero(hits.hit)
+        P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
+        for _light, lit, vis, e in _lit(scene, others, P, N, G):
+            E[h[lit[vis]]] += e[lit[vis]]
+    out = np.empty((n, 3))
+    rk.lambert_out(hits.hit, np.ascontiguousarray(alb, np.float64), E,
+                   np.asarray(scene.background, np.float64), out)
+    return out
+
+
 def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
     """Per light: itself, the hits it could light, which of those it reaches, irradiance.
     ``two_sided`` marks hits lit from either side (thin translucent surfaces: the light
@@ -438,6 +528,23 @@ def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
         lit = np.flatnonzero(np.any(irr > 0, axis=1))
         if lit.size:
             yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
+
+
+def camera_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``camera.rays(camera.pixel_grid(supersample=s))``: origins and directions of the
+    s x s rays of every pixel (a compiled kernel for an undistorted camera)."""
+    from acquire import _render_kernels as rk
+
+    s = int(supersample)
+    if np.any(camera.dist) or s < 1:
+        return camera.rays(camera.pixel_grid(supersample=s))
+    n = camera.height * camera.width * s * s
+    o, d = np.empty((n, 3)), np.empty((n, 3))
+    Tw = camera.world_from_cam
+    rk.pinhole_rays(camera.height, camera.width, s, float(camera.fx), float(camera.fy),
+                    float(camera.cx), float(camera.cy), np.ascontiguousarray(Tw[:3, :3]),
+                    np.ascontiguousarray(Tw[:3, 3]), o, d)
+    return o, d
 
 
 def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=None,
@@ -462,8 +569,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
         raise ValueError(f"bounces: expected 0 or 1, got {bounces!r}")
     s = int(supersample)
     H, W = camera.height, camera.width
-    px = camera.pixel_grid(supersample=s)
-    o, d = camera.rays(px)
+    o, d = camera_rays(camera, s)
     hits = cast(scene, o, d)
     rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d, bounces=bounces,
                 rng=np.random.default_rng(seed) if bounces else None)
@@ -471,8 +577,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     if s == 1:
         centre = hits
     else:
-        o, d = camera.rays(camera.pixel_grid(supersample=1))
-        centre = cast(scene, o, d)
+        centre = cast(scene, *camera_rays(camera, 1))
     mask = centre.hit.reshape(H, W)
     depth = np.where(centre.hit, centre.t, 0.0).reshape(H, W).astype(np.float32)
     ids_lut = np.array([ob.object_id for ob in scene.objects] + [-1], np.int32)

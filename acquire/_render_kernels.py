@@ -1,0 +1,207 @@
+"""Compiled kernels of the ray-cast renderer (private): camera rays, Embree's answer
+resolved to objects and refined in float64, fBm albedo, and the direct light of point
+and directional lights.
+
+Each kernel is one pass over the rays, parallel over cores, writing into arrays the
+caller owns: the renderer's numpy glue (fancy indexing, per-object masks, temporary
+copies) cost more than the casts themselves (see ``docs/materials.md``, the render
+profile). :mod:`acquire.render` keeps the general paths (distorted cameras, image and
+other solid textures, glossy materials, lasers and projectors) and calls these where
+they apply; the results agree with those paths to rounding (``tests/test_render_fast.py``).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from procgen.noise.perlin import noise3
+
+# light kinds
+POINT, DIRECTIONAL = 0, 1
+# albedo codes
+OTHER, CONSTANT, FBM = 0, 1, 2
+
+
+@nb.njit(parallel=True, cache=True)
+def pinhole_rays(H, W, s, fx, fy, cx, cy, R, t, o, d):  # pragma: no cover
+    """Rays of an undistorted camera through the s x s sub-pixel centres of every
+    pixel, in :meth:`acquire.camera.Camera.pixel_grid`'s order (row-major pixels, then
+    sub-rows, then sub-columns); ``d`` scaled to z = 1 in the camera, as
+    :meth:`~acquire.camera.Camera.rays`."""
+    ss = s * s
+    for p in nb.prange(H * W):
+        v = p // W
+        u = p - v * W
+        for k in range(ss):
+            r = k // s
+            c = k - r * s
+            x = (u + ((c + 0.5) / s - 0.5) - cx) / fx
+            y = (v + ((r + 0.5) / s - 0.5) - cy) / fy
+            i = p * ss + k
+            for a in range(3):
+                o[i, a] = t[a]
+                d[i, a] = R[a, 0] * x + R[a, 1] * y + R[a, 2]
+
+
+@nb.njit(parallel=True, cache=True)
+def pack_rays(o, d, rays):  # pragma: no cover
+    """Embree's float32 ``(n, 6)`` rays from float64 origins and directions."""
+    for i in nb.prange(o.shape[0]):
+        for a in range(3):
+            rays[i, a] = o[i, a]
+            rays[i, 3 + a] = d[i, a]
+
+
+@nb.njit(parallel=True, cache=True)
+def resolve_hits(t_hit, gid, pid, lut, face_offset, hit, obj, tri, face):  # pragma: no cover
+    """Embree's answer per ray: hit or not, the object (``lut`` of geometry ids), the
+    triangle of that object and the face in the scene's flat arrays."""
+    for i in nb.prange(t_hit.shape[0]):
+        if np.isfinite(t_hit[i]):
+            ob = lut[gid[i]]
+            hit[i] = True
+            obj[i] = ob
+            tri[i] = pid[i]
+            face[i] = face_offset[ob] + pid[i]
+        else:
+            hit[i] = False
+            obj[i] = -1
+            tri[i] = -1
+            face[i] = 0
+
+
+@nb.njit(parallel=True, cache=True)
+def albedo_fast(points, hit, obj, code, Tinv, scale, contrast, base, perms, octaves,
+                out):  # pragma: no cover
+    """Albedo of the hits on objects whose material is constant (``code`` 1) or the
+    'fbm' solid texture (2): the base colour modulated by ``clip(0.5 + 0.5 contrast t,
+    0.02, 1)``, ``t`` the fBm at the object-frame point times ``scale``, normalised by
+    its octave amplitudes and times 1.8 (:func:`acquire.materials._fbm_texture`). Other
+    objects (0) are left to the caller."""
+    norm = 2.0 - 0.5 ** (octaves - 1)
+    for i in nb.prange(points.shape[0]):
+        if not hit[i]:
+            continue
+        k = obj[i]
+        c = code[k]
+        if c == CONSTANT:
+            for a in range(3):
+                out[i, a] = base[k, a]
+        elif c == FBM:
+            q = np.empty(3)
+            for a in range(3):
+                q[a] = (Tinv[k, a, 0] * points[i, 0] + Tinv[k, a, 1] * points[i, 1]
+                        + Tinv[k, a, 2] * points[i, 2] + Tinv[k, a, 3]) * scale[k]
+            p = perms[k]
+            total = 0.0
+            amp = 1.0
+            x, y, z = q[0], q[1], q[2]
+            for _ in range(octaves):
+                total += amp * noise3(p, x, y, z)
+                amp *= 0.5
+                x *= 2.0
+                y *= 2.0
+                z *= 2.0
+            f = 0.5 + 0.5 * contrast[k] * (total / norm * 1.8)
+            f = min(max(f, 0.02), 1.0)
+            for a in range(3):
+                out[i, a] = f * base[k, a]
+
+
+@nb.njit(parallel=True, cache=True)
+def light_irradiance(points, normals, hit, kind, vec, intensity, irr):  # pragma: no cover
+    """Unshadowed irradiance (per unit colour) of a point light at ``vec`` or a
+    directional one travelling along ``vec`` (unit), as :mod:`acquire.lights`."""
+    for i in nb.prange(points.shape[0]):
+        if not hit[i]:
+            irr[i] = 0.0
+            continue
+        if kind == POINT:
+            d0 = vec[0] - points[i, 0]
+            d1 = vec[1] - points[i, 1]
+            d2 = vec[2] - points[i, 2]
+            r2 = d0 * d0 + d1 * d1 + d2 * d2
+            cos = ((d0 * normals[i, 0] + d1 * normals[i, 1] + d2 * normals[i, 2])
+                   / np.sqrt(max(r2, 1e-300)))
+            irr[i] = intensity * max(cos, 0.0) / max(r2, 1e-12)
+        else:
+            cos = -(normals[i, 0] * vec[0] + normals[i, 1] * vec[1] + normals[i, 2] * vec[2])
+            irr[i] = intensity * max(cos, 0.0)
+
+
+@nb.njit(parallel=True, cache=True)
+def light_shadow_rays(points, geo, rows, kind, vec, far, offset, rays):  # pragma: no cover
+    """float32 shadow rays from the points ``rows`` to the light (t = 1 at the light or
+    ``far`` away for a directional one), nudged by ``offset`` off the surface on the
+    side facing the light (as :func:`acquire.render.visibility`)."""
+    for j in nb.prange(rows.shape[0]):
+        i = rows[j]
+        if kind == POINT:
+            d0 = vec[0] - points[i, 0]
+            d1 = vec[1] - points[i, 1]
+            d2 = vec[2] - points[i, 2]
+        else:
+            d0 = -vec[0] * far
+            d1 = -vec[1] * far
+            d2 = -vec[2] * far
+        c = geo[i, 0] * d0 + geo[i, 1] * d1 + geo[i, 2] * d2
+        k = offset * (1.0 if c > 0 else (-1.0 if c < 0 else 0.0))
+        for a in range(3):
+            rays[j, a] = points[i, a] + k * geo[i, a]
+        rays[j, 3] = d0
+        rays[j, 4] = d1
+        rays[j, 5] = d2
+
+
+@nb.njit(parallel=True, cache=True)
+def add_light(E, rows, irr, occluded, color):  # pragma: no cover
+    """``E[rows] += irr * color`` where the shadow ray was not occluded."""
+    for j in nb.prange(rows.shape[0]):
+        if occluded[j]:
+            continue
+        i = rows[j]
+        for a in range(3):
+            E[i, a] += irr[i] * color[a]
+
+
+@nb.njit(parallel=True, cache=True)
+def lambert_out(hit, alb, E, background, out):  # pragma: no cover
+    """Radiance of Lambertian hits, ``albedo * E``; the background on misses."""
+    for i in nb.prange(hit.shape[0]):
+        for a in range(3):
+            out[i, a] = alb[i, a] * E[i, a] if hit[i] else background[a]
+
+
+@nb.njit(parallel=True, cache=True)
+def cosine_bounce(N, wo, u, lam, obj, alb, wi, pdf, refl):  # pragma: no cover
+    """Cosine-weighted directions at the hits (rows of ``N``) on Lambertian objects
+    (``lam[obj]``), from the uniform numbers ``u``, as
+    :func:`acquire.brdf.sample_mixture` with no specular lobe draws them (Malley, in the
+    frame of :func:`acquire.brdf._basis`): ``wi``, its density ``max(n.wi, 0) / pi`` and
+    the reflectance ``pi f`` (the albedo where ``wi`` and ``wo`` are both above)."""
+    for i in nb.prange(N.shape[0]):
+        if not lam[obj[i]]:
+            continue
+        n0, n1, n2 = N[i, 0], N[i, 1], N[i, 2]
+        if abs(n0) < 0.9:   # t = n x (1, 0, 0)
+            t0, t1, t2 = 0.0, n2, -n1
+        else:               # t = n x (0, 1, 0)
+            t0, t1, t2 = -n2, 0.0, n0
+        tl = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        t0, t1, t2 = t0 / tl, t1 / tl, t2 / tl
+        b0 = n1 * t2 - n2 * t1
+        b1 = n2 * t0 - n0 * t2
+        b2 = n0 * t1 - n1 * t0
+        r = np.sqrt(u[i, 0])
+        phi = 2.0 * np.pi * u[i, 1]
+        lx, ly, lz = r * np.cos(phi), r * np.sin(phi), np.sqrt(max(1.0 - u[i, 0], 0.0))
+        w0 = t0 * lx + b0 * ly + n0 * lz
+        w1 = t1 * lx + b1 * ly + n1 * lz
+        w2 = t2 * lx + b2 * ly + n2 * lz
+        wi[i, 0], wi[i, 1], wi[i, 2] = w0, w1, w2
+        ci = w0 * n0 + w1 * n1 + w2 * n2
+        pdf[i] = max(ci, 0.0) / np.pi
+        up = ci > 0 and (wo[i, 0] * n0 + wo[i, 1] * n1 + wo[i, 2] * n2) > 0
+        for a in range(3):
+            refl[i, a] = alb[i, a] if up else 0.0
