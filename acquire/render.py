@@ -97,28 +97,24 @@ def _refine_hits(o, d, hit, obj, face, V, F, N, ana_kind, ana_p, ana_n, ana_r,
             continue
         f = face[j]
         i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-        e1 = np.empty(3)
-        e2 = np.empty(3)
-        tv = np.empty(3)
-        for a in range(3):
-            e1[a] = V[i1, a] - V[i0, a]
-            e2[a] = V[i2, a] - V[i0, a]
-            tv[a] = o[j, a] - V[i0, a]
-        pv0 = d[j, 1] * e2[2] - d[j, 2] * e2[1]
-        pv1 = d[j, 2] * e2[0] - d[j, 0] * e2[2]
-        pv2 = d[j, 0] * e2[1] - d[j, 1] * e2[0]
-        det = e1[0] * pv0 + e1[1] * pv1 + e1[2] * pv2
+        a0, a1, a2 = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]   # e1
+        b0, b1, b2 = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]   # e2
+        c0, c1, c2 = o[j, 0] - V[i0, 0], o[j, 1] - V[i0, 1], o[j, 2] - V[i0, 2]      # o - v0
+        pv0 = d[j, 1] * b2 - d[j, 2] * b1
+        pv1 = d[j, 2] * b0 - d[j, 0] * b2
+        pv2 = d[j, 0] * b1 - d[j, 1] * b0
+        det = a0 * pv0 + a1 * pv1 + a2 * pv2
         if abs(det) < 1e-300:
             det = 1e-300
-        u = (tv[0] * pv0 + tv[1] * pv1 + tv[2] * pv2) / det
-        q0 = tv[1] * e1[2] - tv[2] * e1[1]
-        q1 = tv[2] * e1[0] - tv[0] * e1[2]
-        q2 = tv[0] * e1[1] - tv[1] * e1[0]
+        u = (c0 * pv0 + c1 * pv1 + c2 * pv2) / det
+        q0 = c1 * a2 - c2 * a1
+        q1 = c2 * a0 - c0 * a2
+        q2 = c0 * a1 - c1 * a0
         v = (d[j, 0] * q0 + d[j, 1] * q1 + d[j, 2] * q2) / det
-        tt = (e2[0] * q0 + e2[1] * q1 + e2[2] * q2) / det
-        g0 = e1[1] * e2[2] - e1[2] * e2[1]
-        g1 = e1[2] * e2[0] - e1[0] * e2[2]
-        g2 = e1[0] * e2[1] - e1[1] * e2[0]
+        tt = (b0 * q0 + b1 * q1 + b2 * q2) / det
+        g0 = a1 * b2 - a2 * b1
+        g1 = a2 * b0 - a0 * b2
+        g2 = a0 * b1 - a1 * b0
         w = 1.0 - u - v
         s0 = w * N[i0, 0] + u * N[i1, 0] + v * N[i2, 0]
         s1 = w * N[i0, 1] + u * N[i1, 1] + v * N[i2, 1]
@@ -165,7 +161,7 @@ def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hit
     rs, _, lut = scene.raycasting()
     V, F, N, face_offset = scene.flat_arrays()
     n = len(origins)
-    origins = np.ascontiguousarray(origins, np.float64)
+    origins = np.asarray(origins, np.float64)    # may be one origin broadcast to all
     directions = np.ascontiguousarray(directions, np.float64)
     rays = np.empty((n, 6), np.float32)
     rk.pack_rays(origins, directions, rays)
@@ -182,8 +178,8 @@ def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hit
     geo = np.zeros((n, 3))
     bary = np.zeros((n, 2))
     kind, ana_p, ana_n, ana_r = _analytic_arrays(scene)
-    _refine_hits(origins, directions, hit, np.maximum(obj, 0), face, V, F, N, kind, ana_p,
-                 ana_n, ana_r, t, points, normals, geo, bary)
+    _refine_hits(origins, directions, hit, obj, face, V, F, N, kind, ana_p, ana_n, ana_r, t,
+                 points, normals, geo, bary)
     return Hits(hit, t, points, normals, geo, obj, tri, bary)
 
 
@@ -315,8 +311,8 @@ def shade(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
     out = _direct(scene, hits, lights=lights, ambient=ambient, view_dirs=view_dirs, alb=alb)
     if bounces:
         h = np.flatnonzero(hits.hit)
-        out[h] += one_bounce(scene, hits, h, np.asarray(view_dirs, np.float64)[h],
-                             lights=lights, rng=rng, alb=alb[h])
+        _add_one_bounce(out, h, scene, hits, h, np.asarray(view_dirs, np.float64)[h],
+                        lights=lights, rng=rng, alb=alb[h])
     return out
 
 
@@ -377,38 +373,43 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
     from acquire import _render_kernels as rk
     from acquire.brdf import sample_mixture
 
-    P, N, G = hits.points[rows], hits.normals[rows], hits.geo_normals[rows]
-    obj = hits.obj[rows]
-    wo = -view_dirs / np.linalg.norm(view_dirs, axis=1, keepdims=True)
+    rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else rows
+    rows = np.asarray(rows, np.int64)
+    k = len(rows)
+    view_dirs = np.ascontiguousarray(view_dirs, np.float64)
     alb = albedo(scene, hits.take(rows)) if alb is None else np.asarray(alb, np.float64)
-    u = rng.random((len(rows), 3))
-    wi, pdf = np.zeros((len(rows), 3)), np.zeros(len(rows))
-    refl = np.zeros((len(rows), 3))
-    thin = np.zeros(len(rows), bool)
+    u = rng.random((k, 3))
+    wi, pdf = np.zeros((k, 3)), np.zeros(k)
+    refl = np.zeros((k, 3))
+    thin = np.zeros(k, bool)
     lam = np.array([o.material.brdf == "lambert" for o in scene.objects])
     if lam.any():
-        rk.cosine_bounce(N, wo, u, lam, obj, alb, wi, pdf, refl)
+        rk.cosine_bounce(hits.normals, hits.obj, rows, view_dirs, u, lam, alb, wi, pdf, refl)
+    obj = hits.obj[rows] if not lam.all() else None
     for i, o in enumerate(scene.objects):
-        sel = np.flatnonzero(obj == i)
-        if sel.size and not lam[i]:
+        sel = () if lam[i] else np.flatnonzero(obj == i)
+        if len(sel):
             m = o.material
-            wi[sel], pdf[sel] = sample_mixture(wo[sel], N[sel], u[sel],
-                                               roughness=m.roughness, p_spec=_p_spec(m))
+            N = hits.normals[rows[sel]]
+            wo = -view_dirs[sel] / np.linalg.norm(view_dirs[sel], axis=1, keepdims=True)
+            wi[sel], pdf[sel] = sample_mixture(wo, N, u[sel], roughness=m.roughness,
+                                               p_spec=_p_spec(m))
             if m.brdf == "translucent":   # through the sheet with its transmission
                 t = m.transmission
                 through = u[sel, 2] < t
-                cn = np.einsum("ij,ij->i", wi[sel], N[sel])
-                wi[sel[through]] -= 2.0 * (cn[through])[:, None] * N[sel[through]]
+                cn = np.einsum("ij,ij->i", wi[sel], N)
+                wi[sel[through]] -= 2.0 * (cn[through])[:, None] * N[through]
                 pdf[sel] *= np.where(through, t, 1.0 - t)
                 thin[sel] = True
-            refl[sel] = m.reflectance(wi[sel], wo[sel], N[sel], alb[sel])
-    cos = np.einsum("ij,ij->i", wi, N)
-    cos = np.where(thin, np.abs(cos), cos)
-    side = np.sign(np.einsum("ij,ij->i", wi, G))
-    go = np.flatnonzero((pdf > 0) & (cos > 0) & (thin | (side > 0)) & np.any(refl > 0, axis=1))
+            refl[sel] = m.reflectance(wi[sel], wo, N, alb[sel])
+    go, origin = np.empty(k, bool), np.empty((k, 3))
+    weight, cos = np.empty((k, 3)), np.empty(k)
     eps = 1e-6 * float(np.linalg.norm(np.ptp(scene.bounds(), axis=0))) + 1e-9
-    sec = cast(scene, P[go] + eps * side[go, None] * G[go], wi[go])
-    weight = refl[go] / np.pi * (cos[go] / pdf[go])[:, None]
+    rk.bounce_start(hits.points, hits.geo_normals, hits.normals, rows, wi, pdf, refl, thin,
+                    eps, go, origin, weight, cos)
+    go = np.flatnonzero(go)
+    sec = cast(scene, origin[go], wi[go])
+    weight = weight[go]
     return Bounce(rows=go, weight=weight, wi=wi[go], hits=sec)
 
 
@@ -422,14 +423,22 @@ def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.n
     not a light). Averaged over the supersampled rays of a pixel; seeded by ``rng``.
     ``alb``: the albedo at the hits ``rows``, when the caller has it already.
     """
+    out = np.zeros((len(rows), 3))
+    _add_one_bounce(out, np.arange(len(rows)), scene, hits, rows, view_dirs, lights=lights,
+                    rng=rng, alb=alb)
+    return out
+
+
+def _add_one_bounce(out: np.ndarray, out_rows: np.ndarray, scene: RenderScene, hits: Hits,
+                    rows: np.ndarray, view_dirs: np.ndarray, *, lights, rng, alb) -> None:
+    """:func:`one_bounce`'s radiance at the hits ``rows`` added into ``out[out_rows]``."""
+    from acquire import _render_kernels as rk
+
     lights = scene.lights if lights is None else lights
     b = bounce_rays(scene, hits, rows, view_dirs, rng=rng, alb=alb)
-    out = np.zeros((len(rows), 3))
     if b.rows.size:
         L = _direct(scene, b.hits, lights=lights, ambient=0.0, view_dirs=b.wi)
-        L[~b.hits.hit] = 0.0
-        out[b.rows] = b.weight * L
-    return out
+        rk.add_indirect(out, np.asarray(out_rows, np.int64), b.rows, b.weight, L, b.hits.hit)
 
 
 def _direct(scene: RenderScene, hits: Hits, *, lights=None, ambient=None,
@@ -481,9 +490,7 @@ def _lambert(scene: RenderScene, hits: Hits, lights, ambient: float,
 
     n = len(hits.hit)
     E = np.full((n, 3), ambient)
-    irr = np.empty(n)
-    rs = None
-    others = []
+    others, shadowed = [], []     # shadowed: (light, irradiance, rows it reaches)
     for light in lights:
         if isinstance(light, PointLight):
             kind, vec = rk.POINT, np.asarray(light.position, np.float64)
@@ -492,27 +499,30 @@ def _lambert(scene: RenderScene, hits: Hits, lights, ambient: float,
         else:
             others.append(light)
             continue
+        irr = np.empty(n)
         rk.light_irradiance(hits.points, hits.normals, hits.hit, kind, vec,
                             float(light.intensity), irr)
         rows = np.flatnonzero(irr > 0)
-        if rows.size == 0:
-            continue
-        rays = np.empty((rows.size, 6), np.float32)
-        rk.light_shadow_rays(hits.points, hits.geo_normals, rows, kind, vec, FAR,
-                             _SHADOW_OFFSET, rays)
-        rs = rs or scene.raycasting()[0]
-        occluded = rs.test_occlusions(o3d.core.Tensor.from_numpy(rays), tnear=0.0,
-                                      tfar=1.0 - 1e-6).numpy()
-        rk.add_light(E, rows, irr, occluded, np.asarray(light.color, np.float64))
+        if rows.size:
+            shadowed.append((light, kind, vec, irr, rows))
+    if shadowed:   # every light's shadow rays in one call
+        ends = np.cumsum([0] + [len(r) for *_, r in shadowed])
+        rays = np.empty((ends[-1], 6), np.float32)
+        for (_, kind, vec, _, rows), a, b in zip(shadowed, ends[:-1], ends[1:], strict=True):
+            rk.light_shadow_rays(hits.points, hits.geo_normals, rows, kind, vec, FAR,
+                                 _SHADOW_OFFSET, rays[a:b])
+        occluded = scene.raycasting()[0].test_occlusions(
+            o3d.core.Tensor.from_numpy(rays), tnear=0.0, tfar=1.0 - 1e-6).numpy()
+        for (light, _, _, irr, rows), a, b in zip(shadowed, ends[:-1], ends[1:], strict=True):
+            rk.add_light(E, rows, irr, occluded[a:b], np.asarray(light.color, np.float64))
     if others:
         h = np.flatnonzero(hits.hit)
         P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
         for _light, lit, vis, e in _lit(scene, others, P, N, G):
             E[h[lit[vis]]] += e[lit[vis]]
-    out = np.empty((n, 3))
     rk.lambert_out(hits.hit, np.ascontiguousarray(alb, np.float64), E,
-                   np.asarray(scene.background, np.float64), out)
-    return out
+                   np.asarray(scene.background, np.float64), E)
+    return E
 
 
 def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
@@ -532,19 +542,19 @@ def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
 
 def camera_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """``camera.rays(camera.pixel_grid(supersample=s))``: origins and directions of the
-    s x s rays of every pixel (a compiled kernel for an undistorted camera)."""
+    s x s rays of every pixel (a compiled kernel for an undistorted camera, whose
+    origins are one read-only row broadcast to every ray)."""
     from acquire import _render_kernels as rk
 
     s = int(supersample)
     if np.any(camera.dist) or s < 1:
         return camera.rays(camera.pixel_grid(supersample=s))
     n = camera.height * camera.width * s * s
-    o, d = np.empty((n, 3)), np.empty((n, 3))
+    d = np.empty((n, 3))
     Tw = camera.world_from_cam
     rk.pinhole_rays(camera.height, camera.width, s, float(camera.fx), float(camera.fy),
-                    float(camera.cx), float(camera.cy), np.ascontiguousarray(Tw[:3, :3]),
-                    np.ascontiguousarray(Tw[:3, 3]), o, d)
-    return o, d
+                    float(camera.cx), float(camera.cy), np.ascontiguousarray(Tw[:3, :3]), d)
+    return np.broadcast_to(Tw[:3, 3].astype(np.float64), (n, 3)), d
 
 
 def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=None,
@@ -565,6 +575,8 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     seed : int
         Seeds the indirect directions (same seed, same bytes).
     """
+    from acquire import _render_kernels as rk
+
     if bounces not in (0, 1):
         raise ValueError(f"bounces: expected 0 or 1, got {bounces!r}")
     s = int(supersample)
@@ -573,7 +585,9 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     hits = cast(scene, o, d)
     rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d, bounces=bounces,
                 rng=np.random.default_rng(seed) if bounces else None)
-    radiance = rad.reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
+    radiance = np.empty((H * W, 3), np.float32)
+    rk.pixel_mean(rad, s * s, radiance)
+    radiance = radiance.reshape(H, W, 3)
     if s == 1:
         centre = hits
     else:

@@ -1,9 +1,10 @@
 """Shaded 640x480 frame time against Open3D's bare cast_rays of the same rays (same run):
 direct light (target <= 4x the bare cast) and with one bounce of indirect light (target
-<= 12x)."""
+<= 12x), at 1 and at 2 x 2 rays per pixel. Each time is the best of several runs (the
+bare cast of 0.3 M rays varies by a third from run to run on a shared machine)."""
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, report
 
 from acquire.camera import Camera
 from acquire.render import render
@@ -21,16 +22,19 @@ def main():
         o, d = cam.rays(cam.pixel_grid(supersample=ss))
         rays = o3d.core.Tensor(np.concatenate([o, d], 1).astype(np.float32))
         n = rays.shape[0]
-        bare = best_of(lambda rays=rays: rs.cast_rays(rays))
-        shaded = best_of(lambda ss=ss: render(scene, cam, supersample=ss), repeat=2)
-        print(f"   supersample {ss}: {n / 1e6:.2f} M camera rays; bare cast_rays "
-              f"{n / bare / 1e6:.1f} M rays/s; shaded frame {shaded:.2f} s = "
-              f"{shaded / bare:.1f}x the bare cast (2 lights with shadow rays, textures, "
-              f"float64 refinement{', + centre rays for ground truth' if ss > 1 else ''})")
+        bare = best_of(lambda rays=rays: rs.cast_rays(rays), repeat=10)
+        shaded = best_of(lambda ss=ss: render(scene, cam, supersample=ss), repeat=5)
         bounce = best_of(lambda ss=ss: render(scene, cam, supersample=ss, bounces=1),
-                         repeat=2)
-        print(f"   supersample {ss}, one bounce: {bounce:.2f} s = {bounce / bare:.1f}x the "
-              f"bare cast (target <= 12x); direct only {shaded / bare:.1f}x (target <= 4x)")
+                         repeat=5)
+        print(f"   supersample {ss}: {n / 1e6:.2f} M camera rays; bare cast_rays "
+              f"{bare * 1e3:.1f} ms ({n / bare / 1e6:.1f} M rays/s); shaded frame "
+              f"{shaded * 1e3:.0f} ms, with one bounce {bounce * 1e3:.0f} ms (2 lights with "
+              f"shadow rays, fBm textures, float64 refinement"
+              f"{', + centre rays for ground truth' if ss > 1 else ''})")
+        report(f"supersample {ss}, direct light / bare cast", shaded, bare, 4.0,
+               higher_is_better=False)
+        report(f"supersample {ss}, one bounce / bare cast", bounce, bare, 12.0,
+               higher_is_better=False)
 
 
 if __name__ == "__main__":

@@ -31,9 +31,9 @@ import sys
 import traceback
 from pathlib import Path
 
-os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 import cv2  # noqa: E402,F401  (cv2 before pycolmap: pycolmap's libpng breaks cv2.imwrite)
 
+import core  # noqa: E402,F401  (first: it sets the threading environment)
 from core.validate import InputError  # noqa: E402
 from scanamp.options import add_config_flags, config_from_args  # noqa: E402
 

@@ -114,13 +114,14 @@ def _hashes(p, X, X1, Y, Y1, Z):
     """Hashes of the 8 cell corners in the order (000, 100, 010, 110, 001, 101, 011, 111).
 
     ``X1``/``Y1`` are the next lattice indices (``X + 1``, or wrapped for periodic noise);
-    all indices are already reduced to [0, 255]."""
-    A = p[X] + Y
-    B = p[X1] + Y
-    A1 = p[X] + Y1
-    B1 = p[X1] + Y1
-    return (p[p[A] + Z], p[p[B] + Z], p[p[A1] + Z], p[p[B1] + Z],
-            p[p[A] + Z + 1], p[p[B] + Z + 1], p[p[A1] + Z + 1], p[p[B1] + Z + 1])
+    all indices are already reduced to [0, 255]. They index as unsigned integers: numba
+    checks every signed index for a negative wrap-around, which cost 17 % of fBm's time."""
+    u = np.uint64
+    pX, pX1, Y, Y1, Z = u(p[u(X)]), u(p[u(X1)]), u(Y), u(Y1), u(Z)
+    pA, pB, pA1, pB1 = u(p[pX + Y]), u(p[pX1 + Y]), u(p[pX + Y1]), u(p[pX1 + Y1])
+    Z1 = Z + u(1)
+    return (p[pA + Z], p[pB + Z], p[pA1 + Z], p[pB1 + Z],
+            p[pA + Z1], p[pB + Z1], p[pA1 + Z1], p[pB1 + Z1])
 
 
 @nb.njit(inline="always", cache=True)
