@@ -258,3 +258,16 @@ def pixel_mean(rad, ss, out):  # pragma: no cover
             for k in range(ss):
                 acc += rad[p * ss + k, a]
             out[p, a] = acc / ss
+
+
+@nb.njit(parallel=True, cache=True)
+def ground_truth(hit, t, obj, normals, points, ids, depth, oid, nrm, pts):  # pragma: no cover
+    """A view's ground truth from its centre rays, in float32: z-depth (0 on a miss;
+    ``t`` is z-depth for camera rays), object ids (``ids[obj]``, -1 on a miss), normals
+    and points (zeros on a miss)."""
+    for i in nb.prange(hit.shape[0]):
+        depth[i] = t[i] if hit[i] else 0.0
+        oid[i] = ids[obj[i]] if hit[i] else -1
+        for a in range(3):
+            nrm[i, a] = normals[i, a]
+            pts[i, a] = points[i, a]

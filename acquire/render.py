@@ -91,9 +91,15 @@ def _refine_hits(o, d, hit, obj, face, V, F, N, ana_kind, ana_p, ana_n, ana_r,
     smooth (interpolated) and geometric normals, both turned toward the ray origin; on
     an object with an analytic shape (``ana_kind`` 1 sphere: centre ``ana_p``, radius
     ``ana_r``; 2 plane: point ``ana_p``, unit normal ``ana_n``; world frame), the exact
-    intersection and normal instead."""
+    intersection and normal instead. Misses get t = inf and zeros."""
     for j in numba.prange(o.shape[0]):
         if not hit[j]:
+            t[j] = np.inf
+            for a in range(3):
+                points[j, a] = 0.0
+                normals[j, a] = 0.0
+                geo[j, a] = 0.0
+            bary[j, 0], bary[j, 1] = 0.0, 0.0
             continue
         f = face[j]
         i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
@@ -172,11 +178,8 @@ def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hit
     face = np.empty(n, np.int64)
     rk.resolve_hits(ans["t_hit"].numpy(), ans["geometry_ids"].numpy(),
                     ans["primitive_ids"].numpy(), lut, face_offset, hit, obj, tri, face)
-    t = np.full(n, np.inf)
-    points = np.zeros((n, 3))
-    normals = np.zeros((n, 3))
-    geo = np.zeros((n, 3))
-    bary = np.zeros((n, 2))
+    t, bary = np.empty(n), np.empty((n, 2))     # the kernel writes every row
+    points, normals, geo = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     kind, ana_p, ana_n, ana_r = _analytic_arrays(scene)
     _refine_hits(origins, directions, hit, obj, face, V, F, N, kind, ana_p, ana_n, ana_r, t,
                  points, normals, geo, bary)
@@ -592,11 +595,11 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
         centre = hits
     else:
         centre = cast(scene, *camera_rays(camera, 1))
-    mask = centre.hit.reshape(H, W)
-    depth = np.where(centre.hit, centre.t, 0.0).reshape(H, W).astype(np.float32)
-    ids_lut = np.array([ob.object_id for ob in scene.objects] + [-1], np.int32)
-    oid = ids_lut[centre.obj].reshape(H, W)
-    return Render(radiance=radiance, depth=depth,
-                  normals=centre.normals.reshape(H, W, 3).astype(np.float32),
-                  object_id=oid, mask=mask,
-                  points=centre.points.reshape(H, W, 3).astype(np.float32))
+    ids = np.array([ob.object_id for ob in scene.objects] + [-1], np.int32)
+    depth, oid = np.empty(H * W, np.float32), np.empty(H * W, np.int32)
+    normals, points = np.empty((H * W, 3), np.float32), np.empty((H * W, 3), np.float32)
+    rk.ground_truth(centre.hit, centre.t, centre.obj, centre.normals, centre.points, ids,
+                    depth, oid, normals, points)
+    return Render(radiance=radiance, depth=depth.reshape(H, W),
+                  normals=normals.reshape(H, W, 3), object_id=oid.reshape(H, W),
+                  mask=centre.hit.reshape(H, W), points=points.reshape(H, W, 3))
