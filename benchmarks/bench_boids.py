@@ -12,7 +12,7 @@ perception radius of each.
 import numpy as np
 from _timing import best_of, report
 
-from simulate import boids as B
+from simulate import boid_kernels as B
 from simulate.boids import BoidParams, FlockState, init_flock, step
 
 DENSITY = 0.45  # boids per m^3: ~15 within the 2 m perception radius
