@@ -9,7 +9,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from acquire.lights import PointLight
-from acquire.render import cast, shade
+from acquire.render import albedo, cast, shade, subsurface_spread
 from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig, rot_z
 
@@ -36,7 +36,9 @@ def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersa
                       ambient: float | None = None, bounces: int = 0, rng=None):
     """Render one view under several light sets, casting the camera rays once; surfaces
     reflect by their material toward this camera (glossy highlights move between the
-    two cameras of a pair), with ``bounces = 1`` one bounce of indirect light (``rng``).
+    two cameras of a pair), with ``bounces = 1`` one bounce of indirect light (``rng``);
+    light on subsurface materials spreads under them (a projected pattern blurs,
+    :func:`acquire.render.subsurface_spread`).
 
     Returns
     -------
@@ -47,8 +49,12 @@ def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersa
     H, W = camera.height, camera.width
     o, d = camera.rays(camera.pixel_grid(supersample=s))
     hits = cast(scene, o, d)
-    rads = [shade(scene, hits, lights=ls, ambient=ambient, view_dirs=d, bounces=bounces,
-                  rng=rng).reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
+    translucent = any(o.material.brdf == "subsurface" for o in scene.objects)
+    alb = albedo(scene, hits) if translucent else None
+    rads = [subsurface_spread(scene, camera, hits, s,
+                              shade(scene, hits, lights=ls, ambient=ambient, view_dirs=d,
+                                    bounces=bounces, rng=rng), alb
+                              ).reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
             for ls in light_sets]
     if s == 1:
         centre = hits

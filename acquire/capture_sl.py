@@ -63,8 +63,9 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
     (:func:`acquire.render.reflect_toward`); with ``bounces = 1`` light of the pattern
     that reached another surface comes back once more (inter-reflections): the bounce
     rays are drawn once per view (:func:`acquire.render.bounce_rays`), and each pattern
-    only changes what the surfaces they meet receive."""
-    from acquire.render import bounce_rays, reflect_toward
+    only changes what the surfaces they meet receive. On subsurface materials each
+    pattern spreads under the surface (:func:`acquire.render.subsurface_spread`)."""
+    from acquire.render import bounce_rays, reflect_toward, subsurface_spread
 
     s = int(supersample)
     H, W = camera.height, camera.width
@@ -84,12 +85,17 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
         px2, f2 = _lit_footprint(scene, proj, b.hits, k)
         r2 = reflect_toward(scene, b.hits, k, proj.camera.center, b.wi[k]).mean(axis=1)
         second = (h[b.rows[k]], b.weight[k].mean(axis=1) * r2 * f2, px2)
+    translucent = any(o.material.brdf == "subsurface" for o in scene.objects)
+    alb_all = np.zeros(len(hits.hit))
+    alb_all[h] = alb
     out = []
     for pat in patterns:
         rad = base.copy()
         rad[h] += refl * sample_bilinear(pat, px) * factor
         if second is not None:
             np.add.at(rad, second[0], second[1] * sample_bilinear(pat, second[2]))
+        if translucent:   # the pattern blurs under marble, wax, skin
+            rad = subsurface_spread(scene, camera, hits, s, rad, alb_all)
         img = rad.reshape(H, W, s * s).mean(axis=2)
         out.append(sensor.apply(img, rng))
     o, d = camera.rays(camera.pixel_grid())

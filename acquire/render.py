@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 _SHADOW_OFFSET = 1e-5  # shadow rays start this far off the surface (m)
 
 __all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
-           "bounce_rays", "reflect_toward", "camera_rays"]
+           "bounce_rays", "reflect_toward", "camera_rays", "subsurface_spread"]
 
 
 @dataclass
@@ -543,6 +543,58 @@ def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
             yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
 
 
+def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersample: int,
+                      rad: np.ndarray, alb: np.ndarray) -> np.ndarray:
+    """The radiance ``rad`` (``(n,)`` or ``(n, 3)``, one row per ray of
+    ``camera.pixel_grid(supersample)``) with the light falling on subsurface materials
+    carried under their surface (:mod:`acquire.subsurface`): on each such object the
+    irradiance ``rad / alb`` is spread by its dipole's Gaussian mixture
+    (:func:`acquire.subsurface.spread_irradiance`, per colour channel, or on the mean
+    albedo for a monochrome ``rad``) and multiplied back by the albedo there, so the
+    texture stays sharp while light patterns blur, and an evenly lit surface looks as a
+    Lambertian one. The spread is in the image, at the object's median depth, within the
+    object's pixels: foreshortening and light crossing between parts of one object that
+    are far apart in depth are not modelled."""
+    from acquire.subsurface import Dipole, gaussian_mixture, spread_irradiance
+
+    idx = [i for i, o in enumerate(scene.objects) if o.material.brdf == "subsurface"]
+    if not idx:
+        return rad
+    s = int(supersample)
+    H, W = camera.height, camera.width
+    tail = rad.shape[1:]
+
+    def grid(a):      # rows of the rays -> the (H s, W s) image of the sub-samples
+        return a.reshape(H, W, s, s, *a.shape[1:]).swapaxes(1, 2).reshape(
+            H * s, W * s, *a.shape[1:])
+
+    def rows(g):
+        return g.reshape(H, s, W, s, *tail).swapaxes(1, 2).reshape(-1, *tail)
+
+    a = np.asarray(alb, np.float64)
+    a = a.mean(axis=1) if (rad.ndim == 1 and a.ndim == 2) else a
+    E = np.where(a > 1e-12, rad / np.maximum(a, 1e-12), 0.0)
+    out = np.array(rad, np.float64, copy=True)
+    for i in idx:
+        m = scene.objects[i].material
+        sel = hits.obj == i
+        if not sel.any():
+            continue
+        px_per_m = camera.fx * s / float(np.median(hits.t[sel]))
+        mask = grid(sel)
+        channels = [float(np.mean(m.albedo))] if rad.ndim == 1 else [float(c) for c in m.albedo]
+        Eg = grid(E)
+        spread = np.empty_like(Eg)
+        for c, albedo_c in enumerate(channels):
+            sig, w = gaussian_mixture(Dipole(max(albedo_c, 1e-3), m.mfp, m.ior))
+            if rad.ndim == 1:
+                spread = spread_irradiance(Eg, mask, sig * px_per_m, w)
+            else:
+                spread[..., c] = spread_irradiance(Eg[..., c], mask, sig * px_per_m, w)
+        out[sel] = (rows(spread) * a)[sel]
+    return out
+
+
 def camera_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """``camera.rays(camera.pixel_grid(supersample=s))``: origins and directions of the
     s x s rays of every pixel (a compiled kernel for an undistorted camera, whose
@@ -588,6 +640,8 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     hits = cast(scene, o, d)
     rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d, bounces=bounces,
                 rng=np.random.default_rng(seed) if bounces else None)
+    if any(o.material.brdf == "subsurface" for o in scene.objects):
+        rad = subsurface_spread(scene, camera, hits, s, rad, albedo(scene, hits))
     radiance = np.empty((H * W, 3), np.float32)
     rk.pixel_mean(rad, s * s, radiance)
     radiance = radiance.reshape(H, W, 3)
