@@ -47,7 +47,7 @@ class PatchMatchOptions(Config):
                                  help="longer image side the depth maps are computed at "
                                       "(the default suits 2 cores)")
     num_sources: int = option(5, range="[1, 16]", help="source views per reference view")
-    top_k: int = option(2, range="[1, 16]",
+    top_k: int = option(1, range="[1, 16]",
                         help="the cost of a plane is the mean of its top_k best source "
                              "views")
     iterations: int = option(3, range="[1, 20]", help="photometric iterations")
