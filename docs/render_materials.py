@@ -79,7 +79,7 @@ def main():
     fig.tight_layout()
     OUT.parent.mkdir(exist_ok=True)
     fig.savefig(OUT, dpi=110)
-    print(f"wrote {OUT}")
+    print(f"wrote {OUT}")  # noqa: T201 (a script)
 
 
 if __name__ == "__main__":
