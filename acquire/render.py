@@ -252,8 +252,7 @@ def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:
         sel = np.flatnonzero(hits.obj == i)
         if sel.size == 0:
             continue
-        Tinv = np.linalg.inv(obj.world_from_object)
-        p_obj = hits.points[sel] @ Tinv[:3, :3].T + Tinv[:3, 3]
+        p_obj = hits.points[sel] @ Tinv[i, :, :3].T + Tinv[i, :, 3]
         uvs = None
         if obj.vertex_uvs is not None:
             f = parts[i][1][hits.tri[sel]]
@@ -562,18 +561,18 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
         return rad
     s = int(supersample)
     H, W = camera.height, camera.width
-    tail = rad.shape[1:]
-
-    def grid(a):      # rows of the rays -> the (H s, W s) image of the sub-samples
-        return a.reshape(H, W, s, s, *a.shape[1:]).swapaxes(1, 2).reshape(
-            H * s, W * s, *a.shape[1:])
-
-    def rows(g):
-        return g.reshape(H, s, W, s, *tail).swapaxes(1, 2).reshape(-1, *tail)
-
+    mono = rad.ndim == 1
     a = np.asarray(alb, np.float64)
-    a = a.mean(axis=1) if (rad.ndim == 1 and a.ndim == 2) else a
+    a = a.mean(axis=1) if (mono and a.ndim == 2) else a
     E = np.where(a > 1e-12, rad / np.maximum(a, 1e-12), 0.0)
+    E = E[:, None] if mono else E
+    c = E.shape[1]
+
+    def grid(x):      # rows of the rays -> the (H s, W s, ...) image of the sub-samples
+        return x.reshape(H, W, s, s, *x.shape[1:]).swapaxes(1, 2).reshape(
+            H * s, W * s, *x.shape[1:])
+
+    Eg = grid(E)
     out = np.array(rad, np.float64, copy=True)
     for i in idx:
         m = scene.objects[i].material
@@ -582,16 +581,13 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
             continue
         px_per_m = camera.fx * s / float(np.median(hits.t[sel]))
         mask = grid(sel)
-        channels = [float(np.mean(m.albedo))] if rad.ndim == 1 else [float(c) for c in m.albedo]
-        Eg = grid(E)
+        channels = [float(np.mean(m.albedo))] if mono else [float(x) for x in m.albedo]
         spread = np.empty_like(Eg)
-        for c, albedo_c in enumerate(channels):
-            sig, w = gaussian_mixture(Dipole(max(albedo_c, 1e-3), m.mfp, m.ior))
-            if rad.ndim == 1:
-                spread = spread_irradiance(Eg, mask, sig * px_per_m, w)
-            else:
-                spread[..., c] = spread_irradiance(Eg[..., c], mask, sig * px_per_m, w)
-        out[sel] = (rows(spread) * a)[sel]
+        for k, albedo_k in enumerate(channels):
+            sig, w = gaussian_mixture(Dipole(max(albedo_k, 1e-3), m.mfp, m.ior))
+            spread[..., k] = spread_irradiance(Eg[..., k], mask, sig * px_per_m, w)
+        back = spread.reshape(H, s, W, s, c).swapaxes(1, 2).reshape(-1, c)
+        out[sel] = (back[:, 0] * a if mono else back * a)[sel]
     return out
 
 
