@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from acquire._render_kernels import block_rows, scattered_blocks
 from acquire.camera import Camera
 from acquire.scene import RenderScene
 
@@ -92,83 +93,93 @@ def _refine_hits(o, d, hit, obj, face, V, F, N, ana_kind, ana_p, ana_n, ana_r,
     an object with an analytic shape (``ana_kind`` 1 sphere: centre ``ana_p``, radius
     ``ana_r``; 2 plane: point ``ana_p``, unit normal ``ana_n``; world frame), the exact
     intersection and normal instead. Misses get t = inf and zeros."""
-    for j in numba.prange(o.shape[0]):
-        if not hit[j]:
-            t[j] = np.inf
+    nrays = o.shape[0]
+    nblocks, stride = scattered_blocks(nrays)
+    for blk in numba.prange(nblocks):
+        lo, hi = block_rows(blk, nblocks, stride, nrays)
+        for j in range(lo, hi):
+            if not hit[j]:
+                t[j] = np.inf
+                for a in range(3):
+                    points[j, a] = 0.0
+                    normals[j, a] = 0.0
+                    geo[j, a] = 0.0
+                bary[j, 0], bary[j, 1] = 0.0, 0.0
+                continue
+            f = face[j]
+            i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+            a0, a1, a2 = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]   # e1
+            b0, b1, b2 = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]   # e2
+            c0, c1, c2 = o[j, 0] - V[i0, 0], o[j, 1] - V[i0, 1], o[j, 2] - V[i0, 2]      # o - v0
+            pv0 = d[j, 1] * b2 - d[j, 2] * b1
+            pv1 = d[j, 2] * b0 - d[j, 0] * b2
+            pv2 = d[j, 0] * b1 - d[j, 1] * b0
+            det = a0 * pv0 + a1 * pv1 + a2 * pv2
+            if abs(det) < 1e-300:
+                det = 1e-300
+            u = (c0 * pv0 + c1 * pv1 + c2 * pv2) / det
+            q0 = c1 * a2 - c2 * a1
+            q1 = c2 * a0 - c0 * a2
+            q2 = c0 * a1 - c1 * a0
+            v = (d[j, 0] * q0 + d[j, 1] * q1 + d[j, 2] * q2) / det
+            tt = (b0 * q0 + b1 * q1 + b2 * q2) / det
+            g0 = a1 * b2 - a2 * b1
+            g1 = a2 * b0 - a0 * b2
+            g2 = a0 * b1 - a1 * b0
+            w = 1.0 - u - v
+            s0 = w * N[i0, 0] + u * N[i1, 0] + v * N[i2, 0]
+            s1 = w * N[i0, 1] + u * N[i1, 1] + v * N[i2, 1]
+            s2 = w * N[i0, 2] + u * N[i1, 2] + v * N[i2, 2]
+            kind = ana_kind[obj[j]]
+            if kind == 1:  # from outside the first root (the faceted mesh lies inside the
+                # sphere, so its hit never precedes it); from inside, the exit
+                c = ana_p[obj[j]]
+                oc0, oc1, oc2 = o[j, 0] - c[0], o[j, 1] - c[1], o[j, 2] - c[2]
+                A = d[j, 0] * d[j, 0] + d[j, 1] * d[j, 1] + d[j, 2] * d[j, 2]
+                B = 2.0 * (oc0 * d[j, 0] + oc1 * d[j, 1] + oc2 * d[j, 2])
+                C = oc0 * oc0 + oc1 * oc1 + oc2 * oc2 - ana_r[obj[j]] ** 2
+                sq = np.sqrt(max(B * B - 4.0 * A * C, 0.0))
+                tt = (-B - sq) / (2.0 * A) if C > 0 else (-B + sq) / (2.0 * A)
+                g0 = o[j, 0] + tt * d[j, 0] - c[0]
+                g1 = o[j, 1] + tt * d[j, 1] - c[1]
+                g2 = o[j, 2] + tt * d[j, 2] - c[2]
+                s0, s1, s2 = g0, g1, g2
+            elif kind == 2:
+                p0, nn = ana_p[obj[j]], ana_n[obj[j]]
+                tt = (((p0[0] - o[j, 0]) * nn[0] + (p0[1] - o[j, 1]) * nn[1]
+                       + (p0[2] - o[j, 2]) * nn[2])
+                      / (d[j, 0] * nn[0] + d[j, 1] * nn[1] + d[j, 2] * nn[2]))
+                g0, g1, g2 = nn[0], nn[1], nn[2]
+                s0, s1, s2 = g0, g1, g2
+            gl = max(np.sqrt(g0 * g0 + g1 * g1 + g2 * g2), 1e-300)
+            sl = max(np.sqrt(s0 * s0 + s1 * s1 + s2 * s2), 1e-300)
+            gs = -1.0 if (g0 * d[j, 0] + g1 * d[j, 1] + g2 * d[j, 2]) / gl > 0 else 1.0
+            ss = -1.0 if (s0 * d[j, 0] + s1 * d[j, 1] + s2 * d[j, 2]) / sl > 0 else 1.0
+            t[j] = tt
             for a in range(3):
-                points[j, a] = 0.0
-                normals[j, a] = 0.0
-                geo[j, a] = 0.0
-            bary[j, 0], bary[j, 1] = 0.0, 0.0
-            continue
-        f = face[j]
-        i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-        a0, a1, a2 = V[i1, 0] - V[i0, 0], V[i1, 1] - V[i0, 1], V[i1, 2] - V[i0, 2]   # e1
-        b0, b1, b2 = V[i2, 0] - V[i0, 0], V[i2, 1] - V[i0, 1], V[i2, 2] - V[i0, 2]   # e2
-        c0, c1, c2 = o[j, 0] - V[i0, 0], o[j, 1] - V[i0, 1], o[j, 2] - V[i0, 2]      # o - v0
-        pv0 = d[j, 1] * b2 - d[j, 2] * b1
-        pv1 = d[j, 2] * b0 - d[j, 0] * b2
-        pv2 = d[j, 0] * b1 - d[j, 1] * b0
-        det = a0 * pv0 + a1 * pv1 + a2 * pv2
-        if abs(det) < 1e-300:
-            det = 1e-300
-        u = (c0 * pv0 + c1 * pv1 + c2 * pv2) / det
-        q0 = c1 * a2 - c2 * a1
-        q1 = c2 * a0 - c0 * a2
-        q2 = c0 * a1 - c1 * a0
-        v = (d[j, 0] * q0 + d[j, 1] * q1 + d[j, 2] * q2) / det
-        tt = (b0 * q0 + b1 * q1 + b2 * q2) / det
-        g0 = a1 * b2 - a2 * b1
-        g1 = a2 * b0 - a0 * b2
-        g2 = a0 * b1 - a1 * b0
-        w = 1.0 - u - v
-        s0 = w * N[i0, 0] + u * N[i1, 0] + v * N[i2, 0]
-        s1 = w * N[i0, 1] + u * N[i1, 1] + v * N[i2, 1]
-        s2 = w * N[i0, 2] + u * N[i1, 2] + v * N[i2, 2]
-        kind = ana_kind[obj[j]]
-        if kind == 1:  # from outside the first root (the faceted mesh lies inside the
-            # sphere, so its hit never precedes it); from inside, the exit
-            c = ana_p[obj[j]]
-            oc0, oc1, oc2 = o[j, 0] - c[0], o[j, 1] - c[1], o[j, 2] - c[2]
-            A = d[j, 0] * d[j, 0] + d[j, 1] * d[j, 1] + d[j, 2] * d[j, 2]
-            B = 2.0 * (oc0 * d[j, 0] + oc1 * d[j, 1] + oc2 * d[j, 2])
-            C = oc0 * oc0 + oc1 * oc1 + oc2 * oc2 - ana_r[obj[j]] ** 2
-            sq = np.sqrt(max(B * B - 4.0 * A * C, 0.0))
-            tt = (-B - sq) / (2.0 * A) if C > 0 else (-B + sq) / (2.0 * A)
-            g0 = o[j, 0] + tt * d[j, 0] - c[0]
-            g1 = o[j, 1] + tt * d[j, 1] - c[1]
-            g2 = o[j, 2] + tt * d[j, 2] - c[2]
-            s0, s1, s2 = g0, g1, g2
-        elif kind == 2:
-            p0, nn = ana_p[obj[j]], ana_n[obj[j]]
-            tt = (((p0[0] - o[j, 0]) * nn[0] + (p0[1] - o[j, 1]) * nn[1]
-                   + (p0[2] - o[j, 2]) * nn[2])
-                  / (d[j, 0] * nn[0] + d[j, 1] * nn[1] + d[j, 2] * nn[2]))
-            g0, g1, g2 = nn[0], nn[1], nn[2]
-            s0, s1, s2 = g0, g1, g2
-        gl = max(np.sqrt(g0 * g0 + g1 * g1 + g2 * g2), 1e-300)
-        sl = max(np.sqrt(s0 * s0 + s1 * s1 + s2 * s2), 1e-300)
-        gs = -1.0 if (g0 * d[j, 0] + g1 * d[j, 1] + g2 * d[j, 2]) / gl > 0 else 1.0
-        ss = -1.0 if (s0 * d[j, 0] + s1 * d[j, 1] + s2 * d[j, 2]) / sl > 0 else 1.0
-        t[j] = tt
-        for a in range(3):
-            points[j, a] = o[j, a] + tt * d[j, a]
-        geo[j, 0], geo[j, 1], geo[j, 2] = gs * g0 / gl, gs * g1 / gl, gs * g2 / gl
-        normals[j, 0], normals[j, 1], normals[j, 2] = ss * s0 / sl, ss * s1 / sl, ss * s2 / sl
-        bary[j, 0], bary[j, 1] = u, v
+                points[j, a] = o[j, a] + tt * d[j, a]
+            geo[j, 0], geo[j, 1], geo[j, 2] = gs * g0 / gl, gs * g1 / gl, gs * g2 / gl
+            normals[j, 0], normals[j, 1], normals[j, 2] = ss * s0 / sl, ss * s1 / sl, ss * s2 / sl
+            bary[j, 0], bary[j, 1] = u, v
 
 
 def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hits:
     """Cast rays ``origins + t * directions`` (both (n, 3) float64) into the scene."""
+    origins = np.asarray(origins, np.float64)    # may be one origin broadcast to all
+    directions = np.ascontiguousarray(directions, np.float64)
+    return _refine(scene, origins, directions, *_embree_hits(scene, origins, directions))
+
+
+def _embree_hits(scene: RenderScene, origins: np.ndarray, directions: np.ndarray):
+    """Embree's answer for the rays, resolved to ``(hit, obj, tri, face)``: whether each
+    hits, the object, its triangle in the object and in :meth:`RenderScene.flat_arrays`."""
     import open3d as o3d
 
     from acquire import _render_kernels as rk
 
     rs, _, lut = scene.raycasting()
-    V, F, N, face_offset = scene.flat_arrays()
+    face_offset = scene.flat_arrays()[3]
     n = len(origins)
-    origins = np.asarray(origins, np.float64)    # may be one origin broadcast to all
-    directions = np.ascontiguousarray(directions, np.float64)
     rays = np.empty((n, 6), np.float32)
     rk.pack_rays(origins, directions, rays)
     ans = rs.cast_rays(o3d.core.Tensor.from_numpy(rays))
@@ -178,12 +189,45 @@ def cast(scene: RenderScene, origins: np.ndarray, directions: np.ndarray) -> Hit
     face = np.empty(n, np.int64)
     rk.resolve_hits(ans["t_hit"].numpy(), ans["geometry_ids"].numpy(),
                     ans["primitive_ids"].numpy(), lut, face_offset, hit, obj, tri, face)
+    return hit, obj, tri, face
+
+
+def _refine(scene: RenderScene, origins: np.ndarray, directions: np.ndarray,
+            hit: np.ndarray, obj: np.ndarray, tri: np.ndarray, face: np.ndarray) -> Hits:
+    """The hits of rays whose triangles are known, intersected in float64."""
+    V, F, N, _ = scene.flat_arrays()
+    n = len(hit)
     t, bary = np.empty(n), np.empty((n, 2))     # the kernel writes every row
     points, normals, geo = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     kind, ana_p, ana_n, ana_r = _analytic_arrays(scene)
     _refine_hits(origins, directions, hit, obj, face, V, F, N, kind, ana_p, ana_n, ana_r, t,
                  points, normals, geo, bary)
     return Hits(hit, t, points, normals, geo, obj, tri, bary)
+
+
+def centre_hits(scene: RenderScene, camera: Camera, hits: Hits, supersample: int) -> Hits:
+    """The hits of each pixel's centre ray, given its ``s x s`` rays' ``hits`` (a
+    pixel's rays consecutive, as :func:`camera_rays`). Where all of a pixel's rays meet
+    the same triangle (or the same analytic shape), the centre ray, inside their cone,
+    meets it too, and is intersected in float64 without Embree; where they all miss, it
+    misses. Only the other pixels (edges) are cast. The one difference from casting every
+    centre ray: a surface narrower than the rays' spacing (half a pixel at 2 x 2) that all
+    of them miss is not in the ground truth either, as it is not in the image."""
+    from acquire import _render_kernels as rk
+
+    ss = int(supersample) ** 2
+    o, d = camera_rays(camera, 1)
+    n = len(d)
+    hit, obj, tri, face = (np.empty(n, bool), np.empty(n, np.int64), np.empty(n, np.int64),
+                           np.empty(n, np.int64))
+    todo = np.empty(n, bool)
+    rk.centre_from_rays(hits.hit, hits.obj, hits.tri, ss, _analytic_arrays(scene)[0],
+                        scene.flat_arrays()[3], hit, obj, tri, face, todo)
+    rows = np.flatnonzero(todo)
+    if rows.size:
+        h2, o2, t2, f2 = _embree_hits(scene, o[rows], d[rows])
+        hit[rows], obj[rows], tri[rows], face[rows] = h2, o2, t2, f2
+    return _refine(scene, o, d, hit, obj, tri, face)
 
 
 def _analytic_arrays(scene: RenderScene):
@@ -641,10 +685,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     radiance = np.empty((H * W, 3), np.float32)
     rk.pixel_mean(rad, s * s, radiance)
     radiance = radiance.reshape(H, W, 3)
-    if s == 1:
-        centre = hits
-    else:
-        centre = cast(scene, *camera_rays(camera, 1))
+    centre = hits if s == 1 else centre_hits(scene, camera, hits, s)
     ids = np.array([ob.object_id for ob in scene.objects] + [-1], np.int32)
     depth, oid = np.empty(H * W, np.float32), np.empty(H * W, np.int32)
     normals, points = np.empty((H * W, 3), np.float32), np.empty((H * W, 3), np.float32)

@@ -15,6 +15,22 @@ def best_of(fn, repeat=3, warmup=1):
     return best
 
 
+def best_of_interleaved(fns, repeat=10, warmup=1):
+    """Best wall time in seconds of each of ``fns``, run in turn ``repeat`` times (after
+    ``warmup`` rounds): a ratio of two of them then compares runs made under the same
+    load, where timing one after the other lets a shared machine's load drift between."""
+    for _ in range(warmup):
+        for fn in fns:
+            fn()
+    best = [float("inf")] * len(fns)
+    for _ in range(repeat):
+        for k, fn in enumerate(fns):
+            t = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t)
+    return best
+
+
 def report(name, ours, peer, target, *, higher_is_better=True, unit="x"):
     """Print one figure: the ratio and whether it meets the target."""
     ratio = ours / peer
