@@ -1,3 +1,7 @@
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -133,3 +137,26 @@ def test_write_points_empty_cloud_is_a_valid_ply(tmp_path):
     assert props == [ln for ln in head.splitlines() if ln.startswith("property")]
     with pytest.raises(ValueError, match="ply"):
         write_points(tmp_path / "e.xyz", np.zeros((0, 3)))
+
+
+_REALLOC = """
+import resource, numpy as np
+import core
+a = np.ones(100 << 17); del a          # 100 MB, touched, freed
+f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+a = np.ones(100 << 17)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="glibc's malloc")
+def test_large_freed_blocks_are_reused_unless_the_environment_says_otherwise():
+    # a block given back to the system faults in again: 100 MB is 25 600 pages of 4 KB,
+    # or 50 huge pages of 2 MB
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("MALLOC_", "GLIBC_"))}
+    run = [sys.executable, "-c", _REALLOC]
+    ours = int(subprocess.run(run, env=env, capture_output=True, text=True, check=True).stdout)
+    theirs = int(subprocess.run(run, env={**env, "MALLOC_TRIM_THRESHOLD_": "65536"},
+                                capture_output=True, text=True, check=True).stdout)
+    assert theirs >= 50, theirs
+    assert ours * 10 < theirs, (ours, theirs)
