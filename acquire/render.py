@@ -212,7 +212,9 @@ def centre_hits(scene: RenderScene, camera: Camera, hits: Hits, supersample: int
     meets it too, and is intersected in float64 without Embree; where they all miss, it
     misses. Only the other pixels (edges) are cast. The one difference from casting every
     centre ray: a surface narrower than the rays' spacing (half a pixel at 2 x 2) that all
-    of them miss is not in the ground truth either, as it is not in the image."""
+    of them miss is not in the ground truth either, as it is not in the image. (On an
+    analytic shape the hit and normal are the shape's; the triangle and barycentrics are
+    those of the pixel's first ray.)"""
     from acquire import _render_kernels as rk
 
     ss = int(supersample) ** 2

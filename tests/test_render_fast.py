@@ -91,3 +91,45 @@ def test_direct_light_matches_the_light_protocol(scene, camera):
     one = render(scene, camera, supersample=1)
     assert (~one.mask).sum() > 100
     assert np.all(one.radiance[~one.mask] == np.float32([0.1, 0.2, 0.3]))
+
+
+@pytest.mark.parametrize("n", [0, 1, 2047, 2048, 2049, 100_003])
+def test_scattered_blocks_visit_every_row_once(n):
+    from acquire._render_kernels import BLOCK, block_rows, scattered_blocks
+
+    m, g = scattered_blocks(n)
+    seen = np.zeros(n, np.int64)
+    starts = []
+    for k in range(m):
+        lo, hi = block_rows(k, m, g, n)
+        seen[lo:hi] += 1
+        starts.append(lo)
+    assert np.all(seen == 1)
+    if m > 2:   # neighbouring blocks of the loop are far apart in the rows
+        assert abs(starts[1] - starts[0]) > BLOCK
+
+
+def test_centre_rays_from_the_sub_rays_are_the_cast_centre_rays(scene, camera, monkeypatch):
+    import acquire.render as R
+
+    ball = o3d.geometry.TriangleMesh.create_sphere(0.06, 12)   # coarse: faces differ
+    ball.translate([-0.15, -0.15, 0.06])
+    sphere = SceneObject("sphere", ball, Material("constant", [0.9, 0.9, 0.9]),
+                         analytic={"type": "sphere", "center": (-0.15, -0.15, 0.06),
+                                   "radius": 0.06})
+    sc = RenderScene([*scene.objects, sphere], scene.lights, 0.05)
+    hits = cast(sc, *camera_rays(camera, 2))
+    cast_rows = []
+    embree = R._embree_hits
+    monkeypatch.setattr(R, "_embree_hits", lambda s, o, d: cast_rows.append(len(o))
+                        or embree(s, o, d))
+    derived = R.centre_hits(sc, camera, hits, 2)
+    n_cast = sum(cast_rows)
+    ref = cast(sc, *camera_rays(camera, 1))
+    for f in ("hit", "t", "points", "normals", "obj"):
+        assert np.array_equal(getattr(derived, f), getattr(ref, f)), f
+    meshes = ref.obj != 3     # on the analytic sphere the triangle is a neighbour's
+    assert np.array_equal(derived.tri[meshes], ref.tri[meshes])
+    assert (ref.obj == 3).sum() > 100
+    # only the pixels on an edge (between objects or triangles) were cast
+    assert 0 < n_cast < 0.3 * camera.width * camera.height
