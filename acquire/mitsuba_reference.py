@@ -12,6 +12,12 @@ matched settings. What is described, and how:
 - materials: ``lambert`` -> ``diffuse``; ``conductor`` -> ``roughconductor`` (GGX,
   ``alpha = roughness^2``, a perfect conductor tinted by the albedo);
   ``dielectric`` -> ``roughplastic`` (GGX coat of the same index over the albedo);
+  ``subsurface`` (index-matched, ``ior`` within 1e-3 of 1) -> a ``null`` boundary around
+  a ``homogeneous`` medium with an isotropic phase function, extinction ``1 / mfp`` and
+  the single-scattering albedo whose semi-infinite medium reflects the material's
+  albedo (:func:`medium_albedo`), rendered by the ``volpath`` integrator: the exact
+  transport that the dipole approximates. A refracting boundary is not described: behind
+  a smooth dielectric a point light is out of a path tracer's reach;
   (Mitsuba 3 has no diffuse transmitter, so thin translucent sheets are not described);
 - lights: point and directional lights, with the unit conversion of
   :mod:`acquire.lights` (our unit intensity head-on on white gives radiance 1, so
@@ -33,10 +39,14 @@ Where the two differ on purpose (stated, and measured in ``docs/materials.md``):
 - the plastic: Mitsuba's ``roughplastic`` scatters light inside the coat
   (``1 / (1 - F_dr R)`` and an ``eta^-2`` factor), ours is a single transmission in and
   out of the coat;
-- no ambient term: ours adds an unoccluded constant, which no physical light gives.
+- no ambient term: ours adds an unoccluded constant, which no physical light gives;
+- subsurface: ours is the diffusion dipole, a Lambertian exit under broad light and the
+  irradiance spread over the image; Mitsuba follows every scattering event (single
+  scattering, the exit's angular distribution, light around the curvature).
 
 References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*, 4th ed.
-(2023); W. Jakob et al., Mitsuba 3 (2022), https://mitsuba.readthedocs.io.
+(2023); W. Jakob et al., Mitsuba 3 (2022), https://mitsuba.readthedocs.io;
+S. Chandrasekhar, *Radiative Transfer* (1950), ch. V (the H-function).
 """
 
 from __future__ import annotations
@@ -56,7 +66,7 @@ from acquire.scene import RenderScene
 log = logging.getLogger(__name__)
 
 __all__ = ["mitsuba_available", "scene_dict", "render_reference", "Agreement", "agreement",
-           "tone_map", "corner_scene", "REFERENCE_MATERIALS"]
+           "tone_map", "corner_scene", "medium_albedo", "REFERENCE_MATERIALS"]
 
 # Mitsuba's camera looks along +z with +y up and +x to the left; ours (OpenCV) has +x
 # right and +y down: the two frames differ by a half turn about z.
@@ -84,11 +94,56 @@ def _rgb(value) -> dict:
     return {"type": "rgb", "value": [float(x) for x in np.asarray(value, float)]}
 
 
+def _h_function(w: float, n: int = 64):
+    """Chandrasekhar's H-function of isotropic scattering with single-scattering albedo
+    ``w``, on ``n`` Gauss-Legendre nodes ``mu`` of [0, 1]: ``(mu, weights, H(mu))``, by
+    iterating ``1 / H(mu) = sqrt(1 - w) + w / 2 int_0^1 mu' H(mu') / (mu + mu') dmu'``."""
+    x, wt = np.polynomial.legendre.leggauss(n)
+    mu, wt = 0.5 * (x + 1.0), 0.5 * wt
+    k = mu[None, :] * wt[None, :] / (mu[:, None] + mu[None, :])
+    h = np.ones(n)
+    for _ in range(10_000):
+        new = 1.0 / (np.sqrt(1.0 - w) + 0.5 * w * (k * h[None, :]).sum(1))
+        if np.max(np.abs(new - h)) < 1e-12:
+            return mu, wt, new
+        h = new
+    return mu, wt, h
+
+
+def medium_albedo(albedo: float) -> float:
+    """The single-scattering albedo of an isotropic, index-matched, semi-infinite medium
+    whose bihemispherical reflectance is ``albedo``. A beam at incidence ``mu0`` is
+    reflected by ``1 - H(mu0) sqrt(1 - w)`` of its power (Chandrasekhar); averaged over
+    cosine-weighted incidence, that is the albedo a user measures under broad light, as
+    the subsurface material's albedo is defined."""
+    from scipy.optimize import brentq
+
+    def bihemispherical(w):
+        mu, wt, h = _h_function(w)
+        return 2.0 * float(np.sum((1.0 - h * np.sqrt(1.0 - w)) * mu * wt))
+
+    a = float(albedo)
+    if not 0.0 < a < 1.0:
+        raise ValueError(f"albedo: expected a value in (0, 1), got {a!r}")
+    return float(brentq(lambda w: bihemispherical(w) - a, 1e-9, 1.0 - 1e-12, xtol=1e-12))
+
+
+def _medium(material) -> dict:
+    return {"type": "homogeneous", "sigma_t": 1.0 / float(material.mfp),
+            "albedo": _rgb([medium_albedo(a) for a in material.albedo]),
+            "phase": {"type": "isotropic"}}
+
+
 def _bsdf(material) -> dict:
     if material.kind != "constant":
         raise ValueError(f"material: only constant albedos are described to Mitsuba, got "
                          f"kind {material.kind!r}")
     alpha = float(material.roughness) ** 2
+    if material.brdf == "subsurface":
+        if abs(float(material.ior) - 1.0) > 1e-3:
+            raise ValueError(f"material.ior: the reference subsurface material is "
+                             f"index-matched (ior within 1e-3 of 1), got {material.ior!r}")
+        return {"type": "null"}
     if material.brdf == "lambert":
         return {"type": "diffuse", "reflectance": _rgb(material.albedo)}
     if material.brdf == "conductor":
@@ -96,7 +151,7 @@ def _bsdf(material) -> dict:
                 "material": "none", "specular_reflectance": _rgb(material.albedo)}
     if material.brdf != "dielectric":
         raise ValueError(f"material.brdf: {material.brdf!r} is not described to Mitsuba "
-                         f"(lambert, conductor and dielectric are)")
+                         f"(lambert, conductor, dielectric and subsurface are)")
     return {"type": "roughplastic", "distribution": "ggx", "alpha": alpha,
             "int_ior": float(material.ior), "ext_ior": 1.0, "nonlinear": False,
             "diffuse_reflectance": _rgb(material.albedo)}
@@ -146,8 +201,15 @@ def scene_dict(scene: RenderScene, camera: Camera, folder, *, spp: int = 64,
     if float(scene.ambient) != 0.0:
         raise ValueError("ambient: the reference scenes have no ambient term (set it to 0)")
     fov = float(np.degrees(2.0 * np.arctan(0.5 * camera.width / camera.fx)))
+    volume = any(o.material.brdf == "subsurface" for o in scene.objects)
+    if volume and len(scene.objects) > 1:
+        raise ValueError("objects: a subsurface reference object is alone in its scene "
+                         "(the volumetric path tracer cannot stop after the direct light "
+                         "without stopping the walk inside the medium)")
+    integrator = ({"type": "volpath", "max_depth": -1, "hide_emitters": True} if volume
+                  else {"type": "path", "max_depth": int(bounces) + 2, "hide_emitters": True})
     d = {"type": "scene",
-         "integrator": {"type": "path", "max_depth": int(bounces) + 2, "hide_emitters": True},
+         "integrator": integrator,
          "sensor": {"type": "perspective", "fov": fov, "fov_axis": "x",
                     "principal_point_offset_x": ((camera.width - 1) / 2 - camera.cx)
                     / camera.width,
@@ -169,13 +231,15 @@ def scene_dict(scene: RenderScene, camera: Camera, folder, *, spp: int = 64,
                             "center": [float(x) for x in R @ np.asarray(ana["center"]) + t],
                             "radius": float(ana["radius"]) * float(np.cbrt(abs(
                                 np.linalg.det(R)))), "bsdf": bsdf}
-            continue
-        v, f, n = obj.world_arrays()
-        mesh = make_mesh(v, f)
-        mesh.vertex_normals = type(mesh.vertex_normals)(n)
-        path = write_mesh(Path(folder) / f"obj{i}.ply", mesh)
-        d[f"obj{i}"] = {"type": "ply", "filename": str(path), "face_normals": False,
-                        "bsdf": bsdf}
+        else:
+            v, f, n = obj.world_arrays()
+            mesh = make_mesh(v, f)
+            mesh.vertex_normals = type(mesh.vertex_normals)(n)
+            path = write_mesh(Path(folder) / f"obj{i}.ply", mesh)
+            d[f"obj{i}"] = {"type": "ply", "filename": str(path), "face_normals": False,
+                            "bsdf": bsdf}
+        if obj.material.brdf == "subsurface":
+            d[f"obj{i}"]["interior"] = _medium(obj.material)
     for k, light in enumerate(scene.lights):
         d[f"light{k}"] = _light(light)
     return d
@@ -246,7 +310,9 @@ def _materials() -> dict:
             "conductor r0.3": Material(albedo=white, brdf="conductor", roughness=0.3),
             "conductor r0.6": Material(albedo=white, brdf="conductor", roughness=0.6),
             "dielectric r0.3": Material(albedo=np.array([0.2, 0.4, 0.9]), brdf="dielectric",
-                                        roughness=0.3)}
+                                        roughness=0.3),
+            "subsurface 10mm": Material(albedo=np.array([0.8, 0.5, 0.3]), brdf="subsurface",
+                                        mfp=0.01, ior=1.0001)}
 
 
 REFERENCE_MATERIALS = tuple(_materials())
@@ -257,7 +323,8 @@ def corner_scene(material: str = "lambert", *, light: str = "point", width: int 
                  height: int = 120) -> tuple[RenderScene, Camera]:
     """A reference scene: a sphere of ``material`` (one of :data:`REFERENCE_MATERIALS`)
     in the corner of a matte floor and a matte wall, lit by a point light (``"point"``)
-    or by a projector showing vertical stripes (``"projector"``), and its camera."""
+    or by a projector showing vertical stripes (``"projector"``), and its camera. The
+    subsurface sphere is alone, without the corner (:func:`scene_dict`)."""
     import open3d as o3d
 
     from acquire.materials import Material
@@ -283,6 +350,8 @@ def corner_scene(material: str = "lambert", *, light: str = "point", width: int 
                     analytic={"type": "plane", "point": (0, 1, 0), "normal": (0, -1, 0)}),
         SceneObject("ball", ball, material=mats[material], object_id=2,
                     analytic={"type": "sphere", "center": (0, 0.3, 0.35), "radius": 0.35})]
+    if mats[material].brdf == "subsurface":
+        objects = objects[2:]
     if light == "point":
         lamp = PointLight(np.array([0.9, -0.8, 1.6]), intensity=2.0)
     else:

@@ -54,10 +54,17 @@ def test_descriptions_and_what_is_refused(tmp_path):
     kinds = {}
     for m in REFERENCE_MATERIALS:
         scene, cam = corner_scene(m, width=32, height=24)
-        kinds[m] = scene_dict(scene, cam, tmp_path, spp=1)["obj2"]["bsdf"]["type"]
+        ball = f"obj{len(scene.objects) - 1}"     # the sphere comes last
+        kinds[m] = scene_dict(scene, cam, tmp_path, spp=1)[ball]["bsdf"]["type"]
     assert kinds == {"lambert": "diffuse", "conductor r0.1": "roughconductor",
                      "conductor r0.3": "roughconductor", "conductor r0.6": "roughconductor",
-                     "dielectric r0.3": "roughplastic"}
+                     "dielectric r0.3": "roughplastic", "subsurface 10mm": "null"}
+    scene, cam = corner_scene("subsurface 10mm", width=32, height=24)
+    d = scene_dict(scene, cam, tmp_path, spp=1)
+    assert d["integrator"]["type"] == "volpath" and d["obj0"]["interior"]["sigma_t"] == 100.0
+    scene.objects[0].material = Material(albedo=[0.5] * 3, brdf="subsurface", ior=1.3)
+    with pytest.raises(ValueError, match="index-matched"):
+        render_reference(scene, cam, spp=1)
     scene, cam = corner_scene("lambert", width=32, height=24)
     scene.ambient = 0.1
     with pytest.raises(ValueError, match="ambient"):
@@ -83,3 +90,36 @@ def test_one_bounce_agrees_with_mitsuba_and_is_seeded():
     assert both < 0.5 * direct
     again = render(scene, cam, supersample=4, bounces=1, seed=0).radiance
     assert again.tobytes() == runs[0].tobytes() and runs[0].tobytes() != runs[1].tobytes()
+
+
+def test_h_function_and_the_medium_albedo():
+    """Chandrasekhar's H-function meets its zeroth-moment identity
+    ``int_0^1 H = 2 (1 - sqrt(1 - w)) / w``, and the medium albedo inverts the
+    bihemispherical reflectance: more reflective materials need less absorption."""
+    from acquire.mitsuba_reference import _h_function, medium_albedo
+
+    for w in (0.3, 0.9, 0.999):
+        _, wt, h = _h_function(w)
+        assert abs(np.sum(h * wt) - 2 * (1 - np.sqrt(1 - w)) / w) < 1e-8
+    ws = [medium_albedo(a) for a in (0.1, 0.5, 0.9)]
+    assert ws[0] < ws[1] < ws[2] < 1
+    _, wt, h = _h_function(ws[1])
+    mu = 0.5 * (np.polynomial.legendre.leggauss(len(h))[0] + 1)
+    assert abs(2 * np.sum((1 - h * np.sqrt(1 - ws[1])) * mu * wt) - 0.5) < 1e-9
+
+
+def test_subsurface_sphere_is_near_the_volumetric_transport():
+    """The dipole against the medium it approximates, followed event by event: within
+    8 % after the tone map and 12 % in mean radiance per channel (measured at 160x120:
+    4.8 %, and Mitsuba 2 to 7 % darker), where the material's broad-light Lambertian
+    exit is the known difference; a light left out of the conversion to Mitsuba's units
+    or a medium of the dipole's own albedo would show."""
+    scene, cam = corner_scene("subsurface 10mm", light="point", width=96, height=72)
+    ours = render(scene, cam, supersample=4)
+    ref = render_reference(scene, cam, spp=256, seed=0)
+    ids = ours.object_id
+    assert agreement(ours.radiance, ref, ids).relative_l1 <= 0.08
+    m = ids == 2
+    assert m.sum() > 400
+    ratio = ref[m].mean(0) / ours.radiance[m].mean(0)
+    assert np.all(np.abs(ratio - 1) <= 0.12), ratio
