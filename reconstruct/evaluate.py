@@ -109,6 +109,11 @@ class EvaluationResult:
     alignment : dict or None
         How it was aligned (:meth:`reconstruct.registration.Registration.to_dict`):
         method, threshold, and for ``global`` the coarse stage's source and fitness.
+    bias : float or None
+        Mean signed distance of the reconstruction's samples within ``tau`` of the
+        reference, along the reference triangle's normal (positive on the side it points
+        to, outside for an outward mesh): a surface scanned too far out or in. None when
+        the reference is not a mesh or distances are to samples.
     """
 
     tau: float
@@ -132,6 +137,7 @@ class EvaluationResult:
     icp_inlier_rmse: float | None = None
     icp_reference_from_recon: tuple | None = None
     alignment: dict | None = None
+    bias: float | None = None
 
     def to_dict(self) -> dict:
         """Plain JSON-ready dict of every field (None stays None)."""
@@ -152,6 +158,7 @@ class EvaluationResult:
             ("overall (mean of both)", _m(self.overall)),
             ("Hausdorff", _m(self.hausdorff)),
             ("Hausdorff 95%", _m(self.hausdorff_95)),
+            ("bias (signed, inliers)", "n/a" if self.bias is None else _m(self.bias)),
             ("normal consistency", "n/a" if self.normal_consistency is None
              else f"{self.normal_consistency:.4f}"),
             ("recon samples", f"{self.n_recon_samples}"),
@@ -386,9 +393,13 @@ def evaluate(
     rec, rec_pts, rec_nrm, icp_fields = _align(rec, rec_pts, rec_nrm, ref_pts, ref_nrm, align,
                                                threshold, rng)
     surface = distance == "surface"
-    acc, acc_nrm = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
+    acc, acc_nrm, signed = _nearest(rec_pts, ref_pts, ref_nrm, ref if surface else None)
     visible = _visible(reference_mask, ref_pts)
-    comp, comp_nrm = _nearest(ref_pts[visible], rec_pts, rec_nrm, rec if surface else None)
+    comp, comp_nrm, _ = _nearest(ref_pts[visible], rec_pts, rec_nrm,
+                                 rec if surface else None)
+    inliers = acc <= tau
+    bias = (float(signed[inliers].mean()) if signed is not None and inliers.any()
+            else None)
 
     consistency = None
     if rec_nrm is not None and ref_nrm is not None:
@@ -397,7 +408,7 @@ def evaluate(
         consistency = float(0.5 * (c_acc.mean() + c_comp.mean()))
     return _result(acc, comp, tau, normal_consistency=consistency,
                    n_recon_samples=len(rec_pts), n_reference_samples=int(visible.sum()),
-                   density=float(density), distance=distance, **icp_fields)
+                   density=float(density), distance=distance, bias=bias, **icp_fields)
 
 
 def _result(acc: np.ndarray, comp: np.ndarray, tau: float, **fields):
@@ -458,14 +469,15 @@ def _visible(reference_mask, ref_pts: np.ndarray) -> np.ndarray:
 
 
 def _nearest(query: np.ndarray, samples: np.ndarray, sample_normals: np.ndarray | None,
-             mesh: _Geom | None) -> tuple[np.ndarray, np.ndarray | None]:
+             mesh: _Geom | None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Distances from ``query (n, 3)`` to the mesh surface when ``mesh`` is one, else to
-    the nearest of ``samples``; with the normal there (None when unknown)."""
+    the nearest of ``samples``; with the normal there (None when unknown) and, to a mesh,
+    the signed distances along its triangles' normals (else None)."""
     if mesh is None or not mesh.is_mesh:
         from scipy.spatial import cKDTree
 
         dist, idx = cKDTree(samples).query(query, workers=-1)
-        return dist, None if sample_normals is None else sample_normals[idx]
+        return dist, None if sample_normals is None else sample_normals[idx], None
     import open3d as o3d
 
     # Embree works in float32: centre the coordinates so large offsets cost no precision
@@ -475,5 +487,7 @@ def _nearest(query: np.ndarray, samples: np.ndarray, sample_normals: np.ndarray 
                         o3d.core.Tensor(mesh.triangles.astype(np.uint32)))
     q = query - centre
     ans = scene.compute_closest_points(o3d.core.Tensor(q.astype(np.float32)))
-    dist = np.linalg.norm(q - ans["points"].numpy().astype(np.float64), axis=1)
-    return dist, ans["primitive_normals"].numpy().astype(np.float64)
+    off = q - ans["points"].numpy().astype(np.float64)
+    normals = ans["primitive_normals"].numpy().astype(np.float64)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    return np.linalg.norm(off, axis=1), normals, np.einsum("ij,ij->i", off, normals)

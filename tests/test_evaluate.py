@@ -52,6 +52,19 @@ def test_sphere_offset_gives_accuracy_d(rng):
     assert low.fscore == 0.0  # and none within d / 2
 
 
+def test_bias_is_signed_along_the_reference_normal(rng):
+    # a reconstruction d inside the reference sphere is -d, outside +d (open3d's spheres
+    # are wound outward); the surface-distance protocol reports it, the samples one not
+    r, d, res_ = 0.05, 0.002, 200
+    sag = (r + d) * (np.pi / res_) ** 2
+    inside = evaluate(sphere(r, res_), sphere(r + d, res_), tau=2 * d, rng=rng, max_samples=N)
+    outside = evaluate(sphere(r + d, res_), sphere(r, res_), tau=2 * d, rng=rng,
+                       max_samples=N)
+    assert abs(inside.bias + d) < sag and abs(outside.bias - d) < sag
+    assert evaluate(sphere(r, res_), sphere(r + d, res_), tau=2 * d, rng=rng, max_samples=N,
+                    distance="samples").bias is None
+
+
 def test_sample_to_sample_protocol_bias(rng):
     # Tanks and Temples / DTU measure to the nearest *sample*: the gap d comes out larger
     # by about E[l^2] / (2 d) = 1 / (2 pi density d) (l the lateral offset to the nearest
