@@ -687,6 +687,6 @@ def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) 
     half = evaluate(mesh, ref, tau=0.5 * tau, reference_mask=mask)
     return {"tau": tau, "tau_definition": "1% of the scene's bounding-box diagonal",
             "fscore": r.fscore, "precision": r.precision, "recall": r.recall,
-            "fscore_half_tau": half.fscore,
+            "bias": r.bias, "fscore_half_tau": half.fscore,
             "accuracy_median": r.accuracy_median, "completeness_median": r.completeness_median,
             "reference": "ground-truth surface seen by at least one true camera"}

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from scanamp.cli import main
-from scanamp.study import load_study, run_study, shipped_studies
+from scanamp.study import is_suite, load_study, load_suite, run_study, shipped_studies
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -89,7 +89,10 @@ def test_shipped_studies_load_by_name_and_validate():
     assert st.kind == "laser" and len(st.runs) == 6
     assert [r.params["rig.triangulation_angle_deg"] for r in st.runs] == [10, 20, 30, 40, 50, 60]
     for name in shipped_studies():
-        assert load_study(name).runs
+        if is_suite(name):
+            assert all(load_study(m).runs for m in load_suite(name).studies())
+        else:
+            assert load_study(name).runs
 
 
 def test_failing_run_is_recorded_and_the_study_goes_on(tmp_path):

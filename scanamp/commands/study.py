@@ -1,4 +1,4 @@
-"""scanamp study STUDY.toml --out DIR [--scheduler ADDRESS] [--workers N]"""
+"""scanamp study STUDY.toml --out DIR [--scheduler ADDRESS] [--workers N] (or a suite)"""
 
 import logging
 from dataclasses import dataclass
@@ -8,7 +8,8 @@ from core.config import Config, option
 NAME = "study"
 OUTPUT = "resume"
 HELP = ("run a scanner study: a grid or random sweep over capture/reconstruction "
-        "parameters; resumable; writes results.csv, results.parquet and plots/")
+        "parameters; resumable; writes results.csv, results.parquet and plots/ (a suite, "
+        "such as 'materials', runs its studies in sub-folders and sets them side by side)")
 log = logging.getLogger("scanamp")
 
 
@@ -39,8 +40,10 @@ def add_arguments(p):
 
 
 def run(args, config: StudyOptions):
-    from scanamp.study import load_study, run_study
+    from scanamp.study import is_suite, load_study, run_study
 
+    if is_suite(args.study):
+        return _run_suite(args, config)
     study = load_study(args.study)
     if config.list:
         for r in study.runs:
@@ -58,4 +61,31 @@ def run(args, config: StudyOptions):
         with pd.option_context("display.width", 160, "display.max_columns", 20,
                                "display.float_format", "{:.4g}".format):
             print(df[cols].rename(columns=lambda c: c.rsplit(".", 1)[-1]).to_string(index=False))
+    return 0
+
+
+def _run_suite(args, config: StudyOptions):
+    """A suite (``materials``): its member studies in sub-folders, then its table."""
+    from scanamp.study import load_study, load_suite, run_suite
+
+    suite = load_suite(args.study)
+    if config.list:
+        for member in suite.studies():
+            for r in load_study(member).runs:
+                print(member, r.run_id, " ".join(f"{k}={v}" for k, v in r.params.items()))
+        return 0
+    res = run_suite(suite, args.out, workers=config.workers, scheduler=config.scheduler,
+                    keep=config.keep, timeout=config.timeout)
+    for name, summary in res["studies"].items():
+        print(f"study {name!r}: {summary['runs']} runs ({summary['done_before']} recorded "
+              f"before, {summary['executed']} run now, {summary['failed']} failed) -> "
+              f"{args.out}/{name}/")
+    table = res["table"]
+    print(f"suite {suite.name!r} -> {args.out}/results.csv, {args.out}/plots/")
+    if len(table):
+        import pandas as pd
+
+        with pd.option_context("display.width", 160, "display.max_columns", 20,
+                               "display.float_format", "{:.4g}".format):
+            print(table.to_string(index=False))
     return 0

@@ -14,10 +14,12 @@ from scanamp.study.kinds import KINDS, get_metric, score_peaks
 from scanamp.study.results import results_table, write_results
 from scanamp.study.runner import connect, execute_run, load_records, run_study
 from scanamp.study.spec import Run, Study, load_study, run_id, shipped_studies, study_path
+from scanamp.study.suite import Suite, is_suite, load_suite, run_suite, suite_table
 
-__all__ = ["KINDS", "Run", "Study", "connect", "execute_run", "get_metric", "load_records",
-           "load_study", "public_kinds", "results_table", "run_id", "run_study", "score_peaks",
-           "shipped_studies", "study_path", "write_results"]
+__all__ = ["KINDS", "Run", "Study", "Suite", "connect", "execute_run", "get_metric",
+           "is_suite", "load_records", "load_study", "load_suite", "public_kinds",
+           "results_table", "run_id", "run_study", "run_suite", "score_peaks",
+           "shipped_studies", "study_path", "suite_table", "write_results"]
 
 
 def public_kinds() -> list[str]:
