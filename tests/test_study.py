@@ -269,3 +269,76 @@ def test_material_overrides_change_the_scanned_object_only():
     assert mats["object"].brdf == "subsurface" and mats["object"].mfp == 1e-3
     assert mats["object"].kind == before["object"].kind            # its texture is kept
     assert all(mats[n].brdf == before[n].brdf for n in mats if n != "object")
+
+
+SUITE = """
+[suite]
+name = "both"
+rows = "x"
+
+[[method]]
+name = "plain"
+study = "a.toml"
+fscore = "y"
+precision = "x"
+recall = "x"
+bias = "y"
+
+[[method]]
+name = "scaled"
+study = "b.toml"
+fscore = "y"
+precision = "x"
+recall = "x"
+bias = "x"
+"""
+
+MEMBER = """
+[study]
+name = "{name}"
+kind = "_test"
+[base]
+"reconstruct.scale" = {scale}
+[sweep]
+x = [0.25, 0.5]
+[output]
+metrics = ["y", "x"]
+"""
+
+
+def test_a_suite_runs_its_studies_and_sets_them_side_by_side(tmp_path, capsys):
+    _spec(tmp_path, MEMBER.format(name="a", scale=1.0), "a.toml")
+    _spec(tmp_path, MEMBER.format(name="b", scale=10.0), "b.toml")
+    suite = _spec(tmp_path, SUITE, "suite.toml")
+    assert is_suite(suite) and not is_suite(tmp_path / "a.toml")
+    out = tmp_path / "out"
+    assert main(["study", str(suite), "--out", str(out)]) == 0
+    assert "suite 'both'" in capsys.readouterr().out
+    table = pd.read_csv(out / "results.csv")
+    assert list(table["method"]) == ["plain", "plain", "scaled", "scaled"]
+    assert list(table["x"]) == [0.25, 0.5, 0.25, 0.5]
+    # the measures come from each member's own columns: y = scale x^2
+    assert list(table["fscore"]) == [0.0625, 0.25, 0.625, 2.5]
+    assert list(table["outliers"]) == list(table["dropout"]) == [0.75, 0.5, 0.75, 0.5]
+    assert list(table["bias"]) == [0.0625, 0.25, 0.25, 0.5]
+    assert (out / "a" / "results.csv").is_file() and (out / "b" / "results.csv").is_file()
+    assert {p.name for p in (out / "plots").iterdir()} == {
+        "fscore.png", "outliers.png", "dropout.png", "bias.png"}
+    # resumable: a second run runs nothing again
+    assert main(["study", str(suite), "--out", str(out)]) == 0
+    assert "0 run now" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("edit, field", [
+    (("rows = \"x\"", "rows = \"z\""), "method[0].study"),
+    (("fscore = \"y\"", "fscore = \"w\""), "method[0].fscore"),
+    (("bias = \"x\"", "bias = \"x\"\ncolour = \"red\""), "method[1]"),
+])
+def test_a_bad_suite_names_the_file_and_field(tmp_path, capfd, edit, field):
+    _spec(tmp_path, MEMBER.format(name="a", scale=1.0), "a.toml")
+    _spec(tmp_path, MEMBER.format(name="b", scale=10.0), "b.toml")
+    suite = _spec(tmp_path, SUITE.replace(*edit, 1), "suite.toml")
+    assert main(["study", str(suite), "--out", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "suite.toml" in err[0] and field in err[0], err
+    assert not (tmp_path / "out").exists()
