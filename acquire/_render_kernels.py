@@ -27,29 +27,32 @@ BLOCK = 2048  # rays per block of the scattered parallel loops
 
 
 @nb.njit(inline="always", cache=True)
-def scattered_blocks(n):  # pragma: no cover
-    """``(number of blocks, stride)`` for a parallel loop over ``n`` rays in blocks of
-    :data:`BLOCK` taken in a scattered order (:func:`block_rows`). numba splits a
-    ``prange`` into one contiguous range per thread, and a view's hits are not spread
-    evenly over its rows (the sky at the top, the ground at the bottom): the thread
-    with the ground did 2.6 times the other's work and the fBm took 1.4x its balanced
-    time. ``stride`` is coprime with the number of blocks, near its golden section."""
-    m = (n + BLOCK - 1) // BLOCK
-    g = max(int(m * 0.6180339887498949), 1)
-    while True:
-        a, b = g, m
-        while b:
-            a, b = b, a % b
-        if a == 1 or m == 0:
-            return m, g
-        g += 1
+def n_blocks(n):  # pragma: no cover
+    """The number of blocks of :data:`BLOCK` rays in ``n`` rays, for a parallel loop
+    ``for k in prange(n_blocks(n)): lo, hi = block_rows(k, n)``, which takes the blocks in
+    a scattered order. numba splits a ``prange`` into one contiguous range per thread,
+    and a view's hits are not spread evenly over its rows (the sky at the top, the ground
+    at the bottom): the thread with the ground did 2.6 times the other's work and the fBm
+    took 1.4x its balanced time."""
+    return (n + BLOCK - 1) // BLOCK
 
 
 @nb.njit(inline="always", cache=True)
-def block_rows(k, m, g, n):  # pragma: no cover
-    """The rows ``[lo, hi)`` of the ``k``-th of ``m`` scattered blocks (stride ``g``)."""
-    b = (k * g) % m
-    return b * BLOCK, min(n, (b + 1) * BLOCK)
+def block_rows(k, n):  # pragma: no cover
+    """The rows ``[lo, hi)`` of the ``k``-th block of the scattered order: block
+    ``k g mod m`` of the ``m`` blocks, ``g`` coprime with ``m`` near its golden section,
+    so each thread's contiguous run of ``k`` visits blocks all over the rows."""
+    m = n_blocks(n)
+    g = max(int(m * 0.6180339887498949), 1)
+    while m > 1:
+        a, b = g, m
+        while b:
+            a, b = b, a % b
+        if a == 1:
+            break
+        g += 1
+    blk = (k * g) % m
+    return blk * BLOCK, min(n, (blk + 1) * BLOCK)
 
 
 @nb.njit(parallel=True, cache=True)
@@ -110,9 +113,8 @@ def albedo_fast(points, hit, obj, code, Tinv, scale, contrast, base, perms, octa
     objects (0) are left to the caller."""
     norm = 2.0 - 0.5 ** (octaves - 1)
     nrays = points.shape[0]
-    nblocks, stride = scattered_blocks(nrays)
-    for blk in nb.prange(nblocks):
-        lo, hi = block_rows(blk, nblocks, stride, nrays)
+    for blk in nb.prange(n_blocks(nrays)):
+        lo, hi = block_rows(blk, nrays)
         for i in range(lo, hi):
             _albedo_one(i, points, hit, obj, code, Tinv, scale, contrast, base, perms,
                         octaves, norm, out)
@@ -156,9 +158,8 @@ def light_irradiance(points, normals, hit, kind, vec, intensity, irr):  # pragma
     """Unshadowed irradiance (per unit colour) of a point light at ``vec`` or a
     directional one travelling along ``vec`` (unit), as :mod:`acquire.lights`."""
     nrays = points.shape[0]
-    nblocks, stride = scattered_blocks(nrays)
-    for blk in nb.prange(nblocks):
-        lo, hi = block_rows(blk, nblocks, stride, nrays)
+    for blk in nb.prange(n_blocks(nrays)):
+        lo, hi = block_rows(blk, nrays)
         for i in range(lo, hi):
             if not hit[i]:
                 irr[i] = 0.0
@@ -335,9 +336,8 @@ def ground_truth(hit, t, obj, normals, points, ids, depth, oid, nrm, pts):  # pr
     ``t`` is z-depth for camera rays), object ids (``ids[obj]``, -1 on a miss), normals
     and points (zeros on a miss)."""
     nrays = hit.shape[0]
-    nblocks, stride = scattered_blocks(nrays)
-    for blk in nb.prange(nblocks):
-        lo, hi = block_rows(blk, nblocks, stride, nrays)
+    for blk in nb.prange(n_blocks(nrays)):
+        lo, hi = block_rows(blk, nrays)
         for i in range(lo, hi):
             depth[i] = t[i] if hit[i] else 0.0
             oid[i] = ids[obj[i]] if hit[i] else -1

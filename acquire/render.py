@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from acquire._render_kernels import block_rows, scattered_blocks
+from acquire._render_kernels import block_rows, n_blocks
 from acquire.camera import Camera
 from acquire.scene import RenderScene
 
@@ -94,9 +94,8 @@ def _refine_hits(o, d, hit, obj, face, V, F, N, ana_kind, ana_p, ana_n, ana_r,
     ``ana_r``; 2 plane: point ``ana_p``, unit normal ``ana_n``; world frame), the exact
     intersection and normal instead. Misses get t = inf and zeros."""
     nrays = o.shape[0]
-    nblocks, stride = scattered_blocks(nrays)
-    for blk in numba.prange(nblocks):
-        lo, hi = block_rows(blk, nblocks, stride, nrays)
+    for blk in numba.prange(n_blocks(nrays)):
+        lo, hi = block_rows(blk, nrays)
         for j in range(lo, hi):
             if not hit[j]:
                 t[j] = np.inf

@@ -95,13 +95,13 @@ def test_direct_light_matches_the_light_protocol(scene, camera):
 
 @pytest.mark.parametrize("n", [0, 1, 2047, 2048, 2049, 100_003])
 def test_scattered_blocks_visit_every_row_once(n):
-    from acquire._render_kernels import BLOCK, block_rows, scattered_blocks
+    from acquire._render_kernels import BLOCK, block_rows, n_blocks
 
-    m, g = scattered_blocks(n)
+    m = n_blocks(n)
     seen = np.zeros(n, np.int64)
     starts = []
     for k in range(m):
-        lo, hi = block_rows(k, m, g, n)
+        lo, hi = block_rows(k, n)
         seen[lo:hi] += 1
         starts.append(lo)
     assert np.all(seen == 1)
