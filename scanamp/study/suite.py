@@ -151,7 +151,7 @@ def _plot(table, suite: Suite, column: str, label: str, path: Path) -> None:
     values = list(dict.fromkeys(table[suite.rows]))
     methods = list(dict.fromkeys(table["method"]))
     width = 0.8 / len(methods)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.9 * len(values), 3.2))
+    fig, ax = plt.subplots(figsize=(1.0 + 0.9 * len(values), 3.8))
     x = np.arange(len(values))
     for k, name in enumerate(methods):
         sub = table[table["method"] == name].set_index(suite.rows)[column]
@@ -161,7 +161,8 @@ def _plot(table, suite: Suite, column: str, label: str, path: Path) -> None:
     ax.set_ylabel(label)
     ax.set_title(f"{suite.name}: {label} by method and {suite.rows}", fontsize=9)
     ax.axhline(0.0, color="0.3", lw=0.6)
-    ax.legend(fontsize=7, ncol=min(len(methods), 5))
+    ax.legend(fontsize=7, ncol=min(len(methods), 6), loc="upper center",
+              bbox_to_anchor=(0.5, -0.38), frameon=False)
     fig.tight_layout()
     with atomic_file(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
