@@ -86,6 +86,8 @@ def load_suite(name_or_path: str | Path) -> Suite:
         if key not in ("suite", "method"):
             raise InputError("unknown table; expected suite and method", path=path, field=key)
     head = data["suite"]
+    if not isinstance(head, dict):
+        raise InputError("expected a table", path=path, field="suite")
     for key in ("name", "rows"):
         if not isinstance(head.get(key), str) or not head[key]:
             raise InputError("expected a non-empty string", path=path, field=f"suite.{key}")
@@ -94,6 +96,8 @@ def load_suite(name_or_path: str | Path) -> Suite:
         raise InputError("expected at least one [[method]] table", path=path, field="method")
     methods, loaded = [], {}
     for i, m in enumerate(raw):
+        if not isinstance(m, dict):
+            raise InputError("expected a table", path=path, field=f"method[{i}]")
         for key in ("name", "study", *_KEYS):
             if not isinstance(m.get(key), str) or not m[key]:
                 raise InputError("expected a non-empty string", path=path,
