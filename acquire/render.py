@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 _SHADOW_OFFSET = 1e-5  # shadow rays start this far off the surface (m)
 
 __all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
-           "bounce_rays", "reflect_toward", "camera_rays", "subsurface_spread"]
+           "bounce_rays", "reflect_toward", "camera_rays", "centre_hits", "subsurface_spread"]
 
 
 @dataclass
