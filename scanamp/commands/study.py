@@ -55,13 +55,18 @@ def run(args, config: StudyOptions):
     print(f"study {study.name!r}: {res['runs']} runs ({res['done_before']} recorded before, "
           f"{res['executed']} run now, {res['failed']} failed) -> {args.out}/results.csv")
     if len(df):
-        import pandas as pd
-
         cols = [*study.params, *study.metrics, "status"]
-        with pd.option_context("display.width", 160, "display.max_columns", 20,
-                               "display.float_format", "{:.4g}".format):
-            print(df[cols].rename(columns=lambda c: c.rsplit(".", 1)[-1]).to_string(index=False))
+        _print_table(df[cols].rename(columns=lambda c: c.rsplit(".", 1)[-1]))
     return 0
+
+
+def _print_table(df) -> None:
+    """A results table on stdout, four significant digits."""
+    import pandas as pd
+
+    with pd.option_context("display.width", 160, "display.max_columns", 20,
+                           "display.float_format", "{:.4g}".format):
+        print(df.to_string(index=False))
 
 
 def _run_suite(args, config: StudyOptions):
@@ -83,9 +88,5 @@ def _run_suite(args, config: StudyOptions):
     table = res["table"]
     print(f"suite {suite.name!r} -> {args.out}/results.csv, {args.out}/plots/")
     if len(table):
-        import pandas as pd
-
-        with pd.option_context("display.width", 160, "display.max_columns", 20,
-                               "display.float_format", "{:.4g}".format):
-            print(table.to_string(index=False))
+        _print_table(table)
     return 0
