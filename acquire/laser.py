@@ -306,8 +306,9 @@ class LaserRenderer:
                                                                alb[k])[:, ch]
         if translucent.any():
             k = np.flatnonzero(translucent)
+            wo = -dn[ok[k]] / np.linalg.norm(dn[ok[k]], axis=1, keepdims=True)
             rad[ok[k]] = _subsurface_light(scene, laser, P[k], N[k], G[k], obj[k], alb[k, ch],
-                                           signed[ok[k]], ch)
+                                           signed[ok[k]], ch, wo)
         if laser.speckle > 0 and laser.speckle_grain == 0:   # independent pixels
             if rng is None:
                 raise ValueError("rng: a laser with speckle needs a random generator")
@@ -420,15 +421,17 @@ def subsurface_reach(scene, channel: int, *, fraction: float = 0.01) -> float:
     return max(reach, default=0.0)
 
 
-def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch):
+def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch, wo):
     """Exit radiance of the sheet's light that entered a translucent surface, at the
     points ``P`` (normals ``N``, geometric ``G``) of objects ``obj`` with albedo ``alb``
-    in channel ``ch`` and signed distances ``s`` to the sheet's plane.
+    in channel ``ch`` and signed distances ``s`` to the sheet's plane, seen along ``wo``.
 
     Locally the surface is its tangent plane and the stripe the line where the sheet
     crosses it; the light enters along that line, lit where the stripe's point nearest
     the exit point sees the laser (its shadow ray), and leaves by the dipole's line
-    profile shifted along the refracted ray (:func:`acquire.subsurface.stripe_radiance`).
+    profile shifted along the refracted ray (:func:`acquire.subsurface.stripe_radiance`),
+    plus the light scattered once, which leaves where it entered
+    (:meth:`acquire.materials.Material.single_scattering`, the sheet's profile).
     A textured albedo scales the exit light by its ratio to the material's base albedo.
     """
     from acquire.render import visibility
@@ -460,7 +463,10 @@ def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch):
         shift = m.mfp * sin_t * np.einsum("ij,ij->i", tang[k], u_hat[k]) / np.maximum(
             tlen[k], 1e-12)
         tex = alb[k] / max(float(m.albedo[ch]), 1e-12)
-        out[k] = e0[k] * tex * stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
+        once = (m.single_scattering(-d_in[k], wo[k], N[k])[:, ch] * dip.albedo
+                * np.exp(-0.5 * (s[k] / laser.thickness) ** 2))
+        out[k] = e0[k] * tex * (stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
+                                + once)
     return out
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.brdf import BRDFS, dielectric_f0, ggx
+from acquire.subsurface import DEFAULT_ANISOTROPY
 from core.validate import check_array, check_choice, check_positive, check_range
 from procgen.noise import SOLID_TEXTURES, fbm
 
@@ -75,7 +76,9 @@ class Material:
         The reflectance model (:mod:`acquire.brdf`); ``subsurface`` is a translucent
         material (marble, wax, skin) whose albedo is its diffuse reflectance and whose
         light spreads under the surface by the dipole profile (:mod:`acquire.subsurface`):
-        a laser stripe widens and shifts; under broad light it looks Lambertian;
+        a laser stripe widens and shifts; the share scattered only once leaves where it
+        entered, brighter toward grazing angles (``anisotropy``); under broad light it
+        reflects its albedo;
         ``translucent`` is a thin sheet (a leaf, paper, a lampshade) that reflects
         ``1 - transmission`` of its albedo diffusely and lets ``transmission`` of it
         through, diffusely, to the other side.
@@ -89,6 +92,12 @@ class Material:
     mfp : float
         Mean free path of a subsurface material, metres (1 / reduced extinction; marble
         about 0.4 mm, skin 1 mm, wax several mm).
+    anisotropy : float
+        Henyey-Greenstein mean cosine ``g`` of a subsurface material's scattering, in
+        (-1, 1): 0 isotropic, toward 1 forward. It sets how much light is scattered once
+        and straight back (the local, angular part of the reflection,
+        :func:`acquire.subsurface.single_scattering`); the diffusion depends only on the
+        reduced mean free path.
     """
 
     kind: str = "constant"
@@ -103,6 +112,7 @@ class Material:
     ior: float = 1.5
     mfp: float = 1e-3
     transmission: float = 0.5
+    anisotropy: float = DEFAULT_ANISOTROPY
 
     def __post_init__(self):
         check_choice(self.kind, "kind", MATERIAL_KINDS)
@@ -111,6 +121,8 @@ class Material:
         self.ior = check_range(self.ior, "ior", 1.0, 4.0, lo_open=True)
         self.mfp = check_range(self.mfp, "mfp", 0.0, 1.0, lo_open=True)
         self.transmission = check_range(self.transmission, "transmission", 0.0, 1.0)
+        self.anisotropy = check_range(self.anisotropy, "anisotropy", -1.0, 1.0,
+                                      lo_open=True, hi_open=True)
         self.albedo = np.clip(check_array(self.albedo, "albedo", shape=(3,)), 0, 1)
         self.scale = check_positive(self.scale, "scale")
         if self.kind == "solid":
@@ -165,7 +177,29 @@ class Material:
         channel (its base albedo there)."""
         from acquire.subsurface import Dipole
 
-        return Dipole(float(self.albedo[channel]), float(self.mfp), float(self.ior))
+        return Dipole(max(float(self.albedo[channel]), 1e-3), float(self.mfp),
+                      float(self.ior), float(self.anisotropy))
+
+    def subsurface_shares(self) -> tuple[np.ndarray, np.ndarray]:
+        """Of a subsurface material's albedo, per colour channel: the share carried by the
+        diffusion (spread under the surface) and the share scattered once (local); they
+        sum to 1."""
+        d = [self.dipole(c) for c in range(3)]
+        single = np.array([x.single / x.albedo for x in d])
+        return 1.0 - single, single
+
+    def single_scattering(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """``(k, 3)``: the radiance that a subsurface material scatters once, per unit
+        irradiance from ``wi`` and per unit albedo, seen from ``wo`` at normals ``n``
+        (:func:`acquire.subsurface.single_scattering` times the single-scattering albedo
+        over the base albedo): times a hit's albedo and its irradiance, it is that hit's
+        single-scattered radiance; under broad light it averages to the single share of
+        :meth:`subsurface_shares`."""
+        from acquire.subsurface import single_scattering
+
+        f = single_scattering(wi, wo, n, g=float(self.anisotropy), eta=float(self.ior))
+        k = np.array([d.single_albedo / d.albedo for d in map(self.dipole, range(3))])
+        return f[:, None] * k[None, :]
 
 
 def _bilinear(img: np.ndarray, uvs: np.ndarray) -> np.ndarray:

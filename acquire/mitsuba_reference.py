@@ -16,8 +16,9 @@ matched settings. What is described, and how:
   a ``homogeneous`` medium with an isotropic phase function, extinction ``1 / mfp`` and
   the single-scattering albedo whose semi-infinite medium reflects the material's
   albedo (:func:`medium_albedo`), rendered by the ``volpath`` integrator: the exact
-  transport that the dipole approximates. A refracting boundary is not described: behind
-  a smooth dielectric a point light is out of a path tracer's reach;
+  transport that the dipole and the single term approximate. A refracting boundary is
+  not described (behind a smooth dielectric a point light is out of a path tracer's
+  reach), nor an anisotropic phase function (``medium_albedo`` is isotropic's);
   (Mitsuba 3 has no diffuse transmitter, so thin translucent sheets are not described);
 - lights: point and directional lights, with the unit conversion of
   :mod:`acquire.lights` (our unit intensity head-on on white gives radiance 1, so
@@ -40,9 +41,11 @@ Where the two differ on purpose (stated, and measured in ``docs/materials.md``):
   (``1 / (1 - F_dr R)`` and an ``eta^-2`` factor), ours is a single transmission in and
   out of the coat;
 - no ambient term: ours adds an unoccluded constant, which no physical light gives;
-- subsurface: ours is the diffusion dipole, a Lambertian exit under broad light and the
-  irradiance spread over the image; Mitsuba follows every scattering event (single
-  scattering, the exit's angular distribution, light around the curvature).
+- subsurface: ours is the diffusion dipole with a Lambertian exit plus the closed-form
+  single scattering of a deep medium, the irradiance spread over the image (no
+  foreshortening; the silhouette holds the light in as an edge would); Mitsuba follows
+  every scattering event (the exit's angular distribution of the multiple scattering,
+  light around the curvature and into the unlit back).
 
 References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*, 4th ed.
 (2023); W. Jakob et al., Mitsuba 3 (2022), https://mitsuba.readthedocs.io;
@@ -143,6 +146,9 @@ def _bsdf(material) -> dict:
         if abs(float(material.ior) - 1.0) > 1e-3:
             raise ValueError(f"material.ior: the reference subsurface material is "
                              f"index-matched (ior within 1e-3 of 1), got {material.ior!r}")
+        if material.anisotropy != 0.0:
+            raise ValueError(f"material.anisotropy: the reference subsurface material "
+                             f"scatters isotropically (0), got {material.anisotropy!r}")
         return {"type": "null"}
     if material.brdf == "lambert":
         return {"type": "diffuse", "reflectance": _rgb(material.albedo)}
@@ -312,7 +318,7 @@ def _materials() -> dict:
             "dielectric r0.3": Material(albedo=np.array([0.2, 0.4, 0.9]), brdf="dielectric",
                                         roughness=0.3),
             "subsurface 10mm": Material(albedo=np.array([0.8, 0.5, 0.3]), brdf="subsurface",
-                                        mfp=0.01, ior=1.0001)}
+                                        mfp=0.01, ior=1.0001, anisotropy=0.0)}
 
 
 REFERENCE_MATERIALS = tuple(_materials())

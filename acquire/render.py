@@ -30,7 +30,8 @@ log = logging.getLogger(__name__)
 _SHADOW_OFFSET = 1e-5  # shadow rays start this far off the surface (m)
 
 __all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
-           "bounce_rays", "reflect_toward", "camera_rays", "centre_hits", "subsurface_spread"]
+           "bounce_rays", "reflect_toward", "camera_rays", "centre_hits", "subsurface_spread",
+           "subsurface_single", "single_excess"]
 
 
 @dataclass
@@ -587,19 +588,67 @@ def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
             yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
 
 
+def single_excess(scene: RenderScene, hits: Hits, rows: np.ndarray, wi: np.ndarray,
+                  wo: np.ndarray) -> np.ndarray:
+    """``(len(rows), 3)``: at the hits ``rows``, for light from ``wi`` seen from ``wo``,
+    how much more than its broad-light share a subsurface material scatters once
+    (:meth:`acquire.materials.Material.single_scattering` minus the single share of
+    :meth:`~acquire.materials.Material.subsurface_shares`), per unit albedo and
+    irradiance; zero on other materials."""
+    out = np.zeros((len(rows), 3))
+    obj = hits.obj[rows]
+    for i, o in enumerate(scene.objects):
+        if o.material.brdf != "subsurface":
+            continue
+        k = np.flatnonzero(obj == i)
+        if k.size:
+            out[k] = (o.material.single_scattering(wi[k], wo[k], hits.normals[rows[k]])
+                      - o.material.subsurface_shares()[1][None, :])
+    return out
+
+
+def subsurface_single(scene: RenderScene, hits: Hits, view_dirs: np.ndarray, *,
+                      lights=None, alb: np.ndarray | None = None) -> np.ndarray:
+    """``(n, 3)``: the angular part of the light that each of ``lights`` (the scene's
+    by default) scatters once under subsurface materials, beyond the broad-light share
+    that :func:`subsurface_spread` gives every irradiance: albedo times the light's
+    unshadowed irradiance times :func:`single_excess`, summed over the lights; zero
+    elsewhere. Passed to :func:`subsurface_spread` as ``single``."""
+    lights = scene.lights if lights is None else lights
+    out = np.zeros((len(hits.hit), 3))
+    sub = [i for i, o in enumerate(scene.objects) if o.material.brdf == "subsurface"]
+    h = np.flatnonzero(hits.hit & np.isin(hits.obj, sub))
+    if h.size == 0:
+        return out
+    alb = (albedo(scene, hits) if alb is None else alb)[h]
+    P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
+    wo = -np.asarray(view_dirs, np.float64)[h]
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+        k = lit[vis]
+        wi = light.shadow_rays(P[k])[0]
+        wi = wi / np.linalg.norm(wi, axis=1, keepdims=True)
+        out[h[k]] += alb[k] * irr[k] * single_excess(scene, hits, h[k], wi, wo[k])
+    return out
+
+
 def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersample: int,
-                      rad: np.ndarray, alb: np.ndarray) -> np.ndarray:
+                      rad: np.ndarray, alb: np.ndarray, *,
+                      single: np.ndarray | None = None) -> np.ndarray:
     """The radiance ``rad`` (``(n,)`` or ``(n, 3)``, one row per ray of
-    ``camera.pixel_grid(supersample)``) with the light falling on subsurface materials
-    carried under their surface (:mod:`acquire.subsurface`): on each such object the
-    irradiance ``rad / alb`` is spread by its dipole's Gaussian mixture
-    (:func:`acquire.subsurface.spread_irradiance`, per colour channel, or on the mean
-    albedo for a monochrome ``rad``) and multiplied back by the albedo there, so the
-    texture stays sharp while light patterns blur, and an evenly lit surface looks as a
-    Lambertian one. The spread is in the image, at the object's median depth, within the
+    ``camera.pixel_grid(supersample)``, subsurface materials shaded as Lambertian) with
+    the light falling on subsurface materials carried under their surface
+    (:mod:`acquire.subsurface`): on each such object the irradiance ``rad / alb`` is
+    spread by its dipole's Gaussian mixture (:func:`acquire.subsurface.spread_irradiance`,
+    per colour channel, or on the mean albedo for a monochrome ``rad``), weighted by the
+    diffusion's share of the albedo; the single-scattering share stays where the light
+    fell; both are multiplied back by the albedo there, so the texture stays sharp while
+    light patterns blur, and an evenly lit surface looks as a Lambertian one. ``single``
+    (rows as ``rad``, :func:`subsurface_single`) adds the single scattering's angular
+    shape. The spread is in the image, at the object's median depth, within the
     object's pixels: foreshortening and light crossing between parts of one object that
     are far apart in depth are not modelled."""
-    from acquire.subsurface import Dipole, gaussian_mixture, spread_irradiance
+    from acquire.subsurface import gaussian_mixture, spread_irradiance
 
     idx = [i for i, o in enumerate(scene.objects) if o.material.brdf == "subsurface"]
     if not idx:
@@ -626,13 +675,22 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
             continue
         px_per_m = camera.fx * s / float(np.median(hits.t[sel]))
         mask = grid(sel)
-        channels = [float(np.mean(m.albedo))] if mono else [float(x) for x in m.albedo]
+        multiple, once = m.subsurface_shares()
+        dipoles = ([dataclasses.replace(m.dipole(0), albedo=max(float(np.mean(m.albedo)),
+                                                                1e-3))]
+                   if mono else [m.dipole(k) for k in range(3)])
         spread = np.empty_like(Eg)
-        for k, albedo_k in enumerate(channels):
-            sig, w = gaussian_mixture(Dipole(max(albedo_k, 1e-3), m.mfp, m.ior))
+        for k, dip in enumerate(dipoles):
+            sig, w = gaussian_mixture(dip)
             spread[..., k] = spread_irradiance(Eg[..., k], mask, sig * px_per_m, w)
         back = spread.reshape(H, s, W, s, c).swapaxes(1, 2).reshape(-1, c)
-        out[sel] = (back[:, 0] * a if mono else back * a)[sel]
+        if mono:
+            back = back[:, 0] * float(np.mean(multiple)) + E[:, 0] * float(np.mean(once))
+        else:
+            back = back * multiple + E * once
+        out[sel] = (back * a)[sel]
+    if single is not None:
+        out += single.mean(axis=1) if (mono and single.ndim == 2) else single
     return out
 
 
@@ -682,7 +740,9 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     rad = shade(scene, hits, lights=lights, ambient=ambient, view_dirs=d, bounces=bounces,
                 rng=np.random.default_rng(seed) if bounces else None)
     if any(o.material.brdf == "subsurface" for o in scene.objects):
-        rad = subsurface_spread(scene, camera, hits, s, rad, albedo(scene, hits))
+        alb = albedo(scene, hits)
+        rad = subsurface_spread(scene, camera, hits, s, rad, alb, single=subsurface_single(
+            scene, hits, d, lights=lights, alb=alb))
     radiance = np.empty((H * W, 3), np.float32)
     rk.pixel_mean(rad, s * s, radiance)
     radiance = radiance.reshape(H, W, 3)

@@ -115,11 +115,11 @@ def _material(tbl, *, path, prefix, seed) -> Material:
         kw["texture"] = require(tbl, "texture", str, path=path, prefix=prefix)
     if "brdf" in tbl:
         kw["brdf"] = require(tbl, "brdf", str, path=path, prefix=prefix)
-    for key in ("roughness", "ior", "mfp", "transmission"):
+    for key in ("roughness", "ior", "mfp", "transmission", "anisotropy"):
         if key in tbl:
             kw[key] = require(tbl, key, float, path=path, prefix=prefix)
     known = {"kind", "albedo", "scale", "contrast", "texture", "seed", "brdf", "roughness",
-             "ior", "mfp", "transmission"}
+             "ior", "mfp", "transmission", "anisotropy"}
     for key in tbl:
         if key not in known:
             raise InputError(f"unknown key; expected one of {', '.join(sorted(known))}",

@@ -32,3 +32,18 @@ def test_textureless_scenes_keep_the_reflectance_model(tmp_path):
     plain = scene_for_capture(str(path), textureless=True)
     m = plain.render_scene.objects[0].material
     assert m.kind == "constant" and (m.brdf, m.roughness) == ("conductor", 0.2)
+
+
+def test_scene_toml_sets_a_subsurface_anisotropy_and_names_a_bad_one():
+    import pytest
+
+    from core.validate import InputError
+    from data_synth.scenes import build_scene
+
+    spec = build_scene("object").spec
+    spec["objects"][0]["material"] = {"brdf": "subsurface", "mfp": 2e-3, "anisotropy": 0.3}
+    m = build_scene(spec).render_scene.objects[0].material
+    assert (m.brdf, m.mfp, m.anisotropy) == ("subsurface", 2e-3, 0.3)
+    spec["objects"][0]["material"]["anisotropy"] = 1.0
+    with pytest.raises(InputError, match="anisotropy"):
+        build_scene(spec)

@@ -2,6 +2,8 @@
 acquire.mitsuba_reference rendered by both at matched settings agree, direct light only;
 and the description itself is checked (a wrong frame or unit would not agree)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -109,17 +111,25 @@ def test_h_function_and_the_medium_albedo():
 
 
 def test_subsurface_sphere_is_near_the_volumetric_transport():
-    """The dipole against the medium it approximates, followed event by event: within
-    8 % after the tone map and 12 % in mean radiance per channel (measured at 160x120:
-    4.8 %, and Mitsuba 2 to 7 % darker), where the material's broad-light Lambertian
-    exit is the known difference; a light left out of the conversion to Mitsuba's units
-    or a medium of the dipole's own albedo would show."""
+    """The dipole and the single-scattering term against the medium they approximate,
+    followed event by event: within 4.5 % after the tone map (measured here 3.2 %, with
+    Mitsuba's noise at 256 samples) and 4 % in mean radiance per channel. Without its
+    single scattering (the same material scattering forward, g = 0.99: the dipole alone)
+    the rim is too dark and the centre too bright, and the error is larger; a light left
+    out of the conversion to Mitsuba's units or a medium of the dipole's own albedo
+    would show."""
     scene, cam = corner_scene("subsurface 10mm", light="point", width=96, height=72)
     ours = render(scene, cam, supersample=4)
     ref = render_reference(scene, cam, spp=256, seed=0)
     ids = ours.object_id
-    assert agreement(ours.radiance, ref, ids).relative_l1 <= 0.08
+    err = agreement(ours.radiance, ref, ids).relative_l1
+    assert err <= 0.045
     m = ids == 2
     assert m.sum() > 400
     ratio = ref[m].mean(0) / ours.radiance[m].mean(0)
-    assert np.all(np.abs(ratio - 1) <= 0.12), ratio
+    assert np.all(np.abs(ratio - 1) <= 0.04), ratio
+    ball = scene.objects[0]
+    scene.objects[0] = dataclasses.replace(
+        ball, material=dataclasses.replace(ball.material, anisotropy=0.99))
+    dipole_only = render(scene, cam, supersample=4)
+    assert agreement(dipole_only.radiance, ref, ids).relative_l1 > err + 0.01

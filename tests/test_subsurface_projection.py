@@ -34,7 +34,7 @@ def _mtf_mixture(sig, w, f: float) -> float:
 def test_mixture_has_the_dipoles_transfer_function(albedo):
     d = Dipole(albedo, 1e-3)
     sig, w = gaussian_mixture(d)
-    assert w.sum() == pytest.approx(albedo, rel=1e-12)
+    assert w.sum() == pytest.approx(d.multiple, rel=1e-12)
     assert np.all(w > 0) and np.all(sig > 0)
     for f in (0.0, 20.0, 50.0, 100.0, 300.0):    # cycles per metre; the mfp is 1 mm
         assert _mtf_mixture(sig, w, f) == pytest.approx(_mtf_exact(d, f), abs=0.025 * albedo)

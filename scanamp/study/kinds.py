@@ -43,7 +43,7 @@ __all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", 
 # texture) kept. ``material.preset`` names a set of them
 # (:data:`acquire.materials.MATERIAL_PRESETS`); ``material.object`` names the object
 # (default: ``object``).
-MATERIAL_KEYS = ("object", "preset", "brdf", "roughness", "ior", "mfp", "albedo")
+MATERIAL_KEYS = ("object", "preset", "brdf", "roughness", "ior", "mfp", "anisotropy", "albedo")
 
 
 @dataclass(frozen=True)
