@@ -81,6 +81,10 @@ class LaserReconConfig(Config):
     speckle: float = option(0.0, range="[0, 2]",
                             help="the laser's speckle contrast as known on the bench (feeds "
                                  "the error model only)")
+    speckle_grain: float = option(0.0, unit="px", range="[0, inf)",
+                                  help="speckle grain on the sensor, 2.44 x wavelength x "
+                                       "f-number / pixel pitch (error model only; 0: "
+                                       "independent pixels)")
     max_camera_rms_px: float = option(1.0, unit="px", range="(0, inf)",
                                       help="sanity limit of the camera calibration RMS")
     max_plane_rms_m: float = option(0.5e-3, unit="m", range="(0, inf)",
@@ -164,6 +168,7 @@ def run(config: LaserReconConfig, capture_dir, out_dir, *,
             "limits": [cfg.max_camera_rms_px, cfg.max_plane_rms_m, cfg.max_axis_rms_px]})
         stripes = st.run("extract", _extract, cap, prep, cfg, depends={
             "capture": inputs, "stripe": stripe_opts, "speckle": cfg.speckle,
+            "speckle_grain": cfg.speckle_grain,
             "min_stripe_fraction": cfg.min_stripe_fraction})
         tri = st.run("triangulate", _triangulate, cap, prep, calib, stripes, cfg,
                      depends={"max_range": cfg.max_range})
@@ -288,7 +293,7 @@ def _extract(cap, prep, cfg) -> dict:
     frames, jpath = prep["frames"], prep["jpath"]
     sopt = cfg.stripe_options(prep["bit_depth"])
     peak_model = PeakErrorAccumulator(cap.data.get("sensor") or _DEFAULT_SENSOR, sopt,
-                                      speckle=cfg.speckle)
+                                      speckle=cfg.speckle, speckle_grain=cfg.speckle_grain)
     cols, n_sat, size = None, np.zeros(len(frames), int), None
     for k, fr in enumerate(track(frames, "stripe extraction")):
         img = _read(cap.path(fr["image"]), prep["channel"])
