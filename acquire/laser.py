@@ -290,8 +290,13 @@ class LaserRenderer:
         rad = np.zeros(len(dn))
         translucent = np.isin(obj, [i for i, o in enumerate(scene.objects)
                                     if o.material.brdf == "subsurface"])
-        # surfaces: the irradiance where the sheet falls, reflected toward the camera
-        e = np.where(translucent, 0.0, laser.irradiance(P, N)[:, ch])
+        # surfaces: the irradiance where the sheet falls, reflected toward the camera; a
+        # thin translucent sheet is lit from either side (from behind, it lets through)
+        thin = np.isin(obj, [i for i, o in enumerate(scene.objects)
+                             if o.material.brdf == "translucent"])
+        back = thin & (np.einsum("ij,ij->i", laser.origin - P, N) < 0)
+        e = np.where(translucent, 0.0,
+                     laser.irradiance(P, np.where(back[:, None], -N, N))[:, ch])
         has = np.flatnonzero(e > 0)
         if has.size:
             has = has[visibility(scene, laser, P[has], G[has])]

@@ -62,3 +62,25 @@ def test_the_bounce_carries_light_through_a_sheet():
     assert np.all(out[0.0][0] == 0)                  # opaque from below: only the bounce
     assert np.all(out[0.0][1] > 0)                   # the floor lights its underside
     assert np.all(out[0.6][1] > out[0.6][0])
+
+
+@pytest.mark.parametrize("t", [0.2, 0.6])
+def test_a_laser_behind_a_sheet_shows_its_stripe_through_it(t):
+    """The laser plate's sheet mirrored to the far side of a thin translucent plate meets
+    it on the same line: the camera sees the stripe in the same place, with the light
+    let through, ``t / (1 - t)`` of the stripe the sheet reflects from the front."""
+    from acquire.laser import LaserRenderer, LaserSheet
+    from data_synth.plates import laser_plate
+
+    lp = laser_plate(Material(albedo=ALBEDO, brdf="translucent", transmission=t))
+    m = np.array([1.0, 1.0, -1.0])
+    behind = LaserSheet(lp.laser.origin * m, lp.laser.normal * m, lp.laser.direction * m,
+                        lp.laser.fan_angle, lp.laser.thickness, lp.laser.power,
+                        lp.laser.color)
+    r = LaserRenderer(lp.scene, lp.camera)
+    front = r.frame(lp.camera.cam_from_world, lp.laser).radiance.astype(float)
+    back = r.frame(lp.camera.cam_from_world, behind).radiance.astype(float)
+    row = len(front) // 2
+    assert front[row].max() > 0
+    assert np.argmax(back[row]) == np.argmax(front[row])
+    assert back[row].max() / front[row].max() == pytest.approx(t / (1 - t), rel=1e-3)
