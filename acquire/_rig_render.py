@@ -9,7 +9,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from acquire.lights import PointLight
-from acquire.render import albedo, cast, shade, subsurface_single, subsurface_spread
+from acquire.render import albedo, cast, shade, subsurface_angular, subsurface_spread
 from acquire.scene import RenderScene
 from acquire.stereo_rig import RigConfig, rot_z
 
@@ -54,7 +54,7 @@ def render_light_sets(scene: RenderScene, camera: Camera, light_sets, *, supersa
     rads = [subsurface_spread(scene, camera, hits, s,
                               shade(scene, hits, lights=ls, ambient=ambient, view_dirs=d,
                                     bounces=bounces, rng=rng), alb,
-                              single=subsurface_single(scene, hits, d, lights=ls, alb=alb)
+                              angular=subsurface_angular(scene, hits, d, lights=ls, alb=alb)
                               if translucent else None
                               ).reshape(H, W, s * s, 3).mean(axis=2).astype(np.float32)
             for ls in light_sets]

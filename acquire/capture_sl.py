@@ -65,7 +65,14 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
     rays are drawn once per view (:func:`acquire.render.bounce_rays`), and each pattern
     only changes what the surfaces they meet receive. On subsurface materials each
     pattern spreads under the surface (:func:`acquire.render.subsurface_spread`)."""
-    from acquire.render import bounce_rays, reflect_toward, single_excess, subsurface_spread
+    from acquire.render import (
+        SubsurfaceAngular,
+        bounce_rays,
+        exit_weights,
+        reflect_toward,
+        subsurface_spread,
+        subsurface_weights,
+    )
 
     s = int(supersample)
     H, W = camera.height, camera.width
@@ -88,12 +95,14 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
     translucent = any(o.material.brdf == "subsurface" for o in scene.objects)
     alb_all = np.zeros(len(hits.hit))
     alb_all[h] = alb
-    once = None
-    if translucent:   # the angular part of the pattern's light scattered once
+    entry = once = exit_w = None
+    if translucent:   # the angular parts of the pattern's light (per white pixel)
         wi = proj.camera.center - hits.points[h]
         wi /= np.linalg.norm(wi, axis=1, keepdims=True)
         wo = -d[h] / np.linalg.norm(d[h], axis=1, keepdims=True)
-        once = (alb3 * single_excess(scene, hits, h, wi, wo)).mean(axis=1) * factor
+        e, s1 = subsurface_weights(scene, hits, h, wi, wo)
+        entry, once = e.mean(axis=1) * factor, (alb3 * s1).mean(axis=1) * factor
+        exit_w = exit_weights(scene, hits, d).mean(axis=1)
     out = []
     for pat in patterns:
         rad = base.copy()
@@ -101,9 +110,10 @@ def _render_patterns(scene: RenderScene, camera: Camera, proj: PatternProjector,
         if second is not None:
             np.add.at(rad, second[0], second[1] * sample_bilinear(pat, second[2]))
         if translucent:   # the pattern blurs under marble, wax, skin
-            single = np.zeros(len(hits.hit))
-            single[h] = once * sample_bilinear(pat, px)
-            rad = subsurface_spread(scene, camera, hits, s, rad, alb_all, single=single)
+            lit = sample_bilinear(pat, px)
+            ang = SubsurfaceAngular(np.zeros(len(hits.hit)), exit_w, np.zeros(len(hits.hit)))
+            ang.entry[h], ang.single[h] = entry * lit, once * lit
+            rad = subsurface_spread(scene, camera, hits, s, rad, alb_all, angular=ang)
         img = rad.reshape(H, W, s * s).mean(axis=2)
         out.append(sensor.apply(img, rng))
     o, d = camera.rays(camera.pixel_grid())

@@ -434,7 +434,8 @@ def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch, wo):
     Locally the surface is its tangent plane and the stripe the line where the sheet
     crosses it; the light enters along that line, lit where the stripe's point nearest
     the exit point sees the laser (its shadow ray), and leaves by the dipole's line
-    profile shifted along the refracted ray (:func:`acquire.subsurface.stripe_radiance`),
+    profile shifted along the refracted ray (:func:`acquire.subsurface.stripe_radiance`,
+    weighted at its entry and exit by :meth:`acquire.subsurface.Dipole.diffusion_entry`),
     plus the light scattered once, which leaves where it entered
     (:meth:`acquire.materials.Material.single_scattering`, the sheet's profile).
     A textured albedo scales the exit light by its ratio to the material's base albedo.
@@ -470,8 +471,10 @@ def _subsurface_light(scene, laser: LaserSheet, P, N, G, obj, alb, s, ch, wo):
         tex = alb[k] / max(float(m.albedo[ch]), 1e-12)
         once = (m.single_scattering(-d_in[k], wo[k], N[k])[:, ch] * dip.albedo
                 * np.exp(-0.5 * (s[k] / laser.thickness) ** 2))
-        out[k] = e0[k] * tex * (stripe_radiance(dip, s[k], across[k], shift, laser.thickness)
-                                + once)
+        weight = (dip.diffusion_entry(cos_i[k])
+                  * dip.diffusion_entry(np.einsum("ij,ij->i", wo[k], N[k])) / dip.entry_mean)
+        out[k] = e0[k] * tex * (weight * stripe_radiance(dip, s[k], across[k], shift,
+                                                         laser.thickness) + once)
     return out
 
 

@@ -182,11 +182,21 @@ class Material:
 
     def subsurface_shares(self) -> tuple[np.ndarray, np.ndarray]:
         """Of a subsurface material's albedo, per colour channel: the share carried by the
-        diffusion (spread under the surface) and the share scattered once (local); they
-        sum to 1."""
+        diffusion (spread under the surface) and the share scattered once (local), under
+        broad light; they sum to 1."""
         d = [self.dipole(c) for c in range(3)]
         single = np.array([x.single / x.albedo for x in d])
-        return 1.0 - single, single
+        return np.array([x.diffusion / x.albedo for x in d]), single
+
+    def diffusion_weight(self, mu: np.ndarray) -> np.ndarray:
+        """``(k, 3)``: the angular weight of a subsurface material's diffusion at the
+        entry or exit cosines ``mu``, per colour channel, over its cosine-weighted mean
+        (:meth:`acquire.subsurface.Dipole.diffusion_entry` over
+        :attr:`~acquire.subsurface.Dipole.entry_mean`): 1 at every angle unless the
+        single scattering of a near grazing beam leaves the diffusion less."""
+        mu = np.asarray(mu, np.float64)
+        d = [self.dipole(c) for c in range(3)]
+        return np.stack([x.diffusion_entry(mu) / x.entry_mean for x in d], axis=-1)
 
     def single_scattering(self, wi: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
         """``(k, 3)``: the radiance that a subsurface material scatters once, per unit

@@ -31,7 +31,7 @@ _SHADOW_OFFSET = 1e-5  # shadow rays start this far off the surface (m)
 
 __all__ = ["Hits", "Render", "Bounce", "cast", "render", "shade", "one_bounce",
            "bounce_rays", "reflect_toward", "camera_rays", "centre_hits", "subsurface_spread",
-           "subsurface_single", "single_excess"]
+           "SubsurfaceAngular", "subsurface_angular", "subsurface_weights", "exit_weights"]
 
 
 @dataclass
@@ -588,53 +588,93 @@ def _lit(scene: RenderScene, lights, P, N, G, two_sided=None):
             yield light, lit, visibility(scene, light, P[lit], G[lit]), irr
 
 
-def single_excess(scene: RenderScene, hits: Hits, rows: np.ndarray, wi: np.ndarray,
-                  wo: np.ndarray) -> np.ndarray:
-    """``(len(rows), 3)``: at the hits ``rows``, for light from ``wi`` seen from ``wo``,
-    how much more than its broad-light share a subsurface material scatters once
-    (:meth:`acquire.materials.Material.single_scattering` minus the single share of
-    :meth:`~acquire.materials.Material.subsurface_shares`), per unit albedo and
-    irradiance; zero on other materials."""
-    out = np.zeros((len(rows), 3))
+def subsurface_weights(scene: RenderScene, hits: Hits, rows: np.ndarray, wi: np.ndarray,
+                       wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At the hits ``rows`` of subsurface materials, for light from ``wi`` seen from
+    ``wo`` (unit, ``(len(rows), 3)``), per unit albedo and irradiance, how the angular
+    parts of the transport depart from a Lambertian surface's:
+
+    - ``entry - 1``: the diffusion's weight at the light's incidence
+      (:meth:`acquire.materials.Material.diffusion_weight`) less 1;
+    - ``single - share``: the light scattered once
+      (:meth:`~acquire.materials.Material.single_scattering`) less its broad-light share
+      (:meth:`~acquire.materials.Material.subsurface_shares`);
+
+    both ``(len(rows), 3)``, zero on other materials."""
+    entry = np.zeros((len(rows), 3))
+    single = np.zeros((len(rows), 3))
     obj = hits.obj[rows]
     for i, o in enumerate(scene.objects):
-        if o.material.brdf != "subsurface":
+        m = o.material
+        if m.brdf != "subsurface":
             continue
         k = np.flatnonzero(obj == i)
         if k.size:
-            out[k] = (o.material.single_scattering(wi[k], wo[k], hits.normals[rows[k]])
-                      - o.material.subsurface_shares()[1][None, :])
+            n = hits.normals[rows[k]]
+            entry[k] = m.diffusion_weight(np.einsum("ij,ij->i", wi[k], n)) - 1.0
+            single[k] = (m.single_scattering(wi[k], wo[k], n)
+                         - m.subsurface_shares()[1][None, :])
+    return entry, single
+
+
+@dataclass
+class SubsurfaceAngular:
+    """The angular parts of subsurface transport on the rows of a view's hits
+    (:func:`subsurface_angular`), for :func:`subsurface_spread`: ``entry``, irradiance
+    to add to what the diffusion receives; ``exit``, the diffusion's weight toward the
+    viewer; ``single``, radiance scattered once beyond its broad-light share. ``(n,)``
+    (monochrome) or ``(n, 3)``."""
+
+    entry: np.ndarray
+    exit: np.ndarray
+    single: np.ndarray
+
+
+def exit_weights(scene: RenderScene, hits: Hits, view_dirs: np.ndarray) -> np.ndarray:
+    """``(n, 3)``: the diffusion's weight toward the viewer at every hit of a subsurface
+    material (1 elsewhere), for rays along ``view_dirs``."""
+    out = np.ones((len(hits.hit), 3))
+    for i, o in enumerate(scene.objects):
+        if o.material.brdf != "subsurface":
+            continue
+        k = np.flatnonzero(hits.hit & (hits.obj == i))
+        if k.size:
+            d = np.asarray(view_dirs, np.float64)[k]
+            mu = -np.einsum("ij,ij->i", d, hits.normals[k]) / np.linalg.norm(d, axis=1)
+            out[k] = o.material.diffusion_weight(mu)
     return out
 
 
-def subsurface_single(scene: RenderScene, hits: Hits, view_dirs: np.ndarray, *,
-                      lights=None, alb: np.ndarray | None = None) -> np.ndarray:
-    """``(n, 3)``: the angular part of the light that each of ``lights`` (the scene's
-    by default) scatters once under subsurface materials, beyond the broad-light share
-    that :func:`subsurface_spread` gives every irradiance: albedo times the light's
-    unshadowed irradiance times :func:`single_excess`, summed over the lights; zero
-    elsewhere. Passed to :func:`subsurface_spread` as ``single``."""
+def subsurface_angular(scene: RenderScene, hits: Hits, view_dirs: np.ndarray, *,
+                       lights=None, alb: np.ndarray | None = None) -> SubsurfaceAngular:
+    """The :class:`SubsurfaceAngular` parts of ``lights`` (the scene's by default) on
+    the hits of subsurface materials: each light's irradiance (with its shadow) times
+    :func:`subsurface_weights` (and the albedo, for the single scattering), summed over
+    the lights; the exit weights of :func:`exit_weights`. Light that arrives broad
+    (ambient, the bounce) enters with weight 1 and scatters once by its share."""
     lights = scene.lights if lights is None else lights
-    out = np.zeros((len(hits.hit), 3))
+    n = len(hits.hit)
+    entry, single = np.zeros((n, 3)), np.zeros((n, 3))
     sub = [i for i, o in enumerate(scene.objects) if o.material.brdf == "subsurface"]
     h = np.flatnonzero(hits.hit & np.isin(hits.obj, sub))
-    if h.size == 0:
-        return out
-    alb = (albedo(scene, hits) if alb is None else alb)[h]
-    P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
-    wo = -np.asarray(view_dirs, np.float64)[h]
-    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
-    for light, lit, vis, irr in _lit(scene, lights, P, N, G):
-        k = lit[vis]
-        wi = light.shadow_rays(P[k])[0]
-        wi = wi / np.linalg.norm(wi, axis=1, keepdims=True)
-        out[h[k]] += alb[k] * irr[k] * single_excess(scene, hits, h[k], wi, wo[k])
-    return out
+    if h.size:
+        alb = (albedo(scene, hits) if alb is None else alb)[h]
+        P, N, G = hits.points[h], hits.normals[h], hits.geo_normals[h]
+        wo = -np.asarray(view_dirs, np.float64)[h]
+        wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+        for light, lit, vis, irr in _lit(scene, lights, P, N, G):
+            k = lit[vis]
+            wi = light.shadow_rays(P[k])[0]
+            wi = wi / np.linalg.norm(wi, axis=1, keepdims=True)
+            e, s1 = subsurface_weights(scene, hits, h[k], wi, wo[k])
+            entry[h[k]] += irr[k] * e
+            single[h[k]] += alb[k] * irr[k] * s1
+    return SubsurfaceAngular(entry, exit_weights(scene, hits, view_dirs), single)
 
 
 def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersample: int,
                       rad: np.ndarray, alb: np.ndarray, *,
-                      single: np.ndarray | None = None) -> np.ndarray:
+                      angular: SubsurfaceAngular | None = None) -> np.ndarray:
     """The radiance ``rad`` (``(n,)`` or ``(n, 3)``, one row per ray of
     ``camera.pixel_grid(supersample)``, subsurface materials shaded as Lambertian) with
     the light falling on subsurface materials carried under their surface
@@ -643,9 +683,10 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
     per colour channel, or on the mean albedo for a monochrome ``rad``), weighted by the
     diffusion's share of the albedo; the single-scattering share stays where the light
     fell; both are multiplied back by the albedo there, so the texture stays sharp while
-    light patterns blur, and an evenly lit surface looks as a Lambertian one. ``single``
-    (rows as ``rad``, :func:`subsurface_single`) adds the single scattering's angular
-    shape. The spread is in the image, at the object's median depth, within the
+    light patterns blur, and an evenly lit surface reflects as much as a Lambertian one.
+    ``angular`` (:func:`subsurface_angular`) adds the angular shapes: the diffusion's
+    weights at the entry and toward the viewer, and the single scattering's. The spread
+    is in the image, at the object's median depth, within the
     object's pixels: foreshortening and light crossing between parts of one object that
     are far apart in depth are not modelled."""
     from acquire.subsurface import gaussian_mixture, spread_irradiance
@@ -662,11 +703,19 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
     E = E[:, None] if mono else E
     c = E.shape[1]
 
+    def rows(x):      # an angular part as (n, c)
+        x = np.asarray(x, np.float64)
+        if mono and x.ndim == 2:
+            x = x.mean(axis=1)
+        return x[:, None] if x.ndim == 1 else x
+
+    E_in = E if angular is None else E + rows(angular.entry)
+
     def grid(x):      # rows of the rays -> the (H s, W s, ...) image of the sub-samples
         return x.reshape(H, W, s, s, *x.shape[1:]).swapaxes(1, 2).reshape(
             H * s, W * s, *x.shape[1:])
 
-    Eg = grid(E)
+    Eg = grid(E_in)
     out = np.array(rad, np.float64, copy=True)
     for i in idx:
         m = scene.objects[i].material
@@ -684,13 +733,15 @@ def subsurface_spread(scene: RenderScene, camera: Camera, hits: Hits, supersampl
             sig, w = gaussian_mixture(dip)
             spread[..., k] = spread_irradiance(Eg[..., k], mask, sig * px_per_m, w)
         back = spread.reshape(H, s, W, s, c).swapaxes(1, 2).reshape(-1, c)
+        if angular is not None:
+            back = back * rows(angular.exit)
         if mono:
             back = back[:, 0] * float(np.mean(multiple)) + E[:, 0] * float(np.mean(once))
         else:
             back = back * multiple + E * once
         out[sel] = (back * a)[sel]
-    if single is not None:
-        out += single.mean(axis=1) if (mono and single.ndim == 2) else single
+    if angular is not None:
+        out += rows(angular.single)[:, 0] if mono else rows(angular.single)
     return out
 
 
@@ -741,7 +792,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
                 rng=np.random.default_rng(seed) if bounces else None)
     if any(o.material.brdf == "subsurface" for o in scene.objects):
         alb = albedo(scene, hits)
-        rad = subsurface_spread(scene, camera, hits, s, rad, alb, single=subsurface_single(
+        rad = subsurface_spread(scene, camera, hits, s, rad, alb, angular=subsurface_angular(
             scene, hits, d, lights=lights, alb=alb))
     radiance = np.empty((H * W, 3), np.float32)
     rk.pixel_mean(rad, s * s, radiance)

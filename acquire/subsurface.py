@@ -26,6 +26,14 @@ law: brighter toward grazing view and light, as a translucent sphere's rim is. T
 mean free path is reduced (``1 / s_t'``, ``s_s' = s_s (1 - g)``), so a forward-scattering
 material (``g`` near 1) sends little light straight back: its single term is small.
 
+Energy: the light scattered once leaves, and the diffusion cannot take more than the
+rest. Where the dipole's ``M`` plus the single term's share of a beam would exceed 1
+(toward grazing incidence behind an index-matched boundary, where half of a grazing
+beam comes back at once), the diffusion's entry and exit are weighted down by
+``w(mu) = min(1, (1 - s(mu)) / M)`` (:meth:`Dipole.diffusion_entry`; the exit by
+``w / <w>``, so the transport stays reciprocal), so a beam at any incidence sends back
+at most all of its light.
+
 The material is given as a user would measure it: its **diffuse albedo** (the total
 reflectance under broad light: the dipole's ``int Rd dA`` plus the single term's share)
 and its **mean free path**; the reduced scattering albedo ``a'`` is found from the
@@ -80,7 +88,8 @@ import numpy as np
 from core.validate import check_range
 
 __all__ = ["diffuse_fresnel", "fresnel_transmittance", "hg_phase", "single_scattering",
-           "single_scattering_share", "DEFAULT_ANISOTROPY", "total_reflectance",
+           "single_scattering_share", "single_scattering_directional",
+           "DEFAULT_ANISOTROPY", "total_reflectance",
            "reduced_albedo", "Dipole",
            "line_profile", "stripe_radiance", "gaussian_mixture", "spread_irradiance"]
 
@@ -155,6 +164,37 @@ def single_scattering_share(g: float, eta: float, n: int = 48) -> float:
     return float(np.sum(f * mi * mo * weight.ravel()) * 2.0 * np.pi / np.pi)
 
 
+@lru_cache(maxsize=64)
+def _directional_single(g: float, eta: float, n: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    x, w = np.polynomial.legendre.leggauss(n)
+    mu, wm = 0.5 * (x + 1.0), 0.5 * w
+    phi = np.linspace(0.0, 2.0 * np.pi, 2 * n, endpoint=False)
+    grid = np.linspace(0.0, 1.0, 129) ** 2     # dense toward grazing, where it turns fast
+    mo, ph = (a.ravel() for a in np.meshgrid(mu, phi, indexing="ij"))
+    so = np.sqrt(1.0 - mo * mo)
+    wo = np.stack([so * np.cos(ph), so * np.sin(ph), mo], axis=1)
+    weight = np.einsum("i,j->ij", wm, np.full(len(phi), 2.0 * np.pi / len(phi))).ravel()
+    nrm = np.broadcast_to([0.0, 0.0, 1.0], wo.shape)
+    out = np.empty(len(grid))
+    for k, m in enumerate(np.maximum(grid, 1e-6)):      # grazing: the limit from above
+        wi = np.broadcast_to([np.sqrt(1.0 - m * m), 0.0, m], wo.shape)
+        f = single_scattering(wi, wo, nrm, g=g, eta=eta) / np.pi
+        out[k] = float(np.sum(f * mo * weight))
+    grid.setflags(write=False)
+    out.setflags(write=False)
+    return grid, out
+
+
+def single_scattering_directional(mu_i: np.ndarray, g: float, eta: float) -> np.ndarray:
+    """The share of a beam at incidence cosine ``mu_i`` that is scattered once and
+    leaves, per unit single-scattering albedo: ``int f1 mu_o dw_o / alpha`` (tabulated
+    over ``mu_i``). For ``eta = 1``, ``g = 0`` it is ``(1 - mu ln(1 + 1/mu)) / 2``: half
+    of a grazing beam comes straight back; its cosine-weighted mean over the incidences
+    is :func:`single_scattering_share`."""
+    grid, tab = _directional_single(float(g), float(eta))
+    return np.interp(np.clip(np.asarray(mu_i, np.float64), 0.0, 1.0), grid, tab)
+
+
 def _alpha(a: np.ndarray, g: float) -> np.ndarray:
     """The single-scattering albedo ``s_s / s_t`` of reduced albedo ``a'`` and
     anisotropy ``g`` (``s_s = s_s' / (1 - g)``, the absorption unchanged)."""
@@ -171,13 +211,35 @@ def total_reflectance(a: np.ndarray, eta: float) -> np.ndarray:
     return 0.5 * a * (1.0 + np.exp(-4.0 / 3.0 * A * s)) * np.exp(-s)
 
 
+_X, _XW = np.polynomial.legendre.leggauss(64)
+_MU, _MU_W = 0.5 * (_X + 1.0), 0.5 * _XW      # Gauss-Legendre on [0, 1]
+
+
+def _entry(mu, a: float, eta: float, g: float) -> np.ndarray:
+    """``min(1, (1 - alpha s(mu)) / M)`` of reduced albedo ``a``: see
+    :meth:`Dipole.diffusion_entry`."""
+    m = float(total_reflectance(a, eta))
+    s1 = float(_alpha(a, g)) * single_scattering_directional(mu, g, eta)
+    return np.minimum(1.0, (1.0 - s1) / max(m, 1e-300))
+
+
+def _broad_light(a: float, eta: float, g: float) -> tuple[float, float, float]:
+    """Under broad light, for reduced albedo ``a``: the diffusion's reflectance
+    ``M <w>``, the single scattering's ``alpha K``, and ``<w>``, the cosine-weighted
+    mean of the diffusion's entry weight."""
+    e = _entry(_MU, a, eta, g)
+    w = 1.0 if np.all(e >= 1.0) else float(2.0 * np.sum(e * _MU * _MU_W))
+    return (float(total_reflectance(a, eta)) * w,
+            float(_alpha(a, g)) * single_scattering_share(float(g), float(eta)), w)
+
+
 def reduced_albedo(albedo: float, eta: float, g: float = DEFAULT_ANISOTROPY) -> float:
     """The reduced scattering albedo ``a'`` whose reflectance under broad light, the
-    dipole's plus the single term's, is ``albedo`` (bisection: both grow with ``a'``)."""
-    k = single_scattering_share(float(g), float(eta))
+    diffusion's plus the single term's, is ``albedo`` (bisection: both grow with ``a'``)."""
 
     def total(a):
-        return float(total_reflectance(a, eta)) + float(_alpha(a, g)) * k
+        m, s1, _ = _broad_light(a, eta, g)
+        return m + s1
 
     albedo = check_range(albedo, "albedo", 0.0, total(1.0))
     lo, hi = 0.0, 1.0
@@ -219,6 +281,31 @@ class Dipole:
     def multiple(self) -> float:
         """The share of the albedo carried by the diffusion profile ``int Rd dA``."""
         return float(total_reflectance(self.a, self.eta))
+
+    @property
+    def diffusion(self) -> float:
+        """The share of the albedo carried by the diffusion under broad light,
+        ``M <w>`` (:meth:`diffusion_entry`); with :attr:`single` it is the albedo."""
+        return _broad_light(self.a, self.eta, self.g)[0]
+
+    @property
+    def entry_mean(self) -> float:
+        """``<w>``, the cosine-weighted mean of :meth:`diffusion_entry`."""
+        return _broad_light(self.a, self.eta, self.g)[2]
+
+    def diffusion_entry(self, mu: np.ndarray) -> np.ndarray:
+        """The share of a beam at cosine ``mu`` that the diffusion takes, relative to the
+        dipole's ``M``: ``min(1, (1 - s(mu)) / M)``, with ``s`` what single scattering
+        sends back at once (:func:`single_scattering_directional` times the single
+        albedo). Light scattered once leaves; the diffusion cannot have more than the
+        rest, so a beam at any incidence sends back at most all of it,
+        ``M w(mu) + s(mu) <= 1``. 1 for the angles where that holds unclamped (every
+        angle behind a boundary of index 1.5 with forward scattering); it drops toward
+        grazing for an index-matched boundary, where half of a grazing beam is scattered
+        once. The diffusion's exit follows the same weight over its mean, ``w / <w>``, so
+        that the transport ``M w(mu_i) w(mu_o) / <w>`` is reciprocal and a beam at
+        ``mu_i`` sends ``M w(mu_i)`` back through the diffusion."""
+        return _entry(mu, self.a, self.eta, self.g)
 
     @property
     def sigma_tr(self) -> float:
