@@ -144,42 +144,46 @@ def single_scattering(wi: np.ndarray, wo: np.ndarray, n: np.ndarray, *, g: float
     return np.where(up, np.pi * f, 0.0)
 
 
-@lru_cache(maxsize=64)
-def single_scattering_share(g: float, eta: float, n: int = 48) -> float:
-    """The albedo of :func:`single_scattering` under broad light, per unit
-    single-scattering albedo: ``(1/pi) int int f1 mu_i mu_o dw_i dw_o / alpha``
-    (Gauss-Legendre in the cosines, even steps in azimuth). 0.2046 for ``eta = 1``,
-    ``g = 0`` (Lommel-Seeliger); 0.0039 for marble-like ``eta = 1.5``, ``g = 0.8``."""
+@lru_cache(maxsize=4)
+def _exit_quadrature(n: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """Unit exit directions over the upper hemisphere (Gauss-Legendre in the cosine, even
+    steps in azimuth) and their weights ``d mu d phi``."""
     x, w = np.polynomial.legendre.leggauss(n)
     mu, wm = 0.5 * (x + 1.0), 0.5 * w
     phi = np.linspace(0.0, 2.0 * np.pi, 2 * n, endpoint=False)
-    mi, mo, ph = (a.ravel() for a in np.meshgrid(mu, mu, phi, indexing="ij"))
-    si, so = np.sqrt(1.0 - mi * mi), np.sqrt(1.0 - mo * mo)
-    wi = np.stack([si, np.zeros_like(si), mi], axis=1)
-    wo = np.stack([so * np.cos(ph), so * np.sin(ph), mo], axis=1)
-    f = single_scattering(wi, wo, np.broadcast_to([0.0, 0.0, 1.0], wi.shape),
-                          g=g, eta=eta) / np.pi
-    weight = np.einsum("i,j,k->ijk", wm, wm, np.full(len(phi), 2.0 * np.pi / len(phi)))
-    # (2 pi)^2 for the two azimuths over 1/pi: the outer azimuth is symmetric
-    return float(np.sum(f * mi * mo * weight.ravel()) * 2.0 * np.pi / np.pi)
-
-
-@lru_cache(maxsize=64)
-def _directional_single(g: float, eta: float, n: int = 48) -> tuple[np.ndarray, np.ndarray]:
-    x, w = np.polynomial.legendre.leggauss(n)
-    mu, wm = 0.5 * (x + 1.0), 0.5 * w
-    phi = np.linspace(0.0, 2.0 * np.pi, 2 * n, endpoint=False)
-    grid = np.linspace(0.0, 1.0, 129) ** 2     # dense toward grazing, where it turns fast
     mo, ph = (a.ravel() for a in np.meshgrid(mu, phi, indexing="ij"))
     so = np.sqrt(1.0 - mo * mo)
-    wo = np.stack([so * np.cos(ph), so * np.sin(ph), mo], axis=1)
     weight = np.einsum("i,j->ij", wm, np.full(len(phi), 2.0 * np.pi / len(phi))).ravel()
-    nrm = np.broadcast_to([0.0, 0.0, 1.0], wo.shape)
-    out = np.empty(len(grid))
-    for k, m in enumerate(np.maximum(grid, 1e-6)):      # grazing: the limit from above
-        wi = np.broadcast_to([np.sqrt(1.0 - m * m), 0.0, m], wo.shape)
-        f = single_scattering(wi, wo, nrm, g=g, eta=eta) / np.pi
-        out[k] = float(np.sum(f * mo * weight))
+    return np.stack([so * np.cos(ph), so * np.sin(ph), mo], axis=1), weight
+
+
+def _beam_single(mu_i: float, g: float, eta: float) -> float:
+    """``int f1 mu_o dw_o / alpha`` for a beam at incidence cosine ``mu_i``."""
+    wo, weight = _exit_quadrature()
+    m = max(float(mu_i), 1e-6)                          # grazing: the limit from above
+    wi = np.broadcast_to([np.sqrt(1.0 - m * m), 0.0, m], wo.shape)
+    f = single_scattering(wi, wo, np.broadcast_to([0.0, 0.0, 1.0], wo.shape),
+                          g=g, eta=eta) / np.pi
+    return float(np.sum(f * wo[:, 2] * weight))
+
+
+@lru_cache(maxsize=64)
+def single_scattering_share(g: float, eta: float) -> float:
+    """The albedo of :func:`single_scattering` under broad light, per unit
+    single-scattering albedo: ``(1/pi) int int f1 mu_i mu_o dw_i dw_o / alpha``, the
+    cosine-weighted mean of :func:`single_scattering_directional`. 0.2046 for
+    ``eta = 1``, ``g = 0`` (Lommel-Seeliger); 0.0039 for marble-like ``eta = 1.5``,
+    ``g = 0.8``."""
+    x, w = np.polynomial.legendre.leggauss(48)
+    mu, wm = 0.5 * (x + 1.0), 0.5 * w
+    return float(2.0 * sum(wk * m * _beam_single(m, g, eta) for m, wk in zip(mu, wm,
+                                                                            strict=True)))
+
+
+@lru_cache(maxsize=64)
+def _directional_single(g: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
+    grid = np.linspace(0.0, 1.0, 129) ** 2     # dense toward grazing, where it turns fast
+    out = np.array([_beam_single(m, g, eta) for m in grid])
     grid.setflags(write=False)
     out.setflags(write=False)
     return grid, out
@@ -236,7 +240,11 @@ def _broad_light(a: float, eta: float, g: float) -> tuple[float, float, float]:
 def reduced_albedo(albedo: float, eta: float, g: float = DEFAULT_ANISOTROPY) -> float:
     """The reduced scattering albedo ``a'`` whose reflectance under broad light, the
     diffusion's plus the single term's, is ``albedo`` (bisection: both grow with ``a'``)."""
+    return _reduced_albedo(float(albedo), float(eta), float(g))
 
+
+@lru_cache(maxsize=256)
+def _reduced_albedo(albedo: float, eta: float, g: float) -> float:
     def total(a):
         m, s1, _ = _broad_light(a, eta, g)
         return m + s1
