@@ -41,11 +41,10 @@ Where the two differ on purpose (stated, and measured in ``docs/materials.md``):
   (``1 / (1 - F_dr R)`` and an ``eta^-2`` factor), ours is a single transmission in and
   out of the coat;
 - no ambient term: ours adds an unoccluded constant, which no physical light gives;
-- subsurface: ours is the diffusion dipole with a Lambertian exit plus the closed-form
-  single scattering of a deep medium, the irradiance spread over the image (no
-  foreshortening; the silhouette holds the light in as an edge would); Mitsuba follows
-  every scattering event (the exit's angular distribution of the multiple scattering,
-  light around the curvature and into the unlit back).
+- subsurface: ours is the diffusion dipole plus the closed-form single scattering of a
+  deep medium, the irradiance spread over the image; Mitsuba follows every scattering
+  event (the multiple scattering's exact angular distribution and profile, light carried
+  around the curvature).
 
 References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*, 4th ed.
 (2023); W. Jakob et al., Mitsuba 3 (2022), https://mitsuba.readthedocs.io;

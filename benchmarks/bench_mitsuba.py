@@ -154,8 +154,8 @@ def _subsurface(panels):
               f"{' '.join(f'{r:.3f}' for r in ratio)} | {100 * alone:.2f} % |", flush=True)
         panels.append((f"{light}, subsurface 10 mm", ours.radiance, ref))
     print(f"   worst subsurface error beyond Mitsuba's noise: {100 * worst:.2f} % (target "
-          f"<= 3 %) {'PASS' if worst <= 0.03 else 'MISS'}; the known difference: the "
-          f"spread is drawn in the image (no foreshortening, the silhouette a wall)")
+          f"<= 3 %) {'PASS' if worst <= 0.03 else 'MISS'}; what is left: transport that "
+          f"a diffusion profile spread in the image does not express (docs/materials.md)")
 
 
 if __name__ == "__main__":
