@@ -287,7 +287,9 @@ class Dipole:
 
     @property
     def multiple(self) -> float:
-        """The share of the albedo carried by the diffusion profile ``int Rd dA``."""
+        """``M``, the dipole profile's own reflectance ``int Rd dA``, before the entry
+        weight of :meth:`diffusion_entry` (:attr:`diffusion` is what reaches the eye
+        under broad light)."""
         return float(total_reflectance(self.a, self.eta))
 
     @property
