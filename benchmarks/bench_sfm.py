@@ -7,6 +7,15 @@ pycolmap calls on the same images (same run). The dense stage is timed here; its
 targets (F, time against the sparse stage, the SGBM peer) are bench_mvs's.
 Incremental against global mapping on the same capture.
 
+Hard rings (``python benchmarks/bench_sfm.py real`` runs only this part; ``make bench``
+runs both), on ../shared/data/real when it is there (a fresh clone has none: skipped):
+
+- dinoSparseRing from the bare folder (no cameras): >= 14 of 16 views registered, mean
+  rotation error <= 1 deg against dinoSR_par.txt after Sim(3) alignment (the file is read
+  only to score). Peer: the same pipeline with the escalation off (the default alone).
+- monstree (23 phone photos): still 23/23, the escalation not entered, and the sparse
+  stage's time within 1.2x of the same stage with the escalation off (same run).
+
 Fair timing of the sparse stage: pycolmap and open3d are imported before any clock
 starts (a one-off cost of the process, not of a stage), and per mapper the bare calls
 and our pipeline run in the order bare, ours, ours, bare (drift on a shared machine
@@ -69,11 +78,81 @@ def _ours(cap: Path, out: Path, mapper: str, dense: bool):
     return res.report
 
 
+REAL = Path(os.environ.get("SCANAMP_REAL_DATA")
+            or Path(__file__).resolve().parents[2] / "shared" / "data" / "real")
+
+
+def _sparse_run(images: Path, out: Path, escalate: bool) -> dict:
+    import shutil
+
+    from reconstruct.sfm.pipeline import SfmConfig, run
+
+    shutil.rmtree(out, ignore_errors=True)
+    return run(SfmConfig(dense=False, escalate=escalate), images, out).report
+
+
+def _dino_errors(out: Path, par: Path) -> dict:
+    from reconstruct.camera_files import read_cameras
+    from reconstruct.evaluation.sim3 import align_cameras
+
+    est = read_cameras(out / "sparse" / "0")
+    true = read_cameras(par, sizes={n: (c.width, c.height) for n, c in est.items()}
+                        | {f"dinoSR{i:04d}.png": (640, 480) for i in range(1, 17)})
+    errs = align_cameras({n: c.cam_from_world for n, c in est.items()},
+                         {n: c.cam_from_world for n, c in true.items()})
+    return {"rotation_deg": errs.summary()["rotation_error_deg"],
+            "per_view": dict(zip(errs.names, errs.rotation_deg.round(2).tolist(),
+                                 strict=True))}
+
+
+def hard_rings(root: Path) -> None:
+    """The real sets: the dino ring from the bare folder, monstree unchanged."""
+    base = REAL / "dinoSparseRing"
+    if not (base / "dinoSR_par.txt").is_file():
+        print(f"   dinoSparseRing: {base} not found, skipped (a fresh clone has no ../shared)")
+    else:
+        default = _sparse_run(base / "images", root / "dino_default", escalate=False)
+        ours = _sparse_run(base / "images", root / "dino_escalated", escalate=True)
+        print(f"   dino bare folder: default {default['registered']}/16, escalated "
+              f"{ours['registered']}/16; sparse stage {ours['timings']['sparse_total']:.0f} s "
+              f"(default {default['timings']['sparse_total']:.0f} s)", flush=True)
+        for step in (ours.get("escalation") or {}).get("steps", []):
+            print(f"      {step['step']}: {step.get('registered', '')} "
+                  f"{step.get('models', '')} {step['seconds']:.1f} s", flush=True)
+        for name, why in ours["failed_images"].items():
+            print(f"      still out: {name}: {why}")
+        report("dino bare: registered views", ours["registered"], 1.0, 14, unit="")
+        if ours["registered"] >= 3:
+            err = _dino_errors(root / "dino_escalated", base / "dinoSR_par.txt")
+            print(f"      rotation error per view (deg): {err['per_view']}")
+            report("dino bare: mean rotation error after Sim(3)", err["rotation_deg"]["mean"],
+                   1.0, 1.0, higher_is_better=False, unit=" deg")
+            print(f"      median {err['rotation_deg']['median']:.2f} deg, max "
+                  f"{err['rotation_deg']['max']:.2f} deg; focal length "
+                  f"{ours['sparse']['cameras']}")
+    images = REAL / "monstree" / "images"
+    if not images.is_dir():
+        print(f"   monstree: {images} not found, skipped (a fresh clone has no ../shared)")
+        return
+    off = _sparse_run(images, root / "monstree_off", escalate=False)
+    on = _sparse_run(images, root / "monstree_on", escalate=True)
+    print(f"   monstree: {on['registered']}/23 registered, escalation "
+          f"{'entered' if on.get('escalation') else 'not entered'}", flush=True)
+    report("monstree: registered views", on["registered"], 1.0, 23, unit="")
+    report("monstree: sparse stage with / without the escalation",
+           on["timings"]["sparse_total"], off["timings"]["sparse_total"], 1.2,
+           higher_is_better=False)
+
+
 def main():
     import open3d  # noqa: F401  (imports before any clock: see the module docstring)
     import pycolmap  # noqa: F401
 
     root = Path(os.environ.get("SFM_BENCH_DIR") or tempfile.mkdtemp(prefix="bench_sfm_"))
+    hard_rings(root)
+    if sys.argv[1:] == ["real"]:
+        print(f"   (outputs in {root})")
+        return
     cap = root / "orbit24"
     if not (cap / "capture.json").is_file():
         t = time.perf_counter()

@@ -1,7 +1,8 @@
 """reconstruct.sfm: structure from motion: the pycolmap calls, photo folders as cameras
 write them, and the pipeline (sparse, then the dense stage of :mod:`reconstruct.mvs`).
 
-Modules: ``colmap``, ``photo_set``, ``pipeline``.
+Modules: ``colmap``, ``escalate`` (the stronger steps for the views the default leaves
+out), ``photo_set``, ``pipeline``.
 
 Every name below is importable from the room (``from reconstruct.sfm import NAME``), loaded
 on first use.
@@ -18,6 +19,11 @@ _EXPORTS = {
     "match": "colmap",
     "reconstruct": "colmap",
     "run_colmap": "colmap",
+    "EscalationOptions": "escalate",
+    "escalate": "escalate",
+    "merge_models": "escalate",
+    "ring_pairs": "escalate",
+    "similarity_from_common_views": "escalate",
     "CAMERA_MODES": "photo_set",
     "CameraGroup": "photo_set",
     "camera_groups": "photo_set",

@@ -356,7 +356,7 @@ def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
 def _triangulate_known(database: Path, image_dir, sparse: Path, known_poses, num_threads):
     """Stage triangulate: the database's cameras at the known poses (written as a COLMAP
     text model, which gives each image its rig and frame), then COLMAP's triangulation
-    with poses and intrinsics fixed."""
+    with poses and intrinsics fixed. Images without a known pose stay out."""
     import pycolmap
 
     db = pycolmap.Database.open(str(database))
@@ -371,6 +371,8 @@ def _triangulate_known(database: Path, image_dir, sparse: Path, known_poses, num
     (known / "cameras.txt").write_text("\n".join(lines) + "\n")
     lines = []
     for im in images:
+        if im.name not in known_poses:  # left out of the model
+            continue
         T = np.asarray(known_poses[im.name], float)
         q = pycolmap.Rotation3d(T[:3, :3]).quat  # x, y, z, w
         pose = " ".join(f"{float(v):.17g}" for v in (q[3], q[0], q[1], q[2], *T[:3, 3]))

@@ -103,6 +103,10 @@ class SfmConfig(Config):
     min_keypoints: int = option(30, range="[0, inf)",
                                 help="fewer SIFT features than this marks an image "
                                      "textureless")
+    escalate: bool = option(True, help="when the default sparse stage leaves views out, "
+                                       "try stronger features, guided matching, relaxed "
+                                       "mapping, model merging and re-localization on "
+                                       "them (reconstruct.sfm.escalate)")
 
     def __post_init__(self):
         super().__post_init__()
@@ -271,7 +275,9 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> tupl
     motion (COLMAP's two-view geometry types: watermark, panoramic, planar-or-panoramic)."""
     import pycolmap
 
-    out = {}
+    from reconstruct.sfm.escalate import pair_inliers
+
+    out, by_name = {}, pair_inliers(database)
     db = pycolmap.Database.open(str(database))
     try:
         images = {im.name: im for im in db.read_all_images()}
@@ -306,6 +312,7 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> tupl
                           f"fit {_NO_BASELINE[top]}; nothing to triangulate")
             else:
                 out[n] = "not registered by the mapper (too few 2D-3D correspondences)"
+            out[n] += _inliers_with(n, by_name, registered)
     finally:
         db.close()
     all_kinds = [k for ks in kinds.values() for k in ks]
@@ -316,6 +323,18 @@ def _failures(database: Path, names: list, registered: set, min_kp: int) -> tupl
                                  for k in sorted(set(all_kinds)))
                      + "): SfM needs the camera to move between shots, not only turn")
     return out, diagnosis
+
+
+def _inliers_with(name: str, pairs: dict, registered: set, top: int = 3) -> str:
+    """``"; inlier matches with the registered views: 12 with a.png, ..."`` (the best
+    ``top``), or that it has none with any of them."""
+    mine = sorted(((n, other) for (a, b), n in pairs.items() if name in (a, b)
+                   for other in (b if a == name else a,) if other in registered),
+                  key=lambda p: (-p[0], p[1]))
+    if not mine:
+        return "; no inlier matches with any registered view"
+    return "; inlier matches with the registered views: " + ", ".join(
+        f"{n} with {other}" for n, other in mine[:top]) + (" ..." if len(mine) > top else "")
 
 
 #: the named stages of :func:`run`, in order (``scanamp reconstruct sfm --from STAGE``)
@@ -445,7 +464,7 @@ def _matches(opts, tmp: Path) -> dict:
     return _timed(match, db, opts)
 
 
-def _sparse(config, inp, opts, upright: _Upright, tmp: Path, out_dir: Path) -> dict:
+def _sparse(config, inp, opts, groups, upright: _Upright, tmp: Path, out_dir: Path) -> dict:
     """Stage ``sparse``: the mapper (or triangulation at known poses); the model, points.ply
     and transforms.json; with ground truth the pose errors. What the dense stages need
     (cameras, sparse points, what each view sees) is returned."""
@@ -458,6 +477,10 @@ def _sparse(config, inp, opts, upright: _Upright, tmp: Path, out_dir: Path) -> d
     rec, num_models = reconstruct(database, upright.path, tmp / "colmap" / "sparse", opts,
                                   known_poses=known)
     seconds = time.perf_counter() - t
+    escalation, t = None, time.perf_counter()
+    if (known is None and config.escalate and len(inp.names) >= 3
+            and (rec.num_reg_images() if rec is not None else 0) < len(inp.names)):
+        rec, database, escalation = _escalate(database, inp, groups, opts, upright, tmp, rec)
     registered = sorted(im.name for im in rec.images.values() if im.has_pose) if rec else []
     failures, diagnosis = _failures(database, inp.names, set(registered), config.min_keypoints)
     textureless = [n for n, why in failures.items() if why.startswith("no texture")]
@@ -465,13 +488,32 @@ def _sparse(config, inp, opts, upright: _Upright, tmp: Path, out_dir: Path) -> d
         raise InputError("images with no texture (too few SIFT features): "
                          + ", ".join(textureless), path=inp.image_dir)
     part = {"registered": len(registered), "registered_fraction": len(registered)
-            / len(inp.names), "failed_images": failures, "num_models": num_models}
+            / len(inp.names), "failed_images": failures, "num_models": num_models,
+            "escalation": escalation}
     if diagnosis:
         part["diagnosis"] = diagnosis
-    out = {"report": part, "seconds": seconds, "views": None}
+    out = {"report": part, "seconds": seconds, "views": None,
+           "escalate_seconds": escalation["seconds"] if escalation else 0.0}
     if rec is not None and len(registered) >= 3:
         out["views"] = _sparse_outputs(rec, inp, tmp, out_dir, part)
     return out
+
+
+def _escalate(database, inp, groups, opts, upright, tmp, rec):
+    """The stronger steps on what the default left out (:mod:`reconstruct.sfm.escalate`);
+    the model, the database its matches are in, and the report of the steps."""
+    from reconstruct.sfm.escalate import escalate
+
+    t = time.perf_counter()
+    before = rec.num_reg_images() if rec is not None else 0
+    best, db, report = escalate(database, upright.path, inp.names, groups, opts,
+                                tmp / "colmap" / "escalate", rec)
+    report["seconds"] = time.perf_counter() - t
+    log.info("escalation: %d -> %d of %d views registered (%.0f s)", before,
+             report["registered"], len(inp.names), report["seconds"])
+    if best is None or best.num_reg_images() <= before:
+        return rec, database, report
+    return best, db, report
 
 
 def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report):
@@ -488,15 +530,18 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
                      depends={"matcher": opts.matcher, "seed": opts.seed,
                               "sequential_overlap": opts.sequential_overlap,
                               "spatial_neighbors": opts.spatial_neighbors})
-    sparse = st.run("sparse", _sparse, config, inp, opts, upright, tmp, out_dir,
+    sparse = st.run("sparse", _sparse, config, inp, opts, groups, upright, tmp, out_dir,
                     files=["sparse", "points.ply", "transforms.json"],
                     depends={"mapper": opts.mapper, "seed": opts.seed, "known": cams_file,
-                             "min_keypoints": config.min_keypoints})
+                             "min_keypoints": config.min_keypoints,
+                             "escalate": config.escalate})
     report.update(sparse["report"])
     report["timings"].update({"extract": feats["seconds"], "match": matches["seconds"],
                               "map" if inp.known is None else "triangulate":
                               sparse["seconds"]})
-    report["timings"]["pycolmap"] = feats["seconds"] + matches["seconds"] + sparse["seconds"]
+    report["timings"]["escalate"] = sparse.get("escalate_seconds", 0.0)
+    report["timings"]["pycolmap"] = (feats["seconds"] + matches["seconds"] + sparse["seconds"]
+                                     + report["timings"]["escalate"])
     report["timings"]["sparse_total"] = time.perf_counter() - t
     if any(n in st.skipped for n in STAGES[:3]):  # a reused stage's time is its first run's
         report["timings"]["sparse_total"] = report["timings"]["pycolmap"]

@@ -1,0 +1,454 @@
+"""Registering the views the default sparse stage left out, as COLMAP practitioners do.
+
+The default (:func:`reconstruct.sfm.colmap.reconstruct`) runs first. When it leaves views
+out, :func:`escalate` tries the stronger, slower steps on the same photos, in order, and
+stops as soon as every view is in:
+
+1. **Stronger features**: SIFT again with a lower peak threshold (dark, low-contrast
+   photos: the Middlebury dino on black has ~250 default features per view, ~1 500 at
+   0.001), twice the features, affine-covariant shapes and domain-size pooling
+   (``SiftExtractionOptions.estimate_affine_shape``, ``domain_size_pooling``).
+2. **Matching with geometry**: exhaustive up to 100 images, else sequential in file order
+   with the ring closed (the last views matched to the first: loop closure without a
+   vocabulary tree); guided matching (``FeatureMatchingOptions.guided_matching``) once a
+   pair's two-view geometry is known adds the matches along its epipolar lines.
+3. **The default's focal length as the prior**: a camera without EXIF starts at COLMAP's
+   guess of 1.2 x the larger side (768 px for a 640 px photo; the dino's lens has 3 310);
+   the focal length bundle adjustment refined on the views that did register replaces it.
+4. **Relaxed mapping, tried in order** (:data:`LADDER`): fewer inliers and a smaller
+   triangulation angle for the initial pair, fewer inliers for each registration, and
+   the distortion held at zero (a long lens cannot tell it from the focal length).
+5. **Models merged**: the mapper may give several models of one ring (a weak link breaks
+   it); two models that share at least two views are joined by the similarity of those
+   views (their rotations and centres), and the union is triangulated again.
+6. **Re-localization**: the views still out are registered against the finished model
+   with permissive absolute-pose settings (:data:`RELOCALIZE`), then a second bundle
+   adjustment (:func:`refine`: the points triangulated again from every verified match,
+   a Huber loss).
+
+Every step is a pycolmap call; nothing is learned, nothing is downloaded. The report says
+which steps ran, what each registered and how long it took.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2  # noqa: F401  (before pycolmap)
+import numpy as np
+
+from reconstruct.camera_files import image_cam_from_world
+from reconstruct.evaluation.sim3 import Sim3
+from reconstruct.sfm.colmap import ColmapOptions, _quiet_colmap
+
+__all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
+           "similarity_from_common_views", "pair_inliers", "ring_pairs"]
+
+log = logging.getLogger(__name__)
+
+#: relaxed mapper thresholds, tried in order: (initial pair: min inliers, min
+#: triangulation angle in degrees; registration: min inliers, min inlier ratio)
+LADDER = ((50, 8.0, 15, 0.15), (30, 4.0, 12, 0.10))
+#: absolute-pose settings of the re-localization: min inliers, min inlier ratio, max error px
+RELOCALIZE = (8, 0.05, 12.0)
+
+
+@dataclass
+class EscalationOptions:
+    """The stronger steps' settings (defaults: what registered the dino ring).
+
+    Attributes
+    ----------
+    peak_threshold : float
+        SIFT's difference-of-Gaussians threshold (COLMAP's default 0.0067).
+    max_features : int
+    affine : bool
+        Affine-covariant SIFT (``estimate_affine_shape``).
+    dsp : bool
+        Domain-size pooling of the descriptors.
+    guided : bool
+        Guided matching after the two-view geometry.
+    sequential_overlap : int
+        Neighbours matched beyond 100 images (file order, the ring closed).
+    exhaustive_max : int
+        Exhaustive matching up to this many images.
+    """
+
+    peak_threshold: float = 0.001
+    max_features: int = 16384
+    affine: bool = True
+    dsp: bool = True
+    guided: bool = True
+    sequential_overlap: int = 10
+    exhaustive_max: int = 100
+
+
+def ring_pairs(names: Sequence[str], overlap: int) -> list[tuple[str, str]]:
+    """Each view with its next ``overlap`` views in file order, wrapping around (a ring
+    closes on itself).
+
+    >>> ring_pairs(["a", "b", "c", "d"], 1)
+    [('a', 'b'), ('b', 'c'), ('c', 'd'), ('a', 'd')]
+    """
+    n, out = len(names), set()
+    for i in range(n):
+        for k in range(1, min(overlap, n - 1) + 1):
+            a, b = sorted((i, (i + k) % n))
+            out.add((a, b))
+    return [(names[a], names[b]) for a, b in sorted(out, key=lambda p: (p[1] - p[0] > overlap,
+                                                                        p))]
+
+
+def pair_inliers(database: str | Path) -> dict[tuple[str, str], int]:
+    """Verified inlier matches of every image pair of a COLMAP database, by names."""
+    import pycolmap
+
+    db = pycolmap.Database.open(str(database))
+    try:
+        names = {im.image_id: im.name for im in db.read_all_images()}
+        out = {}
+        if db.num_verified_image_pairs():
+            ids, geoms = db.read_two_view_geometries()
+            for pid, g in zip(ids, geoms, strict=False):
+                a, b = pycolmap.pair_id_to_image_pair(pid)
+                out[(names[a], names[b])] = len(g.inlier_matches)
+        return out
+    finally:
+        db.close()
+
+
+def similarity_from_common_views(target: dict, source: dict) -> tuple[Sim3 | None, list]:
+    """The similarity taking ``source``'s world into ``target``'s, from the views both
+    registered (``{name: (4, 4) cam_from_world}`` each): the mean of the rotations
+    ``R_t^T R_s`` projected on SO(3), then scale and translation by least squares over
+    the centres. None with fewer than two views in common (the scale is then free)."""
+    common = sorted(set(target) & set(source))
+    if len(common) < 2:
+        return None, common
+    m = sum(target[n][:3, :3].T @ source[n][:3, :3] for n in common)
+    u, _, vt = np.linalg.svd(m)
+    rot = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+    def centre(T):
+        return -T[:3, :3].T @ T[:3, 3]
+
+    ct = np.array([centre(target[n]) for n in common])
+    cs = np.array([centre(source[n]) for n in common]) @ rot.T
+    dt, ds = ct - ct.mean(0), cs - cs.mean(0)
+    denom = float(np.sum(ds * ds))
+    if denom <= 0:
+        return None, common
+    scale = float(np.sum(ds * dt) / denom)
+    if scale <= 0:
+        return None, common
+    return Sim3(scale, rot, ct.mean(0) - scale * cs.mean(0)), common
+
+
+def _poses(rec) -> dict:
+    return {im.name: image_cam_from_world(im) for im in rec.images.values() if im.has_pose}
+
+
+def merge_models(models: Sequence) -> tuple[dict, object, list]:
+    """Join models that share at least two views into the largest.
+
+    Returns ``(poses, base, joined)``: ``{name: cam_from_world}`` in the largest model's
+    frame, that model (its cameras give the intrinsics), and for each other model
+    ``(views it had, views in common)`` when it was joined."""
+    order = sorted(models, key=lambda r: -r.num_reg_images())
+    base = order[0]
+    poses, joined, left = _poses(base), [], list(order[1:])
+    progress = True
+    while left and progress:  # a model may share views only with one joined later
+        progress = False
+        for rec in list(left):
+            sim, common = similarity_from_common_views(poses, _poses(rec))
+            if sim is None:
+                continue
+            for name, T in _poses(rec).items():
+                poses.setdefault(name, sim.apply_cam_from_world(T))
+            joined.append((rec.num_reg_images(), common))
+            left.remove(rec)
+            progress = True
+    return poses, base, joined
+
+
+def escalate(database: Path, image_dir: Path, names: Sequence[str], groups: Sequence,
+             opts: ColmapOptions, work: Path, default_rec, *,
+             options: EscalationOptions | None = None, verbose: bool = False):
+    """The stronger steps (module docstring) on the views ``default_rec`` left out.
+
+    Parameters
+    ----------
+    database : path
+        The default run's database (its images and cameras).
+    image_dir : path
+    names : sequence of str
+        Every image.
+    groups : sequence of (names, model, params)
+        The COLMAP cameras of the default run.
+    opts : ColmapOptions
+    work : path
+        A folder for the new database and models.
+    default_rec : pycolmap.Reconstruction or None
+        The default run's largest model.
+
+    Returns
+    -------
+    (rec, database, report) : the best model (``default_rec`` when nothing did better),
+        the database whose matches it used, and what each step did.
+    """
+    esc = options or EscalationOptions()
+    work = Path(work)
+    work.mkdir(parents=True, exist_ok=True)
+    best_n = default_rec.num_reg_images() if default_rec is not None else 0
+    best, best_db = default_rec, Path(database)
+    report = {"entered_because": f"{best_n} of {len(names)} views registered by the default",
+              "steps": []}
+    with _quiet_colmap(0 if verbose else 2):
+        db = work / "strong.db"
+        t = time.perf_counter()
+        cams, prior = _focal_priors(groups, default_rec)
+        _extract_strong(db, image_dir, cams, opts, esc)
+        _match_strong(db, names, opts, esc)
+        report["steps"].append({"step": "stronger features and guided matching",
+                                "focal_prior": prior,
+                                "seconds": time.perf_counter() - t})
+        for rung, thresholds in enumerate(LADDER):
+            t = time.perf_counter()
+            rec, step = _map_relaxed(db, image_dir, work / f"relaxed{rung}", opts, thresholds)
+            step["seconds"] = time.perf_counter() - t
+            report["steps"].append(step)
+            if rec is not None and rec.num_reg_images() > best_n:
+                best, best_db, best_n = rec, db, rec.num_reg_images()
+            if best_n == len(names):
+                break
+        if best_n < len(names) and best is not None and best_db == db:
+            t = time.perf_counter()
+            rec = _relocalize(db, image_dir, best, work / "relocalized", opts)
+            report["steps"].append({"step": "re-localization against the model",
+                                    "settings": dict(zip(("min_inliers", "min_inlier_ratio",
+                                                          "max_error_px"), RELOCALIZE,
+                                                         strict=True)),
+                                    "registered": rec.num_reg_images(),
+                                    "seconds": time.perf_counter() - t})
+            if rec.num_reg_images() >= best_n:
+                best, best_n = rec, rec.num_reg_images()
+        if best is not None and best_db == db:
+            t = time.perf_counter()
+            best = refine(best, db, image_dir, work)
+            report["steps"].append({"step": "second bundle adjustment",
+                                    "mean_reprojection_error_px":
+                                        best.compute_mean_reprojection_error(),
+                                    "seconds": time.perf_counter() - t})
+    report["registered"] = best_n
+    return best, best_db, report
+
+
+def _focal_priors(groups, default_rec) -> tuple[list, str]:
+    """The default run's cameras, a camera without a known focal length starting from
+    the focal length bundle adjustment refined on the views that registered."""
+    if default_rec is None or default_rec.num_reg_images() < 3:
+        return list(groups), "none (the default registered fewer than 3 views)"
+    refined = {}
+    for im in default_rec.images.values():
+        if im.has_pose:
+            refined[im.name] = float(im.camera.params[0])
+    cam = next(im.camera for im in default_rec.images.values() if im.has_pose)
+    out, used = [], []
+    for names, model, params in groups:
+        f = [refined[n] for n in names if n in refined]
+        if params is None and f:
+            extra = ", 0" * (len(_param_names(model)) - 3)
+            params = f"{float(np.median(f))!r}, {cam.width / 2.0!r}, {cam.height / 2.0!r}{extra}"
+            used.append(f"{np.median(f):.0f} px, refined on {len(f)} views")
+        out.append((names, model, params))
+    return out, "; ".join(used) if used else "the default's"
+
+
+def _param_names(model: str) -> tuple:
+    from reconstruct.camera_files import CAMERA_MODELS
+
+    return CAMERA_MODELS[model]
+
+
+def _extract_strong(db: Path, image_dir, cameras, opts: ColmapOptions,
+                    esc: EscalationOptions) -> None:
+    import pycolmap
+
+    db.unlink(missing_ok=True)
+    pycolmap.set_random_seed(int(opts.seed))
+    ex = pycolmap.FeatureExtractionOptions()
+    ex.num_threads = opts.num_threads
+    ex.sift.max_num_features = max(esc.max_features, opts.max_features)
+    ex.sift.peak_threshold = esc.peak_threshold
+    ex.sift.estimate_affine_shape = esc.affine
+    ex.sift.domain_size_pooling = esc.dsp
+    for names, model, params in cameras:
+        reader = pycolmap.ImageReaderOptions()
+        reader.camera_model = model
+        if params is not None:
+            reader.camera_params = params
+        pycolmap.extract_features(str(db), str(image_dir), image_names=list(names),
+                                  camera_mode=pycolmap.CameraMode.SINGLE,
+                                  reader_options=reader, extraction_options=ex,
+                                  device=pycolmap.Device.cpu)
+
+
+def _match_strong(db: Path, names: Sequence[str], opts: ColmapOptions,
+                  esc: EscalationOptions) -> None:
+    import pycolmap
+
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = opts.num_threads
+    matching.guided_matching = esc.guided
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = int(opts.seed)
+    cpu = pycolmap.Device.cpu
+    if len(names) <= esc.exhaustive_max:
+        pycolmap.match_exhaustive(str(db), matching_options=matching,
+                                  verification_options=verification, device=cpu)
+        return
+    pairs = db.parent / "ring_pairs.txt"
+    pairs.write_text("".join(f"{a} {b}\n" for a, b in ring_pairs(sorted(names),
+                                                                  esc.sequential_overlap)))
+    pairing = pycolmap.ImportedPairingOptions()
+    pairing.match_list_path = str(pairs)
+    pycolmap.match_image_pairs(str(db), matching_options=matching, pairing_options=pairing,
+                               verification_options=verification, device=cpu)
+
+
+def _mapper_options(opts: ColmapOptions, thresholds) -> object:
+    import pycolmap
+
+    init_inliers, init_angle, abs_inliers, abs_ratio = thresholds
+    m = pycolmap.IncrementalPipelineOptions()
+    m.num_threads = opts.num_threads
+    m.random_seed = int(opts.seed)
+    m.mapper.random_seed = int(opts.seed)
+    m.mapper.num_threads = opts.num_threads
+    m.mapper.init_min_num_inliers = init_inliers
+    m.mapper.init_min_tri_angle = init_angle
+    m.mapper.abs_pose_min_num_inliers = abs_inliers
+    m.mapper.abs_pose_min_inlier_ratio = abs_ratio
+    m.ba_refine_extra_params = False
+    m.mapper.abs_pose_refine_extra_params = False
+    return m
+
+
+def _map_relaxed(db: Path, image_dir, out: Path, opts: ColmapOptions, thresholds):
+    """One rung of :data:`LADDER`: the mapper, then its models merged."""
+    import pycolmap
+
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    models = pycolmap.incremental_mapping(str(db), str(image_dir), str(out),
+                                          options=_mapper_options(opts, thresholds)) or {}
+    step = {"step": "relaxed mapping", "thresholds": dict(zip(
+        ("init_min_inliers", "init_min_tri_angle_deg", "abs_pose_min_inliers",
+         "abs_pose_min_inlier_ratio"), thresholds, strict=True)),
+        "models": [r.num_reg_images() for r in models.values()]}
+    if not models:
+        step["registered"] = 0
+        return None, step
+    rec = max(models.values(), key=lambda r: r.num_reg_images())
+    if len(models) > 1:
+        poses, base, joined = merge_models(list(models.values()))
+        if joined:
+            rec = _triangulate_merged(db, image_dir, out / "merged", poses, base, opts)
+            step["merged"] = [{"views": n, "common": c} for n, c in joined]
+    step["registered"] = rec.num_reg_images()
+    return rec, step
+
+
+def _triangulate_merged(db: Path, image_dir, out: Path, poses: dict, base, opts):
+    """The merged poses with the base model's intrinsics, triangulated from the database
+    and bundle-adjusted (focal length refined, distortion held)."""
+    import pycolmap
+
+    from reconstruct.sfm.colmap import _triangulate_known
+
+    out.mkdir(parents=True, exist_ok=True)
+    names = {im.name for im in _db_images(db)}
+    rec = _triangulate_known(db, image_dir, out, {n: T for n, T in poses.items()
+                                                  if n in names}, opts.num_threads)[0]
+    cam_params = {c.camera_id: c.params for c in base.cameras.values()}
+    for cid, cam in rec.cameras.items():
+        if cid in cam_params:
+            cam.params = cam_params[cid]
+    rec = pycolmap.triangulate_points(rec, str(db), str(image_dir), str(out / "0"),
+                                      options=pycolmap.IncrementalPipelineOptions(),
+                                      refine_intrinsics=False)
+    _bundle_adjust(rec)
+    return rec
+
+
+def _db_images(db: Path) -> list:
+    import pycolmap
+
+    d = pycolmap.Database.open(str(db))
+    try:
+        return d.read_all_images()
+    finally:
+        d.close()
+
+
+def _relocalize(db: Path, image_dir, rec, out: Path, opts: ColmapOptions):
+    """The views still out registered against ``rec`` with :data:`RELOCALIZE`'s
+    permissive absolute-pose settings (the incremental mapper continued from ``rec``)."""
+    import pycolmap
+
+    shutil.rmtree(out, ignore_errors=True)
+    (out / "input").mkdir(parents=True)
+    rec.write(str(out / "input"))
+    m = _mapper_options(opts, LADDER[-1])
+    m.mapper.abs_pose_min_num_inliers, m.mapper.abs_pose_min_inlier_ratio, \
+        m.mapper.abs_pose_max_error = RELOCALIZE
+    m.mapper.max_reg_trials = 5
+    m.multiple_models = False
+    (out / "0").mkdir()
+    models = pycolmap.incremental_mapping(str(db), str(image_dir), str(out / "0"),
+                                          options=m, input_path=str(out / "input")) or {}
+    if not models:
+        return rec
+    return max(models.values(), key=lambda r: r.num_reg_images())
+
+
+def _bundle_adjust(rec) -> None:
+    """Bundle adjustment with a Huber loss, the focal length refined, the distortion held
+    and the gauge fixed by two cameras (a long lens leaves the problem ill-conditioned:
+    the solver may stop at its iteration limit, having still lowered the cost)."""
+    import pycolmap
+
+    ba = pycolmap.BundleAdjustmentOptions()
+    ba.refine_focal_length = True
+    ba.refine_extra_params = False
+    ba.ceres.loss_function_type = pycolmap.LossFunctionType.HUBER
+    config = pycolmap.BundleAdjustmentConfig()
+    for image_id in rec.reg_image_ids():
+        config.add_image(image_id)
+    config.fix_gauge(pycolmap.BundleAdjustmentGauge.TWO_CAMS_FROM_WORLD)
+    pycolmap.create_default_bundle_adjuster(ba, config, rec).solve()
+
+
+def refine(rec, database: Path, image_dir, work: Path, *, rounds: int = 2):
+    """The second bundle adjustment: points triangulated again from every verified match
+    of the registered views (tracks across the joins of merged models included), then
+    :func:`_bundle_adjust`, ``rounds`` times. Returns the refined model."""
+    import pycolmap
+
+    tri = pycolmap.IncrementalPipelineOptions()
+    tri.triangulation.ignore_two_view_tracks = False
+    for k in range(rounds):
+        out = Path(work) / f"refine{k}"
+        shutil.rmtree(out, ignore_errors=True)
+        out.mkdir(parents=True)
+        rec = pycolmap.triangulate_points(rec, str(database), str(image_dir), str(out),
+                                          clear_points=True, options=tri,
+                                          refine_intrinsics=False)
+        _bundle_adjust(rec)
+    return rec
