@@ -1,5 +1,6 @@
 """Known cameras from the files other tools write: a COLMAP model, a nerfstudio
-``transforms.json``, a Middlebury ``*_par.txt``.
+``transforms.json``, a Middlebury ``*_par.txt``, an OpenMVS ``.mvs`` scene, a Meshroom
+``cameras.sfm``.
 
 :func:`read_cameras` gives ``{image name: Camera}`` in scanamp's (OpenCV) convention,
 whatever the source: turntables, robot arms and calibrated rigs know their poses, and
@@ -16,6 +17,10 @@ nerfstudio ``transforms.json``
 Middlebury ``*_par.txt``
     A count, then one line per image: ``name k11..k33 r11..r33 t1 t2 t3`` with the
     projection ``K [R | t]`` (``x_cam = R X + t``), pixel centres at integers.
+OpenMVS ``*.mvs`` and Meshroom ``*.sfm``
+    Read by :mod:`core.scene_cameras_io` (its docstring gives both layouts). An OpenMVS
+    camera stored without its image size (``K`` normalised by the larger side) takes the
+    size from ``sizes``, else a nominal 1000 x 1000 (its pose is exact either way).
 
 >>> import tempfile, pathlib
 >>> p = pathlib.Path(tempfile.mkdtemp()) / "toy_par.txt"
@@ -52,7 +57,7 @@ CAMERA_MODELS = {
 log = logging.getLogger(__name__)
 
 CAMERA_FILE_FORMATS = ("COLMAP model (folder, cameras.txt/.bin)", "transforms.json",
-                       "Middlebury *_par.txt")
+                       "Middlebury *_par.txt", "OpenMVS *.mvs", "Meshroom cameras.sfm")
 
 
 def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]]
@@ -84,6 +89,11 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
         cams = {Path(f).name: c for c, f in zip(cameras, files, strict=True)}
     elif path.suffix.lower() == ".txt":
         cams = _read_middlebury(path, sizes or {})
+    elif path.suffix.lower() in (".mvs", ".sfm"):
+        from core.scene_cameras_io import read_meshroom_sfm, read_openmvs_scene
+
+        read = read_openmvs_scene if path.suffix.lower() == ".mvs" else read_meshroom_sfm
+        cams = {v.name: _view_camera(v, (sizes or {}).get(v.name), path) for v in read(path)}
     else:
         raise InputError("unknown cameras format: expected " + ", ".join(CAMERA_FILE_FORMATS),
                          path=path)
@@ -95,6 +105,20 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
             raise InputError(f"camera of {name} is {cam.width}x{cam.height}, the image is "
                              f"{size[0]}x{size[1]}", path=path, field=name)
     return cams
+
+
+def _view_camera(view, size, path: Path) -> Camera:
+    """A :class:`~acquire.camera.Camera` from a :class:`core.scene_cameras_io.ViewCamera`;
+    a normalised ``K`` (no stored size) scaled by the larger side of ``size`` (else 1000)."""
+    K, (w, h) = view.K, (view.width, view.height)
+    if w == 0 or h == 0:
+        w, h = size if size is not None else (1000, 1000)
+        K = K * np.array([[1.0], [1.0], [0.0]]) * max(w, h) + np.diag([0.0, 0.0, 1.0])
+    try:
+        return Camera(int(w), int(h), K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(5),
+                      view.cam_from_world)
+    except ValueError as e:
+        raise InputError(str(e), path=path, field=view.name) from None
 
 
 def _read_colmap(folder: Path) -> dict[str, Camera]:

@@ -6,15 +6,22 @@ is built on it (plants, snow, a city) needs gravity. Two sources, in order of tr
 
 1. **The cameras beside the mesh.** People hold cameras upright (give or take a roll of
    a few degrees, which averages out), so the image's up, ``-y`` of an OpenCV camera, in
-   the world, averaged over the views, is up. A COLMAP model (``sparse/0``) or a
-   nerfstudio ``transforms.json`` next to the mesh is read for it.
-2. **The mesh itself.** The largest part of a scene that faces one way is its ground,
-   and walls stand perpendicular to it: ``up`` maximises the area whose normal lies
-   within ``ground_deg`` of it plus half the area within ``wall_deg`` of perpendicular,
-   over a dense set of directions, refined by the ground faces' mean normal. The sign
-   follows the ground faces' normals when they agree (a reconstruction's normals face
-   the cameras, above the ground); otherwise the side toward which the heights are
-   skewed (objects stand up from the ground, nothing hangs below it).
+   the world, averaged over the views, is up. A COLMAP model (``sparse/0``), a
+   nerfstudio ``transforms.json``, a Meshroom ``cameras.sfm`` or an OpenMVS ``*.mvs``
+   scene next to the mesh (or in its parent folder) is read for it.
+2. **The mesh itself.** Candidate axes are the directions that make the most area
+   ground (within ``ground_deg``) and walls (within ``wall_deg`` of perpendicular):
+   the best few, at least 30 degrees apart, each refined by its ground faces' mean
+   normal. Area alone cannot tell a facade with a strip of ground from a strip of
+   ground with a facade: the wall is the largest plane. Each candidate, with each
+   sign, is then scored by structure: the ground lies at the lower end of the walls
+   along up (a facade's windows, recessed into it, would be "ground" at the foot of
+   nothing), roofs lie at their upper end, and the ground faces face up when the
+   normals agree (a reconstruction's normals face the cameras, above the ground).
+   ``decision`` in the estimate names the cue that separated the winner from the
+   runner-up and the margin (1 - runner-up / winner): a close call (under
+   :data:`CLOSE_MARGIN`) makes ``scanamp amplify`` warn and name ``--up``. Walls meet
+   the ground along lines perpendicular to up by construction of the candidates.
 
 :func:`estimate_up` tries them in that order unless ``up`` is given.
 
@@ -39,9 +46,22 @@ import numpy as np
 
 from core.validate import check_unit_vector
 
-__all__ = ["UpEstimate", "estimate_up", "up_from_cameras", "up_from_mesh", "find_camera_model"]
+__all__ = ["UpEstimate", "estimate_up", "up_from_cameras", "up_from_mesh", "find_camera_model",
+           "is_close", "CLOSE_MARGIN", "CUES"]
 
 log = logging.getLogger(__name__)
+
+
+#: a runner-up scoring within this fraction of the winner makes the call a close one
+CLOSE_MARGIN = 0.25
+
+
+def is_close(up: dict) -> bool:
+    """Whether an up estimate (:meth:`UpEstimate.to_dict`, as report.json keeps it) came
+    from the mesh with a runner-up within :data:`CLOSE_MARGIN` of the winner."""
+    d = up.get("decision") or {}
+    return bool(up.get("source") == "mesh" and d.get("runner_up")
+                and d.get("margin", 1.0) < CLOSE_MARGIN)
 
 
 @dataclass(frozen=True)
@@ -54,10 +74,20 @@ class UpEstimate:
     source: str
     support: float
     detail: str = ""
+    decision: dict | None = None
+
+    @property
+    def close(self) -> bool:
+        """From the mesh, and the runner-up scored within :data:`CLOSE_MARGIN` of the
+        winner: worth a look (``--up`` overrides)."""
+        return is_close(self.to_dict())
 
     def to_dict(self) -> dict:
-        return {"up": [float(x) for x in self.up], "source": self.source,
-                "support": float(self.support), "detail": self.detail}
+        out = {"up": [float(x) for x in self.up], "source": self.source,
+               "support": float(self.support), "detail": self.detail}
+        if self.decision is not None:
+            out["decision"] = self.decision
+        return out
 
 
 def up_from_cameras(world_from_cams) -> UpEstimate:
@@ -78,9 +108,8 @@ def _fibonacci(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: float = 20.0,
-                 wall_deg: float = 10.0, directions: int = 4000) -> UpEstimate:
-    """Up from the mesh alone: its ground and walls (see the module docstring)."""
+def _faces(vertices, triangles):
+    """Unit normals, areas, and the lowest and highest vertex of each non-degenerate face."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(triangles, np.int64)
     if len(f) == 0:
@@ -88,13 +117,19 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
     cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     area = 0.5 * np.linalg.norm(cross, axis=1)
     keep = area > 0
-    n, a = cross[keep] / (2.0 * area[keep, None]), area[keep]
+    return cross[keep] / (2.0 * area[keep, None]), area[keep], v[f[keep]], v
+
+
+def _candidate_axes(n, a, cos_g, sin_w, directions: int, count: int = 3,
+                    apart_deg: float = 30.0) -> list:
+    """The best axes by ground + half walls, at least ``apart_deg`` apart (each a local
+    best: the true up and the walls' normals of a facade), each refined by its ground
+    faces' principal normal."""
     total = float(a.sum())
-    cos_g, sin_w = np.cos(np.radians(ground_deg)), np.sin(np.radians(wall_deg))
     cand = _fibonacci(directions)
-    cand = cand[cand[:, 2] >= 0]  # an axis; the sign is decided below
+    cand = cand[cand[:, 2] >= 0]  # an axis; the sign is decided by the structure
     # score on at most 20 000 faces drawn by area (a fixed draw: the same mesh, the same
-    # answer); the refinement below uses every face
+    # answer); the refinement uses every face
     ns, ws = n, a
     if len(n) > 20_000:
         pick = np.random.default_rng(0).choice(len(n), 20_000, p=a / total)
@@ -103,41 +138,120 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
     for i in range(0, len(cand), 256):  # (faces x 256) dot products at a time
         d = np.abs(ns @ cand[i:i + 256].T)
         score[i:i + 256] = ws @ (d > cos_g) + 0.5 * (ws @ (d < sin_w))
-    axis = cand[int(np.argmax(score))]
-    for _ in range(3):  # refine: the principal direction of the ground faces' normals
-        ground = np.abs(n @ axis) > cos_g
-        if not ground.any():
+    axes = []
+    for i in np.argsort(-score):
+        if score[i] < 0.3 * score.max() or len(axes) == count:
             break
-        m = (n[ground] * a[ground, None]).T @ n[ground]
-        w, vec = np.linalg.eigh(m)
-        axis = vec[:, -1] * np.sign(vec[:, -1] @ axis or 1.0)
-    dots = n @ axis
-    ground = np.abs(dots) > cos_g
-    walls = np.abs(dots) < sin_w
-    support = float((a[ground].sum() + a[walls].sum()) / total)
-    agree = float((a[ground] * np.sign(dots[ground])).sum() / max(a[ground].sum(), 1e-300))
-    if abs(agree) >= 0.6:
-        sign, how = np.sign(agree), f"ground normals agree ({abs(agree):.2f})"
-    else:
-        h = v[np.unique(f[keep])] @ axis
-        skew = float(np.mean((h - h.mean()) ** 3))
-        sign, how = (1.0 if skew >= 0 else -1.0), "heights skewed up from the ground"
-    up = sign * axis
-    return UpEstimate(up, "mesh", support,
-                      f"ground {a[ground].sum() / total:.2f} and walls "
-                      f"{a[walls].sum() / total:.2f} of the area; sign: {how}")
+        if all(abs(cand[i] @ b) < np.cos(np.radians(apart_deg)) for b in axes):
+            axes.append(cand[i])
+    out = []
+    for axis in axes:
+        for _ in range(3):  # refine: the principal direction of the ground faces' normals
+            ground = np.abs(n @ axis) > cos_g
+            if not ground.any():
+                break
+            w, vec = np.linalg.eigh((n[ground] * a[ground, None]).T @ n[ground])
+            axis = vec[:, -1] * np.sign(vec[:, -1] @ axis or 1.0)
+        out.append(axis)
+    return out
+
+
+def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.ndarray:
+    """Heights of ``n`` points spread over faces by area (a fixed draw), from each face's
+    vertex heights ``(faces, 3)``: where a face's area lies, not only its corners."""
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(area), n, p=area / area.sum())
+    r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
+    w = np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+    return (heights[pick] * w).sum(axis=1)
+
+
+def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
+    """How well ``up`` (signed) explains the mesh as ground, walls and roofs.
+
+    ``area``: ground (faces facing up; either way when the normals disagree) plus half the
+    walls, over the whole area. ``base``: the share of that ground lying at the walls'
+    lower end (within 2 % of the height range of the lowest 1 % of the walls' area):
+    walls stand on the ground (the walls' heights are those of points spread over them
+    by area). ``top``: the share lying at their upper end (roofs lie above). The score is
+    ``area x (base + top / 2)``."""
+    d = n @ up
+    h = tri @ up  # (faces, 3) vertex heights
+    tol = 0.02 * float(h.max() - h.min())
+    total = float(a.sum())
+    both = np.abs(d) > cos_g
+    agree = float((a[both] * np.sign(d[both])).sum() / max(a[both].sum(), 1e-300))
+    ground = d > cos_g if abs(agree) >= 0.6 else both
+    walls = np.abs(d) < sin_w
+    out = {"ground": float(a[ground].sum() / total), "walls": float(a[walls].sum() / total),
+           "agree": agree, "base": 0.0, "top": 0.0}
+    out["area"] = out["ground"] + 0.5 * out["walls"]
+    if ground.any() and walls.any():
+        wh = _area_samples(h[walls], a[walls])
+        w_lo, w_hi = np.quantile(wh, 0.01), np.quantile(wh, 0.99)
+        gh, ga = h[ground].mean(axis=1), a[ground]
+        out["base"] = float(ga[np.abs(gh - w_lo) <= tol].sum() / ga.sum())
+        out["top"] = float(ga[np.abs(gh - w_hi) <= tol].sum() / ga.sum())
+    out["score"] = out["area"] * (out["base"] + 0.5 * out["top"])
+    return out
+
+
+#: what each structural cue means, for the report
+CUES = {"area": "ground and wall area (the largest level part is the ground)",
+        "base": "the ground lies at the walls' lower end",
+        "top": "roofs lie at the walls' upper end"}
+
+
+def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: float = 20.0,
+                 wall_deg: float = 10.0, directions: int = 4000) -> UpEstimate:
+    """Up from the mesh alone: the best candidate axes (module docstring), each with both
+    signs, scored by structure (:func:`_structure`); ``decision`` names the cue that
+    separated the winner from the runner-up and how close it was."""
+    n, a, tri, v = _faces(vertices, triangles)
+    cos_g, sin_w = np.cos(np.radians(ground_deg)), np.sin(np.radians(wall_deg))
+    options = []
+    for axis in _candidate_axes(n, a, cos_g, sin_w, directions):
+        for sign in (1.0, -1.0):
+            options.append((sign * axis, _structure(sign * axis, n, a, tri, cos_g, sin_w)))
+    options.sort(key=lambda o: -o[1]["score"])
+    up, best = options[0]
+    decision = {"cue": "only candidate", "margin": 1.0, "runner_up": None}
+    if len(options) > 1:
+        other_up, other = options[1]
+        # each cue's share of the winner's lead: its score with that cue set to the
+        # runner-up's value, taken from the winner's
+        weight = best["base"] + 0.5 * best["top"]
+        lead = {"area": (best["area"] - other["area"]) * weight,
+                "base": best["area"] * (best["base"] - other["base"]),
+                "top": best["area"] * 0.5 * (best["top"] - other["top"])}
+        cue = max(lead, key=lead.get)
+        decision = {"cue": CUES[cue],
+                    "margin": float(1.0 - other["score"] / max(best["score"], 1e-300)),
+                    "runner_up": {"up": [float(x) for x in other_up],
+                                  "angle_deg": float(np.degrees(np.arccos(np.clip(
+                                      up @ other_up, -1.0, 1.0)))),
+                                  "score": other["score"]}}
+    how = (f"ground normals agree ({abs(best['agree']):.2f})" if abs(best["agree"]) >= 0.6
+           else "structure (normals disagree)")
+    return UpEstimate(up, "mesh", best["ground"] + best["walls"],
+                      f"ground {best['ground']:.2f} and walls {best['walls']:.2f} of the "
+                      f"area; {best['base']:.2f} of the ground at the walls' foot; sign: "
+                      f"{how}; decided by {decision['cue']} (margin {decision['margin']:.2f})",
+                      decision)
 
 
 def find_camera_model(mesh_path: str | os.PathLike) -> Path | None:
-    """A camera model beside the mesh: ``transforms.json``, ``sparse/0`` (COLMAP) or
-    ``sparse`` in the mesh's folder or its parent; None when there is none.
+    """A camera model beside the mesh, in the mesh's folder or its parent: ``transforms.json``,
+    ``sparse/0`` or ``sparse`` (COLMAP), ``cameras.sfm`` (Meshroom), or an OpenMVS scene
+    ``*.mvs`` (the first by name); None when there is none.
 
     ``transforms.json`` comes first: ``scanamp reconstruct sfm`` writes it in the mesh's
     frame, while ``sparse/`` stays in COLMAP's own frame when the mesh was aligned to a
     capture's ground truth."""
     here = Path(mesh_path).resolve().parent
     for folder in (here, here.parent):
-        for cand in (folder / "transforms.json", folder / "sparse" / "0", folder / "sparse"):
+        for cand in (folder / "transforms.json", folder / "sparse" / "0", folder / "sparse",
+                     folder / "cameras.sfm", *sorted(folder.glob("*.mvs"))):
             if cand.is_file() or (cand.is_dir() and any(
                     (cand / n).is_file() for n in ("cameras.bin", "cameras.txt"))):
                 return cand
@@ -147,8 +261,9 @@ def find_camera_model(mesh_path: str | os.PathLike) -> Path | None:
 def estimate_up(vertices: np.ndarray, triangles: np.ndarray, *, up=None,
                 cameras: str | os.PathLike | None = None) -> UpEstimate:
     """Up of a mesh: ``up`` when given, else from the camera model at ``cameras`` (a COLMAP
-    model or transforms.json, :func:`reconstruct.camera_files.read_cameras`), else from
-    the mesh. A camera model that cannot be read is logged and the mesh used."""
+    model, transforms.json, a Meshroom cameras.sfm or an OpenMVS .mvs:
+    :func:`reconstruct.camera_files.read_cameras`), else from the mesh. A camera model
+    that cannot be read is logged and the mesh used."""
     if up is not None:
         return UpEstimate(check_unit_vector(up, "up"), "given", 1.0)
     if cameras is not None:

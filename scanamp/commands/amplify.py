@@ -55,5 +55,24 @@ def run(args, config: AmplifyOptions) -> int:
     else:
         out = amplify_run(args.mesh, args.recipe, args.out, seed=config.seed, up=config.up,
                           turntable=config.turntable)
+        _warn_if_close(out)
     log.info("wrote %s", out)
     return 0
+
+
+def _warn_if_close(out) -> None:
+    """A warning naming --up when up came from the mesh and the runner-up was close."""
+    import json
+    from pathlib import Path
+
+    from reconstruct.surface.up import is_close
+
+    report = Path(out) / "report.json"
+    up = json.loads(report.read_text()).get("up", {}) if report.is_file() else {}
+    if is_close(up):
+        d = up["decision"]
+        alt = ",".join(f"{x:.3f}" for x in d["runner_up"]["up"])
+        log.warning("up %s was a close call (decided by %s; the runner-up %s, %.0f degrees "
+                    "away, scored within %.0f %%): if the result stands on a wall, pass "
+                    "--up %s", ",".join(f"{x:.3f}" for x in up["up"]), d["cue"], alt,
+                    d["runner_up"]["angle_deg"], 100 * d["margin"], alt)
