@@ -6,8 +6,10 @@ stops as soon as every view is in:
 
 1. **Stronger features**: SIFT again with a lower peak threshold (dark, low-contrast
    photos: the Middlebury dino on black has ~250 default features per view, ~1 500 at
-   0.001), twice the features, affine-covariant shapes and domain-size pooling
-   (``SiftExtractionOptions.estimate_affine_shape``, ``domain_size_pooling``).
+   0.001) and twice the features; if views are still out after the steps below, a
+   second tier with affine-covariant shapes and domain-size pooling
+   (``SiftExtractionOptions.estimate_affine_shape``, ``domain_size_pooling``: about
+   three times the extraction time).
 2. **Matching with geometry**: exhaustive up to 100 images, else sequential in file order
    with the ring closed (the last views matched to the first: loop closure without a
    vocabulary tree); guided matching (``FeatureMatchingOptions.guided_matching``) once a
@@ -22,9 +24,10 @@ stops as soon as every view is in:
    it); two models that share at least two views are joined by the similarity of those
    views (their rotations and centres), and the union is triangulated again.
 6. **Re-localization**: the views still out are registered against the finished model
-   with permissive absolute-pose settings (:data:`RELOCALIZE`), then a second bundle
-   adjustment (:func:`refine`: the points triangulated again from every verified match,
-   a Huber loss).
+   with permissive absolute-pose settings (:data:`RELOCALIZE`); a model that was merged
+   or grew so gets a second bundle adjustment (:func:`refine`: the points triangulated
+   again from every verified match, a Huber loss). A model the relaxed mapper built in
+   one piece has had its global bundle adjustment already.
 
 Every step is a pycolmap call; nothing is learned, nothing is downloaded. The report says
 which steps ran, what each registered and how long it took.
@@ -68,9 +71,10 @@ class EscalationOptions:
         SIFT's difference-of-Gaussians threshold (COLMAP's default 0.0067).
     max_features : int
     affine : bool
-        Affine-covariant SIFT (``estimate_affine_shape``).
+        A second tier of features, for what the first (SIFT at ``peak_threshold``) left
+        out: affine-covariant SIFT (``estimate_affine_shape``, about three times slower).
     dsp : bool
-        Domain-size pooling of the descriptors.
+        Domain-size pooling of the second tier's descriptors.
     guided : bool
         Guided matching after the two-view geometry.
     sequential_overlap : int
@@ -206,47 +210,63 @@ def escalate(database: Path, image_dir: Path, names: Sequence[str], groups: Sequ
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)
     best_n = default_rec.num_reg_images() if default_rec is not None else 0
-    best, best_db = default_rec, Path(database)
     report = {"entered_because": f"{best_n} of {len(names)} views registered by the default",
               "steps": []}
+    state = {"best": default_rec, "db": Path(database), "n": best_n}
     with _quiet_colmap(0 if verbose else 2):
-        db = work / "strong.db"
-        t = time.perf_counter()
         cams, prior = _focal_priors(groups, default_rec)
-        _extract_strong(db, image_dir, cams, opts, esc)
-        _match_strong(db, names, opts, esc)
-        report["steps"].append({"step": "stronger features and guided matching",
-                                "focal_prior": prior,
-                                "seconds": time.perf_counter() - t})
-        for rung, thresholds in enumerate(LADDER):
-            t = time.perf_counter()
-            rec, step = _map_relaxed(db, image_dir, work / f"relaxed{rung}", opts, thresholds)
-            step["seconds"] = time.perf_counter() - t
-            report["steps"].append(step)
-            if rec is not None and rec.num_reg_images() > best_n:
-                best, best_db, best_n = rec, db, rec.num_reg_images()
-            if best_n == len(names):
+        tiers = [(False, False)] + ([(True, esc.dsp)] if esc.affine else [])
+        for k, (affine, dsp) in enumerate(tiers):
+            _features_tier(k, affine, dsp, cams, prior, image_dir, names, opts, esc, work,
+                           state, report)
+            if state["n"] == len(names):
                 break
-        if best_n < len(names) and best is not None and best_db == db:
+        best, best_db, best_n = state["best"], state["db"], state["n"]
+        if best_n < len(names) and best is not None and best_db != Path(database):
             t = time.perf_counter()
-            rec = _relocalize(db, image_dir, best, work / "relocalized", opts)
+            rec = _relocalize(best_db, image_dir, best, work / "relocalized", opts)
             report["steps"].append({"step": "re-localization against the model",
                                     "settings": dict(zip(("min_inliers", "min_inlier_ratio",
                                                           "max_error_px"), RELOCALIZE,
                                                          strict=True)),
                                     "registered": rec.num_reg_images(),
                                     "seconds": time.perf_counter() - t})
-            if rec.num_reg_images() >= best_n:
-                best, best_n = rec, rec.num_reg_images()
-        if best is not None and best_db == db:
+            if rec.num_reg_images() > best_n:
+                best, best_n, state["joined"] = rec, rec.num_reg_images(), True
+        if best is not None and state.get("joined"):
             t = time.perf_counter()
-            best = refine(best, db, image_dir, work)
+            best = refine(best, best_db, image_dir, work)
             report["steps"].append({"step": "second bundle adjustment",
                                     "mean_reprojection_error_px":
                                         best.compute_mean_reprojection_error(),
                                     "seconds": time.perf_counter() - t})
     report["registered"] = best_n
     return best, best_db, report
+
+
+def _features_tier(k, affine, dsp, cams, prior, image_dir, names, opts, esc, work, state,
+                   report) -> None:
+    """One tier of features (SIFT at the lower threshold; then affine-covariant and
+    domain-size pooled), guided matching, and the relaxed mapping ladder on them;
+    ``state`` keeps the best model so far and its database."""
+    db = work / f"strong{k}.db"
+    t = time.perf_counter()
+    _extract_strong(db, image_dir, cams, opts, esc, affine=affine, dsp=dsp)
+    _match_strong(db, names, opts, esc)
+    report["steps"].append({"step": "stronger features and guided matching",
+                            "features": f"SIFT, peak threshold {esc.peak_threshold:g}"
+                                        + (", affine-covariant" if affine else "")
+                                        + (", domain-size pooling" if dsp else ""),
+                            "focal_prior": prior, "seconds": time.perf_counter() - t})
+    for rung, thresholds in enumerate(LADDER):
+        t = time.perf_counter()
+        rec, step = _map_relaxed(db, image_dir, work / f"relaxed{k}_{rung}", opts, thresholds)
+        step["seconds"] = time.perf_counter() - t
+        report["steps"].append(step)
+        if rec is not None and rec.num_reg_images() > state["n"]:
+            state.update(best=rec, db=db, n=rec.num_reg_images(), joined="merged" in step)
+        if state["n"] == len(names):
+            return
 
 
 def _focal_priors(groups, default_rec) -> tuple[list, str]:
@@ -277,7 +297,7 @@ def _param_names(model: str) -> tuple:
 
 
 def _extract_strong(db: Path, image_dir, cameras, opts: ColmapOptions,
-                    esc: EscalationOptions) -> None:
+                    esc: EscalationOptions, *, affine: bool, dsp: bool) -> None:
     import pycolmap
 
     db.unlink(missing_ok=True)
@@ -286,8 +306,8 @@ def _extract_strong(db: Path, image_dir, cameras, opts: ColmapOptions,
     ex.num_threads = opts.num_threads
     ex.sift.max_num_features = max(esc.max_features, opts.max_features)
     ex.sift.peak_threshold = esc.peak_threshold
-    ex.sift.estimate_affine_shape = esc.affine
-    ex.sift.domain_size_pooling = esc.dsp
+    ex.sift.estimate_affine_shape = affine
+    ex.sift.domain_size_pooling = dsp
     for names, model, params in cameras:
         reader = pycolmap.ImageReaderOptions()
         reader.camera_model = model
