@@ -61,6 +61,15 @@ def _wall(out_v, out_f, xs, zs, window, recess) -> None:
                 _quad(out_v, out_f, [[x0, 0, z1], [x1, 0, z1], [x1, r, z1], [x0, r, z1]])
 
 
+def _weld(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One vertex per distinct position (the quads share their corners), and no face
+    left with a repeated vertex (a zero-height kerb)."""
+    uniq, inverse = np.unique(np.round(v, 9), axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[f]
+    keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+    return uniq, f[keep]
+
+
 def facade_mesh(rng: np.random.Generator, *, width: float = 20.0, height: float = 12.0,
                 ground_depth: float = 5.0, floors: int = 4, bays: int = 6,
                 window_fraction: float = 0.45, recess: float = 0.3, kerb: float = 0.15,
@@ -107,13 +116,13 @@ def facade_mesh(rng: np.random.Generator, *, width: float = 20.0, height: float 
                        -0.15)
     _box_front(out_v, out_f, 0.0, width, height - 0.5, height, -0.45)  # cornice
     y_kerb = -kerb_at * ground_depth  # the pavement, then the road a kerb lower
-    _quad(out_v, out_f, [[0, y_kerb, 0], [width, y_kerb, 0], [width, 0, 0], [0, 0, 0]])
-    _quad(out_v, out_f, [[0, y_kerb, -kerb], [width, y_kerb, -kerb], [width, y_kerb, 0],
-                         [0, y_kerb, 0]])
-    _quad(out_v, out_f, [[0, -ground_depth, -kerb], [width, -ground_depth, -kerb],
-                         [width, y_kerb, -kerb], [0, y_kerb, -kerb]])
-    v = np.concatenate(out_v)
-    f = np.concatenate(out_f).astype(np.int64)
+    for x0, x1 in zip(xs[:-1], xs[1:], strict=True):  # split as the wall is: welded to it
+        _quad(out_v, out_f, [[x0, y_kerb, 0], [x1, y_kerb, 0], [x1, 0, 0], [x0, 0, 0]])
+        _quad(out_v, out_f, [[x0, y_kerb, -kerb], [x1, y_kerb, -kerb], [x1, y_kerb, 0],
+                             [x0, y_kerb, 0]])
+        _quad(out_v, out_f, [[x0, -ground_depth, -kerb], [x1, -ground_depth, -kerb],
+                             [x1, y_kerb, -kerb], [x0, y_kerb, -kerb]])
+    v, f = _weld(np.concatenate(out_v), np.concatenate(out_f).astype(np.int64))
     v = v + rng.normal(0.0, noise, v.shape)
     up = np.array([0.0, 0.0, 1.0])
     if rotate:
