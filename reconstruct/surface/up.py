@@ -174,7 +174,9 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
     lower end (within 2 % of the height range of the lowest 1 % of the walls' area):
     walls stand on the ground (the walls' heights are those of points spread over them
     by area). ``top``: the share lying at their upper end (roofs lie above). The score is
-    ``area x (base + top / 2)``."""
+    ``area x (0.1 + base + top / 2)`` (area alone decides a mesh without walls), times
+    1.01 when the heights are skewed up (0.99 when down): the tie-break of a mesh whose
+    normals disagree."""
     d = n @ up
     h = tri @ up  # (faces, 3) vertex heights
     tol = 0.02 * float(h.max() - h.min())
@@ -192,7 +194,13 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
         gh, ga = h[ground].mean(axis=1), a[ground]
         out["base"] = float(ga[np.abs(gh - w_lo) <= tol].sum() / ga.sum())
         out["top"] = float(ga[np.abs(gh - w_hi) <= tol].sum() / ga.sum())
-    out["score"] = out["area"] * (out["base"] + 0.5 * out["top"])
+    # heights skewed up from the ground (objects stand on it, nothing hangs below): the
+    # tie-break of a mesh with no walls and normals that disagree
+    hc = h.mean(axis=1)
+    hc = hc - np.average(hc, weights=a)
+    out["skew"] = float(np.average(hc ** 3, weights=a))
+    out["score"] = out["area"] * (0.1 + out["base"] + 0.5 * out["top"]) \
+        * (1.0 + 0.01 * np.sign(out["skew"]))
     return out
 
 
