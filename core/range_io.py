@@ -249,31 +249,46 @@ def _cells_from_lists(path: Path, counts: np.ndarray, first: np.ndarray) -> np.n
 
 
 def _read_ascii(path: Path, body: bytes, elements) -> dict:
-    lines = body.decode("ascii", "replace").splitlines()
+    newlines = np.flatnonzero(np.frombuffer(body, np.uint8) == 10)
     out, row = {}, 0
     for name, count, props in elements:
-        chunk = lines[row:row + count]
+        if row + count > len(newlines) + 1:
+            raise ValueError(f"element {name}: expected {count} lines, the body ends first")
+        start = 0 if row == 0 else int(newlines[row - 1]) + 1
+        end = int(newlines[row + count - 1]) if row + count - 1 < len(newlines) else len(body)
+        block = body[start:end].decode("ascii") if count else ""
         row += count
-        if len(chunk) != count:
-            raise ValueError(f"element {name}: expected {count} lines, found {len(chunk)}")
         if name == "range_grid":
-            parts = [ln.split() for ln in chunk]
-            counts = np.array([int(p[0]) if p else -1 for p in parts], np.int64)
-            if np.any(counts < 0) or any(len(p) != 1 + c for p, c in zip(parts, counts,
-                                                                           strict=True)):
-                raise ValueError("range_grid: a line's length disagrees with its count")
-            first = np.array([int(p[1]) if len(p) > 1 else -1 for p in parts], np.int64)
-            out[name] = _cells_from_lists(path, counts, first)
+            out[name] = _ascii_cells(path, block, count)
         elif name == "vertex":
             if any(p[0] == "list" for p in props):
                 raise ValueError("list properties of vertices are not supported")
-            vals = np.array(" ".join(chunk).split(), np.float64)
+            vals = np.array(block.split(), np.float64)
+            if vals.size != count * len(props):
+                raise ValueError(f"vertex: expected {count * len(props)} numbers, "
+                                 f"found {vals.size}")
             arr = vals.reshape(count, len(props))
             rec = np.empty(count, [(p[1], np.float64) for p in props])
             for i, p in enumerate(props):
                 rec[p[1]] = arr[:, i]
             out[name] = rec
     return out
+
+
+def _ascii_cells(path: Path, block: str, count: int) -> np.ndarray:
+    """Cells of an ASCII ``range_grid`` block: each line a count and that many indices."""
+    tokens = np.array(block.split(), np.int64).tolist()
+    counts, first = [0] * count, [-1] * count
+    pos = 0
+    for k in range(count):
+        c = tokens[pos]
+        counts[k] = c
+        if c > 0:
+            first[k] = tokens[pos + 1]
+        pos += 1 + max(c, 0)
+    if pos != len(tokens) or min(counts, default=0) < 0:
+        raise ValueError("range_grid: the lines' lengths disagree with their counts")
+    return _cells_from_lists(path, np.array(counts, np.int64), np.array(first, np.int64))
 
 
 def _read_binary(path: Path, data: bytes, pos: int, elements, order: str) -> dict:
