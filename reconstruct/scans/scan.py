@@ -97,16 +97,19 @@ class RangeScan:
 
 
 def sample_spacing(scan: RangeScan) -> float:
-    """The scan's typical sample spacing (metres): the median distance between measured
-    grid neighbours of a range image, the median edge of a mesh's triangles, or the median
-    nearest-neighbour distance of a point cloud."""
+    """The scan's typical sample spacing (metres): for a range image the geometric mean of
+    the median distances between measured neighbours along its rows and along its columns
+    (the side of the square one sample covers); the median edge of a mesh's triangles; or
+    the median nearest-neighbour distance of a point cloud."""
     if scan.grid is not None:
         g, v = scan.grid, scan.points
-        pairs = [(g[:, :-1], g[:, 1:]), (g[:-1, :], g[1:, :])]
-        d = np.concatenate([np.linalg.norm(v[a[(a >= 0) & (b >= 0)]] - v[b[(a >= 0) & (b >= 0)]],
-                                           axis=1) for a, b in pairs])
-        if len(d):
-            return float(np.median(d))
+        axes = []
+        for a, b in ((g[:, :-1], g[:, 1:]), (g[:-1, :], g[1:, :])):
+            ok = (a >= 0) & (b >= 0)
+            if ok.any():
+                axes.append(np.median(np.linalg.norm(v[a[ok]] - v[b[ok]], axis=1)))
+        if axes:
+            return float(np.sqrt(np.prod(axes)) if len(axes) == 2 else axes[0])
     if len(scan.triangles):
         f = scan.triangles
         v = scan.points
