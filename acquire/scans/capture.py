@@ -29,7 +29,7 @@ import numpy as np
 
 from acquire.camera import look_at_cam_from_world
 from acquire.capture_io import write_capture
-from acquire.laser.sheet import LaserRenderer, camera_directions
+from acquire.render.laser_sheet import LaserRenderer, camera_directions
 from acquire.scans.head import ScanHead, stripe_peaks
 from acquire.sensor import Sensor
 from core.config import Config, option, to_dict
@@ -76,8 +76,10 @@ def view_poses(n: int, aim, *, standoff: float, elevation_min_deg: float,
     spread over the elevation band (Fibonacci lattice), rolled up to ``roll_deg`` at random.
 
     >>> T = view_poses(3, [0, 0, 0], standoff=0.4, elevation_min_deg=0, elevation_max_deg=0)
-    >>> [round(float(np.linalg.norm(t[:3, 3])), 9) for t in T], float(T[0][2, 2])
-    ([0.4, 0.4, 0.4], -1.0)
+    >>> [round(float(np.linalg.norm(t[:3, 3])), 9) for t in T]       # at the stand-off
+    [0.4, 0.4, 0.4]
+    >>> bool(np.allclose(T[0][:3, 2], -T[0][:3, 3] / 0.4))           # looking at the aim
+    True
     """
     aim = np.asarray(aim, np.float64)
     lo, hi = np.sin(np.radians([elevation_min_deg, elevation_max_deg]))

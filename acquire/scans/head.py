@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.laser.sheet import LaserSheet
+from acquire.render.laser_sheet import LaserSheet
 from core.config import Config, option
 from core.validate import check_array
 
