@@ -63,8 +63,10 @@ class RangeScan:
     grid : (rows, cols) int64 or None
         Point index of each grid cell (-1 empty) for a range image.
     origin : (3,) float64
-        The scanner's position in the scan frame (zeros for range images seen from the
-        origin; the middle of the sweep for a swept scanner).
+        The scanner's position in the scan frame: zeros for range images seen from the
+        origin (and for Cyberware scans, whose lines of sight are parallel: use ``sight``),
+        the camera at the middle of the sweep for a swept head (whose lines of sight meet
+        the sweep's path, not one point).
     path : Path or None
         The file it came from.
     model_from_scan : (4, 4) float64 or None
