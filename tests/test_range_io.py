@@ -247,3 +247,23 @@ def test_e57_errors(tmp_path):
     (tmp_path / "x.e57").write_text("not an e57")
     with pytest.raises(InputError, match="not a readable E57"):
         read_e57(tmp_path / "x.e57")
+
+
+def test_big_endian_range_grid_as_scanalyze_writes_it(tmp_path):
+    g = _grid(np.random.default_rng(4), rows=3, cols=4, holes=3)
+    flat = g.index.reshape(-1)
+    head = ("ply\nformat binary_big_endian 1.0\nobj_info num_cols 4\nobj_info num_rows 3\n"
+            f"element vertex {len(g.points)}\nproperty float x\nproperty float y\n"
+            "property float z\nproperty uchar intensity\n"
+            f"element range_grid {flat.size}\nproperty list uchar int vertex_indices\n"
+            "end_header\n")
+    rec = np.empty(len(g.points), [("x", ">f4"), ("y", ">f4"), ("z", ">f4"), ("i", "u1")])
+    rec["x"], rec["y"], rec["z"] = g.points.T
+    rec["i"] = np.arange(len(g.points))
+    cells = b"".join(b"\x00" if i < 0 else b"\x01" + np.array([i], ">i4").tobytes()
+                     for i in flat)
+    (tmp_path / "be.ply").write_bytes(head.encode() + rec.tobytes() + cells)
+    back = read_range_grid(tmp_path / "be.ply")
+    assert np.array_equal(back.index, g.index)
+    np.testing.assert_array_equal(back.points, g.points.astype(np.float32))
+    np.testing.assert_array_equal(back.intensity, np.arange(len(g.points)))
