@@ -9,7 +9,7 @@ import pytest
 from acquire.render.materials import Material
 from acquire.render.scene import RenderScene, SceneObject
 from acquire.scans import ScanHead, ScansCaptureConfig, capture_scans, stripe_peaks, view_poses
-from core.range_io import read_conf, read_poses_json, read_range_grid
+from core.range_io import read_conf, read_poses_json
 from reconstruct.scans import load_scans
 from scanamp.cli import main
 
@@ -17,7 +17,7 @@ R = 0.05                     # sphere radius (m)
 CENTRE = np.array([0.0, 0.0, R])
 # a small head: 96 rows over 24 degrees keep ~1 px per mm-wide stripe (fewer rows, and the
 # sub-pixel peak locks onto pixels: 64 rows over 30 degrees gave a 0.2-0.5 mm median)
-HEAD = dict(steps=40, height=96, fov_deg=24.0, sweep_length=0.2)
+HEAD = dict(steps=40, height=96, width=96, fov_deg=24.0)
 
 
 def _scene() -> RenderScene:
@@ -81,16 +81,17 @@ def test_poses_conf_and_json_agree_and_views_surround_the_scene(captured):
     assert len({round(float(np.arctan2(e[1], e[0])), 3) for e in eyes}) == 3
 
 
-def test_lines_of_sight_point_to_the_head_at_its_sweep_step(captured):
-    grid = read_range_grid(captured / "scans" / "scan_01.ply")
+def test_every_line_of_sight_goes_to_the_camera_at_the_origin(captured):
     scan = load_scans(captured)[1]
+    np.testing.assert_allclose(scan.sight, -scan.points / np.linalg.norm(
+        scan.points, axis=1)[:, None], atol=1e-12)
+    np.testing.assert_array_equal(scan.origin, 0)
+    # each sweep step is one stripe: its points lie on that step's sheet
     head = ScanHead(**HEAD)
-    rows, cols = np.nonzero(grid.index >= 0)
-    eye = np.zeros((len(rows), 3))
-    eye[:, 0] = head.sweep()[rows]
-    toward = eye - grid.points[grid.index[rows, cols]]
-    np.testing.assert_allclose(scan.sight[grid.index[rows, cols]],
-                               toward / np.linalg.norm(toward, axis=1)[:, None], atol=1e-9)
+    for s, x in enumerate(head.sweep()[::7]):
+        idx = scan.grid[7 * s][scan.grid[7 * s] >= 0]
+        n, d = head.sheet_plane(x)
+        np.testing.assert_allclose(scan.points[idx] @ n, d, atol=1e-9)
 
 
 def test_same_seed_same_bytes_and_another_seed_other_noise(tmp_path, captured):
@@ -118,15 +119,20 @@ def test_the_firmware_finds_a_stripe_to_a_twentieth_of_a_pixel():
 def test_the_head_triangulates_what_it_sees():
     head = ScanHead()
     cam = head.camera()
-    n, d = head.sheet_plane()
     rows = np.linspace(0, head.height - 1, 7)
-    for depth in (head.range_near, head.standoff, head.range_far):
-        y = (rows - cam.cy) / cam.fy * depth
-        x = (d - n[1] * y - n[2] * depth) / n[0]            # on the sheet at that depth
-        cols = cam.cx + cam.fx * x / depth
-        assert np.all((cols >= 0) & (cols <= head.width - 1))   # inside the columns read
-        P = head.triangulate(rows, cols)
-        np.testing.assert_allclose(P, np.stack([x, y, np.full(7, depth)], -1), atol=1e-12)
+    for x in (head.sweep()[0], 0.0, head.sweep()[-1]):
+        n, d = head.sheet_plane(x)
+        for depth in (0.3, head.standoff, 0.5):
+            y = (rows - cam.cy) / cam.fy * depth
+            px = (d - n[1] * y - n[2] * depth) / n[0]        # on the sheet at that depth
+            cols = cam.cx + cam.fx * px / depth
+            P = head.triangulate(rows, cols, x)
+            np.testing.assert_allclose(P, np.stack([px, y, np.full(7, depth)], -1),
+                                       atol=1e-12)
+    # mid-sweep, the stripe crosses the optical axis at the stand-off
+    np.testing.assert_allclose(head.triangulate([cam.cy], [cam.cx])[0], [0, 0, head.standoff])
+    with pytest.raises(ValueError, match="sweep_length"):
+        ScanHead(sweep_length=0.6)                         # the laser would pass the camera
 
 
 def test_view_poses_spread_over_the_band():
@@ -145,13 +151,13 @@ def test_view_poses_spread_over_the_band():
 
 def test_cli_capture_and_its_bad_inputs(tmp_path, capsys):
     argv = ["-q", "capture", "scans", "object", "--views", "2", "--head.steps", "6",
-            "--head.height", "12"]
+            "--head.height", "12", "--head.width", "12"]
     assert main([*argv, "--out", str(tmp_path / "ok")]) == 0
     assert len(load_scans(tmp_path / "ok", min_scans=2)) == 2
     capsys.readouterr()
     assert main([*argv, "--elevation-min-deg", "60", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "elevation-min-deg" in err[0] and not (tmp_path / "bad").exists()
-    assert main([*argv, "--head.standoff", "0.7", "--out", str(tmp_path / "bad")]) == 2
+    assert main([*argv, "--head.sweep-length", "0.9", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "standoff" in err[0] and not (tmp_path / "bad").exists()
+    assert len(err) == 1 and "sweep-length" in err[0] and not (tmp_path / "bad").exists()
