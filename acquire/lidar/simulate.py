@@ -138,7 +138,8 @@ class LidarWorld:
             tm.vertex.positions = o3d.core.Tensor(np.vstack(vs).astype(np.float32))
             tm.triangle.indices = o3d.core.Tensor(np.vstack(fs).astype(np.int32))
             self.ground.add_triangles(tm)
-        self.top = float(render_scene.bounds()[1, 2]) + 10.0
+        b = render_scene.bounds()
+        self.top, self.bottom = float(b[1, 2]) + 10.0, float(b[0, 2])
 
     def cast_energy(self, rays: np.ndarray, weights: np.ndarray, min_range: float):
         """Cast ``rays (n*s, 6) float32`` (pulse-major, ``s`` sub-rays of weights
@@ -157,6 +158,20 @@ class LidarWorld:
                                 rays, weights, self.lut, self.face_offset, self.reflectance,
                                 float(min_range), R, E, obj, face)
         return (R, E), obj, face
+
+    def ground_z(self, xy: np.ndarray) -> np.ndarray:
+        """Height of the ground (the whole scene when it has no ground part) below
+        ``xy (n, 2)``; the scene's lowest point where nothing lies below."""
+        import open3d as o3d
+
+        rays = np.zeros((len(xy), 6), np.float32)
+        rays[:, :2] = xy
+        rays[:, 2] = self.top
+        rays[:, 5] = -1.0
+        scene = self.ground if self.ground is not None else self.rs
+        t = scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy()
+        z = self.top - t.astype(np.float64)
+        return np.where(np.isfinite(z), z, self.bottom)
 
     def ground_height(self, points: np.ndarray) -> np.ndarray | None:
         """Height of ``points (n, 3)`` above the ground below them (None without ground;
