@@ -39,7 +39,7 @@ def _check(name, value, bound, higher=True, fmt="{:.3f}"):
 
 
 def _run(config, inp, out):
-    from reconstruct.sfm import run
+    from reconstruct.sfm.pipeline import run
 
     t = time.perf_counter()
     res = run(config, inp, out)
@@ -49,8 +49,8 @@ def _run(config, inp, out):
 
 
 def _config(method, **kw):
-    from reconstruct.mvs import MvsOptions
-    from reconstruct.sfm import SfmConfig
+    from reconstruct.mvs.pipeline import MvsOptions
+    from reconstruct.sfm.pipeline import SfmConfig
 
     return SfmConfig(mvs=MvsOptions(method=method), **kw)
 

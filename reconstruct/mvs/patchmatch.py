@@ -1,0 +1,242 @@
+"""PatchMatch multi-view stereo on the CPU: a depth, a normal and a confidence per pixel.
+
+The method is Gipuma/ACMM's, on the CPU (the kernels are
+:mod:`reconstruct.mvs._patchmatch_kernels`, compiled and parallel over image rows):
+
+1. every view is resized so that its longer side is at most ``max_image_size`` and
+   undistorted (:func:`prepare_views`);
+2. each view gets its source views (:func:`reconstruct.mvs.dense.select_neighbors`: shared
+   sparse points at a useful triangulation angle) and a depth range (its sparse points'
+   depths, widened);
+3. planes are initialised at random in that range and improved by red-black
+   propagation and random refinement against a bilateral-weighted NCC aggregated over
+   the ``top_k`` best source views (``iterations``);
+4. then, with every view's depth map from step 3, ``geom_iterations`` more iterations
+   add geometric consistency: the forward-backward reprojection error through each
+   source's depth map.
+
+A pixel keeps its depth when its final cost is below ``max_cost``; its confidence is
+``1 - cost`` (the mean NCC of its best views, less the geometric penalty).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from acquire.camera import Camera
+from core.config import Config, option
+from core.progress import track
+
+__all__ = ["PatchMatchOptions", "View", "DepthMap", "prepare_views", "depth_range",
+           "patchmatch"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class PatchMatchOptions(Config):
+    """Options of PatchMatch multi-view stereo."""
+
+    max_image_size: int = option(640, unit="px", range="[64, 20000]",
+                                 help="longer image side the depth maps are computed at "
+                                      "(the default suits 2 cores)")
+    num_sources: int = option(5, range="[1, 16]", help="source views per reference view")
+    top_k: int = option(1, range="[1, 16]",
+                        help="the cost of a plane is the mean of its top_k best source "
+                             "views")
+    iterations: int = option(3, range="[1, 20]", help="photometric iterations")
+    geom_iterations: int = option(2, range="[0, 20]",
+                                  help="iterations with geometric consistency")
+    window_radius: int = option(4, unit="px", range="[1, 15]", help="matching window radius")
+    window_step: int = option(2, unit="px", range="[1, 5]",
+                              help="the window is sampled every window_step pixels")
+    sigma_color: float = option(0.2, range="(0, inf)",
+                                help="bilateral weight: grey-level scale (images in [0, 1])")
+    geom_weight: float = option(0.2, range="[0, inf)",
+                                help="weight of the reprojection error (px) in the cost")
+    max_reprojection: float = option(3.0, unit="px", range="(0, inf)",
+                                     help="reprojection errors are clipped here")
+    max_cost: float = option(0.9, range="(0, 2]",
+                             help="a pixel keeps its depth when its cost is below this")
+    min_texture: float = option(0.005, range="[0, 1)",
+                                help="windows whose grey-level std is below this have no "
+                                     "depth")
+    depth_margin: float = option(0.3, range="[0, 10]",
+                                 help="a view's depth range: its sparse points' widened "
+                                      "by this fraction")
+    min_angle_deg: float = option(2.0, unit="deg", range="[0, 90]",
+                                  help="smallest useful triangulation angle with a source")
+    max_angle_deg: float = option(45.0, unit="deg", range="(0, 90]",
+                                  help="largest useful triangulation angle with a source")
+    seed: int = option(0, range="[0, inf)", help="seed of the random planes")
+
+
+@dataclass
+class View:
+    """A view at the working resolution: undistorted grey image in [0, 1], colours,
+    the pinhole camera of those pixels, and its depth range."""
+
+    name: str
+    gray: np.ndarray
+    color: np.ndarray
+    camera: Camera
+    depth_range: tuple = (0.0, 0.0)
+
+
+@dataclass
+class DepthMap:
+    """PatchMatch's result for one view (0 depth = none)."""
+
+    depth: np.ndarray
+    normal: np.ndarray
+    confidence: np.ndarray
+    sources: list = field(default_factory=list)
+    raw_depth: np.ndarray | None = None  # every pixel's best plane, before the cost cut
+
+    @property
+    def coverage(self) -> float:
+        return float((self.depth > 0).mean())
+
+
+def prepare_views(names: Sequence[str], images: Sequence[np.ndarray],
+                  cameras: Sequence[Camera], max_image_size: int) -> list[View]:
+    """Resize (area) and undistort each image; cameras scaled to match, distortion 0."""
+    views = []
+    for name, img, cam in zip(names, images, cameras, strict=True):
+        if img.shape[:2] != (cam.height, cam.width):
+            raise ValueError(f"{name}: image is {img.shape[1]}x{img.shape[0]}, its camera "
+                             f"{cam.width}x{cam.height}")
+        s = min(1.0, max_image_size / max(cam.width, cam.height))
+        w, h = max(1, round(cam.width * s)), max(1, round(cam.height * s))
+        sx, sy = w / cam.width, h / cam.height
+        small = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA) if s < 1 else img
+        K = np.array([[cam.fx * sx, 0, (cam.cx + 0.5) * sx - 0.5],
+                      [0, cam.fy * sy, (cam.cy + 0.5) * sy - 0.5], [0, 0, 1]])
+        if np.any(cam.dist):
+            small = cv2.undistort(small, K, cam.dist, None, K)
+        rgb = small if small.ndim == 3 else np.repeat(small[..., None], 3, axis=2)
+        gray = cv2.cvtColor(rgb[..., :3], cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
+        views.append(View(name, gray, rgb[..., :3].copy(),
+                          Camera(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.zeros(5),
+                                 cam.cam_from_world)))
+    return views
+
+
+def depth_range(camera: Camera, points: np.ndarray, visible: np.ndarray,
+                margin: float) -> tuple[float, float]:
+    """Depths of a view's sparse points, from the 1st percentile to the farthest, widened
+    by ``margin`` (near / (1 + margin), far * (1 + margin)); all points in front of the
+    view when it sees fewer than 10. Planes are drawn uniformly in inverse depth, so a
+    far bound set by a distant background costs the near surfaces little."""
+    pts = points[visible] if len(visible) >= 10 else points
+    z = camera.to_camera(pts)[:, 2]
+    z = z[z > 0]
+    if len(z) == 0:
+        return 0.0, 0.0
+    lo = np.percentile(z, 1) if len(z) >= 10 else z.min()
+    return float(lo / (1 + margin)), float(z.max() * (1 + margin))
+
+
+def _relative(ref: Camera, src: Camera) -> tuple[np.ndarray, np.ndarray]:
+    T = src.cam_from_world @ ref.world_from_cam
+    return T[:3, :3], T[:3, 3]
+
+
+def _stack(views: Sequence[View], idx: Sequence[int], maps=None):
+    hm = max(views[i].camera.height for i in idx)
+    wm = max(views[i].camera.width for i in idx)
+    img = np.zeros((len(idx), hm, wm), np.float32)
+    dep = np.zeros((len(idx), hm, wm), np.float32)
+    sizes = np.zeros((len(idx), 2), np.int64)
+    for k, i in enumerate(idx):
+        c = views[i].camera
+        img[k, :c.height, :c.width] = views[i].gray
+        sizes[k] = (c.width, c.height)
+        if maps is not None and maps[i] is not None:
+            dep[k, :c.height, :c.width] = maps[i].raw_depth
+    return img, dep, sizes
+
+
+def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
+              init: DepthMap | None, maps) -> DepthMap:
+    from reconstruct.mvs.pipeline import _patchmatch_kernels as pk
+
+    v = views[i]
+    cam = v.camera
+    dmin, dmax = v.depth_range
+    h, w = cam.height, cam.width
+    if not sources or dmax <= 0:
+        zero = np.zeros((h, w), np.float32)
+        return DepthMap(zero, np.zeros((h, w, 3), np.float32), zero, [], zero)
+    kr = cam.K
+    kinv = np.linalg.inv(kr)
+    src, sdepth, sizes = _stack(views, sources, maps)
+    ks = np.stack([views[j].camera.K for j in sources])
+    rel = [_relative(cam, views[j].camera) for j in sources]
+    rs = np.stack([r for r, _ in rel])
+    ts = np.stack([t for _, t in rel])
+    wts, stats = pk.bilateral_weights(v.gray, opt.window_radius, opt.window_step,
+                                      opt.sigma_color, float(opt.window_radius))
+    geom = opt.geom_weight if maps is not None else 0.0
+    min_var = opt.min_texture ** 2
+    seed = opt.seed * 1_000_003 + i
+    D = np.zeros((h, w))
+    N = np.zeros((h, w, 3))
+    C = np.zeros((h, w))
+    if init is None:
+        pk.initialise(D, N, dmin, dmax, kinv, seed)
+        iters, p0 = opt.iterations, 0.25
+    else:
+        D[:] = np.where(init.depth > 0, init.depth, 0.5 * (dmin + dmax))
+        N[:] = init.normal
+        bad = np.linalg.norm(N, axis=2) < 0.5
+        N[bad] = (0.0, 0.0, -1.0)
+        iters, p0 = opt.geom_iterations, 0.05
+    args = (v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts, opt.window_radius,
+            opt.window_step, min_var, opt.top_k, geom, sdepth, opt.max_reprojection)
+    pk.final_costs(D, N, C, *args)
+    for it in range(iters):
+        perturb = max(p0 * 0.5 ** it, 0.01)
+        for colour in (0, 1):
+            pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, dmin, dmax, *args[:-4],
+                     opt.top_k, geom, sdepth, opt.max_reprojection, perturb)
+    keep = C < opt.max_cost
+    depth = np.where(keep, D, 0.0).astype(np.float32)
+    normal = np.where(keep[..., None], N, 0.0).astype(np.float32)
+    conf = np.where(keep, np.clip(1.0 - C, 0.0, 1.0), 0.0).astype(np.float32)
+    return DepthMap(depth, normal, conf, [views[j].name for j in sources],
+                    D.astype(np.float32))
+
+
+def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
+               options: PatchMatchOptions | None = None) -> tuple[list[DepthMap], dict]:
+    """Depth, normal and confidence maps of every view, and timings.
+
+    Parameters
+    ----------
+    views : sequence of View
+        From :func:`prepare_views`, with their depth ranges set.
+    sources : sequence of sequence of int
+        Source views of each view (indices into ``views``); a view without sources, or
+        without a depth range, gets an empty map.
+    """
+    opt = options or PatchMatchOptions()
+    t = time.perf_counter()
+    first: list = [None] * len(views)
+    for i in track(range(len(views)), "PatchMatch (photometric)", total=len(views)):
+        first[i] = _run_view(i, views, sources[i], opt, None, None)
+    timings = {"photometric": time.perf_counter() - t}
+    if opt.geom_iterations == 0:
+        return first, timings
+    t = time.perf_counter()
+    out = []
+    for i in track(range(len(views)), "PatchMatch (geometric)", total=len(views)):
+        out.append(_run_view(i, views, sources[i], opt, first[i], first))
+    timings["geometric"] = time.perf_counter() - t
+    return out, timings
