@@ -39,8 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from acquire.lidar.labels import part_code
-from acquire.materials import Material
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
 from core.config import Config, from_dict, option, to_dict
 from core.files import atomic_dir, write_json, write_toml
 from core.meshes import make_mesh
