@@ -21,9 +21,18 @@ from pathlib import Path
 
 import numpy as np
 
-from acquire.lidar.capture import (LAS_EXTRA, LidarCaptureConfig, e57_scan, make_scanner,
-                                   merge_las, nominal_range, plan_survey, scan_leg_to_las,
-                                   strip_name, summary_report)
+from acquire.lidar.capture import (
+    LAS_EXTRA,
+    LidarCaptureConfig,
+    e57_scan,
+    make_scanner,
+    merge_las,
+    nominal_range,
+    plan_survey,
+    scan_leg_to_las,
+    strip_name,
+    summary_report,
+)
 from acquire.lidar.presets import get_preset
 from acquire.lidar.simulate import LidarWorld
 from core.config import to_dict

@@ -7,8 +7,9 @@ apart flown at speed ``v`` with pulse rate ``PRR`` put, on average over the area
 
     density = PRR / (v * spacing)      pulses per square metre
 
-so a target density sets ``v = PRR / (density * spacing)``. When that speed is beyond
-what the platform flies, the next selectable pulse rate of the scanner is tried; a
+(over an area narrower than the strips' total, ``spacing`` is the swath over the mean
+number of swaths covering a point), so a target density sets
+``v = PRR / (density * spacing)``. When that speed is beyond what the platform flies, the next selectable pulse rate of the scanner is tried; a
 density no (rate, speed) pair reaches is an InputError saying the reachable range. The
 line rate makes the spacing along the track equal to the one across it,
 ``rate = sqrt(PRR v / W)``, within the scanner's range.
@@ -17,7 +18,7 @@ line rate makes the spacing along the track equal to the one across it,
 >>> p = plan_strips(np.array([[0, 0], [1000, 600]]), 0.0, get_preset("riegl-lms-q560"),
 ...                 platform="airplane", altitude=500.0, overlap=0.3, density=4.0)
 >>> round(p.speed, 1), p.pulse_rate, len(p.legs)
-(44.9, 240000.0, 2)
+(72.9, 100000.0, 2)
 """
 
 from __future__ import annotations
@@ -83,6 +84,7 @@ def _line_rate(preset: ScannerPreset, prr: float, speed: float, swath: float) ->
 
 
 def _speed_for(preset: ScannerPreset, platform: str, density: float, spacing: float):
+    """Pulse rate and speed giving ``density`` with strips ``spacing`` apart (effective)."""
     vmin, vmax = PLATFORM_DEFAULTS[platform].speed_range_m_s
     for prr in sorted(preset.pulse_rates_hz, reverse=True):
         v = prr / (density * spacing)
@@ -115,14 +117,6 @@ def plan_strips(area_xy: np.ndarray, ground_z: float, preset: ScannerPreset, *,
         raise InputError(f"expected an overlap in [0, 1), got {overlap}", field="overlap")
     W = swath_width(preset, h)
     spacing = W * (1 - overlap)
-    prr = float(pulse_rate or preset.pulse_rate_hz)
-    if density is not None:
-        if density <= 0:
-            raise InputError(f"expected a positive density, got {density}", field="density")
-        prr, v = _speed_for(preset, platform, float(density), spacing)
-    else:
-        v = float(speed if speed is not None else d.speed_m_s)
-    rate = float(scan_rate) if scan_rate else _line_rate(preset, prr, v, W)
     a = np.radians(heading_deg)
     ax, ay = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
     area = np.asarray(area_xy, np.float64)
@@ -131,10 +125,21 @@ def plan_strips(area_xy: np.ndarray, ground_z: float, preset: ScannerPreset, *,
     along, across = (corners - c) @ ax, (corners - c) @ ay
     width = across.max() - across.min()
     n = 1 if width <= W else int(np.ceil((width - W) / spacing)) + 1
+    offs = (np.arange(n) - (n - 1) / 2) * spacing
+    # mean number of swaths over a point of the area: density = PRR * cover / (v * W)
+    cover = sum(max(0.0, min(o + W / 2, width / 2) - max(o - W / 2, -width / 2))
+                for o in offs) / width
+    prr = float(pulse_rate or preset.pulse_rate_hz)
+    if density is not None:
+        if density <= 0:
+            raise InputError(f"expected a positive density, got {density}", field="density")
+        prr, v = _speed_for(preset, platform, float(density), W / cover)
+    else:
+        v = float(speed if speed is not None else d.speed_m_s)
+    rate = float(scan_rate) if scan_rate else _line_rate(preset, prr, v, W)
     run_in = 0.5 * W if preset.pattern in ("conic", "rosette") else 0.05 * W
     legs, t = [], float(gps_start)
-    for k in range(n):
-        off = (k - (n - 1) / 2) * spacing
+    for k, off in enumerate(offs):
         p0 = c + ay * off + ax * (along.min() - run_in)
         p1 = c + ay * off + ax * (along.max() + run_in)
         if k % 2:
@@ -146,7 +151,7 @@ def plan_strips(area_xy: np.ndarray, ground_z: float, preset: ScannerPreset, *,
         t += leg.duration + d.turn_s
     return SurveyPlan(legs=legs, platform=platform, pulse_rate=prr, scan_rate=rate,
                       altitude=h, speed=v, swath=W, spacing=spacing, overlap=overlap,
-                      density_target=density, density_planned=prr / (v * spacing),
+                      density_target=density, density_planned=prr * cover / (v * W),
                       area=area)
 
 

@@ -45,7 +45,7 @@ class PlatformDefaults:
 
 
 PLATFORM_DEFAULTS = {
-    "airplane": PlatformDefaults(500.0, 60.0, (30.0, 90.0), 60.0),
+    "airplane": PlatformDefaults(300.0, 60.0, (30.0, 90.0), 60.0),
     "multicopter": PlatformDefaults(60.0, 6.0, (1.0, 20.0), 10.0),
     "vehicle": PlatformDefaults(2.0, 10.0, (1.0, 30.0), 0.0),
     "tripod": PlatformDefaults(1.5, 0.0, (0.0, 0.0), 30.0),

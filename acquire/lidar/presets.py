@@ -104,13 +104,14 @@ PRESETS: dict[str, ScannerPreset] = {p.name: p for p in (
         name="riegl-lms-q560", model="RIEGL LMS-Q560", platform="airplane", pattern="polygon",
         pulse_rates_hz=(50e3, 100e3, 180e3, 200e3, 240e3), wavelength_nm=1550.0,
         divergence_mrad=0.5, fov_deg=(-22.5, 22.5), scan_rate_hz=(10.0, 160.0),
-        precision_m=0.02, precision_range_m=250.0, max_range_m=650.0,
+        precision_m=0.02, precision_range_m=250.0, max_range_m=800.0,
         reference_reflectance=0.2, min_range_m=30.0, pulse_width_ns=4.0, max_returns=7,
         sources=("RIEGL LMS-Q560 datasheet (2010): 240 kHz, 0.5 mrad, +/-22.5 deg, "
                  "10-160 lines/s, accuracy 20 mm, near-infrared",
                  "HELIOS++ scanners_als.xml riegl_lms-q560 (pulse length 4 ns)"),
-        notes="full-waveform scanner (returns unlimited): capped at 7 here; max range at "
-              "240 kHz and 20 % reflectance read from the datasheet's range chart"),
+        notes="full-waveform scanner (returns unlimited): capped at 7 here; the range for "
+              "20 % reflectance at 240 kHz (800 m) and the precision's reference range "
+              "(250 m) are assumptions, not datasheet figures"),
     ScannerPreset(
         name="riegl-vq-880g", model="RIEGL VQ-880-G (green channel)", platform="airplane",
         pattern="conic", pulse_rates_hz=(200e3, 400e3, 550e3), wavelength_nm=532.0,

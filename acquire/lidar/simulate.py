@@ -126,7 +126,7 @@ class LidarWorld:
             for o, c in zip(objs, counts, strict=True)]).astype(np.uint8)
         self.ground = None
         vs, fs, nv = [], [], 0
-        for o, (vw, f, _), off in zip(objs, parts, self.face_offset[:-1], strict=True):
+        for (vw, f, _), off in zip(parts, self.face_offset[:-1], strict=True):
             sel = self.face_part[off:off + len(f)] == _GROUND
             if sel.any():
                 vs.append(vw)
