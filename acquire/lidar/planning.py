@@ -9,7 +9,8 @@ apart flown at speed ``v`` with pulse rate ``PRR`` put, on average over the area
 
 (over an area narrower than the strips' total, ``spacing`` is the swath over the mean
 number of swaths covering a point), so a target density sets
-``v = PRR / (density * spacing)``. When that speed is beyond what the platform flies, the next selectable pulse rate of the scanner is tried; a
+``v = PRR / (density * spacing)``. When that speed is beyond what the platform flies,
+the next selectable pulse rate of the scanner is tried; a
 density no (rate, speed) pair reaches is an InputError saying the reachable range. The
 line rate makes the spacing along the track equal to the one across it,
 ``rate = sqrt(PRR v / W)``, within the scanner's range.
