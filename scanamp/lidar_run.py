@@ -47,10 +47,11 @@ __all__ = ["run_lidar_capture", "scene_origin", "scene_crs"]
 
 
 def scene_origin(bundle) -> np.ndarray:
-    """The scene's origin in projected coordinates (``[scene].origin``; 0 without one)."""
-    o = getattr(bundle, "origin", None)
+    """The scene's origin in projected coordinates (``[scene].origin``, else the bundle's
+    ``origin``; 0 without one): files carry ``local + origin``."""
+    o = bundle.spec.get("scene", {}).get("origin")
     if o is None:
-        o = bundle.spec.get("scene", {}).get("origin")
+        o = getattr(bundle, "origin", None)
     if o is None:
         return np.zeros(3)
     o = np.asarray(o, np.float64).ravel()

@@ -22,7 +22,7 @@ import numpy as np
 
 from core.validate import InputError
 
-__all__ = ["subray_pattern", "subray_directions", "orthonormal_frames"]
+__all__ = ["subray_pattern", "subray_directions", "orthonormal_frames", "pack_rays"]
 
 
 def subray_pattern(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -85,3 +85,18 @@ def subray_directions(d: np.ndarray, divergence_rad: float,
            + e1[:, None, :] * (sa * c)[None, :, None]
            + e2[:, None, :] * (sa * s)[None, :, None])
     return out
+
+
+def pack_rays(origins: np.ndarray, d: np.ndarray, divergence_rad: float,
+              offsets: np.ndarray) -> np.ndarray:
+    """Embree's rays ``(n*s, 6) float32`` (origin, direction) of the sub-rays about beam
+    axes ``d (n, 3)`` from ``origins (n, 3)``, pulse-major: what :func:`subray_directions`
+    gives, packed by a compiled kernel without the (n, s, 3) intermediates."""
+    from acquire.lidar import _kernels
+
+    o = np.ascontiguousarray(origins, np.float64)
+    d = np.ascontiguousarray(d, np.float64)
+    rays = np.empty((len(d) * len(offsets), 6), np.float32)
+    _kernels.pack_subrays(o, d, np.ascontiguousarray(offsets, np.float64),
+                          0.5 * float(divergence_rad), rays)
+    return rays

@@ -29,7 +29,7 @@ from acquire.lidar.presets import ScannerPreset
 from acquire.lidar.waveform import SPEED_OF_LIGHT, Receiver, detect_echoes
 from core.validate import InputError
 
-__all__ = ["Scanner", "LidarWorld", "scan_leg", "reflectance_at", "CHUNK_FIELDS",
+__all__ = ["Scanner", "LidarWorld", "scan_leg", "fire", "reflectance_at", "CHUNK_FIELDS",
            "intensity_counts"]
 
 #: Fields of every chunk :func:`scan_leg` yields (each (k,) over the chunk's points).
@@ -214,27 +214,30 @@ def scan_leg(world: LidarWorld, scanner: Scanner, leg: Leg, *,
     n = int(np.floor(leg.duration * scanner.pulse_rate))
     if max_pulses is not None:
         n = min(n, int(max_pulses))
-    offsets, weights = subray_pattern(scanner.footprint_samples)
     line0 = int(scanner.pattern.line_index(np.zeros(1))[0])
     for k0 in range(0, n, int(block)):
         k = np.arange(k0, min(k0 + int(block), n), dtype=np.int64)
-        chunk = _scan_block(world, scanner, leg, k, offsets, weights, rng, line0)
+        chunk = _scan_block(world, scanner, leg, k, rng, line0)
         if chunk is not None:
             yield chunk
 
 
-def _scan_block(world, scanner, leg, k, offsets, weights, rng, line0):
-    from acquire.lidar import _kernels
+def fire(world: LidarWorld, scanner: Scanner, origins: np.ndarray, directions: np.ndarray, *,
+         rng: np.random.Generator) -> dict:
+    """The echoes of pulses fired from ``origins (n, 3)`` along unit ``directions (n, 3)``
+    (world frame): a dict of (k,) arrays, ``pulse`` (index into the n pulses), ``x, y,
+    z`` (measured), ``range`` (measured) and ``range_true`` (noise-free), ``energy``,
+    ``snr``, ``return_number``, ``number_of_returns``, ``object_id``, ``part``,
+    ``true_x, true_y, true_z`` and ``classification``."""
+    from acquire.lidar.beam import pack_rays
 
-    t, pos, d, ang = _pulse_geometry(scanner, leg, k)
+    pos = np.ascontiguousarray(origins, np.float64)
+    d = np.ascontiguousarray(directions, np.float64)
+    offsets, weights = subray_pattern(scanner.footprint_samples)
     s = len(weights)
-    rays = np.empty((len(k) * s, 6), np.float32)
-    _kernels.pack_subrays(pos, d, offsets, 0.5 * scanner.divergence_rad, rays)
-    th, obj, face = world.cast_energy(rays, weights, scanner.min_range_m)
-    R, E = th
+    rays = pack_rays(pos, d, scanner.divergence_rad, offsets)
+    (R, E), obj, face = world.cast_energy(rays, weights, scanner.min_range_m)
     ech = detect_echoes(R.reshape(-1, s), E.reshape(-1, s), scanner.receiver)
-    if len(ech["pulse"]) == 0:
-        return None
     p, j = ech["pulse"], ech["pulse"] * s + ech["subray"]
     snr = ech["energy"] / scanner.receiver.noise_energy
     r_meas = ech["range"] + scanner.receiver.range_sigma(snr) * rng.standard_normal(len(p))
@@ -247,13 +250,22 @@ def _scan_block(world, scanner, leg, k, offsets, weights, rng, line0):
         h = np.full(len(part), 1e9)
         h[veg] = np.nan_to_num(hag, nan=1e9)
         hag = h
-    cls = asprs_class(part, hag)
-    row, col = _grid(scanner, t[p], k[p], line0)
-    return {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "gps_time": leg.gps_start + t[p],
-            "energy": ech["energy"], "snr": snr.astype(np.float32),
+    return {"pulse": p, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "range": r_meas,
+            "range_true": ech["range"], "energy": ech["energy"], "snr": snr.astype(np.float32),
             "return_number": ech["return_number"], "number_of_returns": ech["number_of_returns"],
-            "scan_angle": ang[p].astype(np.float32),
-            "point_source_id": np.full(len(p), leg.source_id, np.uint16),
-            "object_id": world.object_ids[obj[j]], "part": part,
+            "object_id": world.object_ids[np.maximum(obj[j], 0)], "part": part,
             "true_x": true[:, 0], "true_y": true[:, 1], "true_z": true[:, 2],
-            "range": r_meas, "classification": cls, "pulse": k[p], "row": row, "column": col}
+            "classification": asprs_class(part, hag)}
+
+
+def _scan_block(world, scanner, leg, k, rng, line0):
+    t, pos, d, ang = _pulse_geometry(scanner, leg, k)
+    ech = fire(world, scanner, pos, d, rng=rng)
+    p = ech.pop("pulse")
+    if len(p) == 0:
+        return None
+    ech.pop("range_true")
+    row, col = _grid(scanner, t[p], k[p], line0)
+    return {**ech, "gps_time": leg.gps_start + t[p], "scan_angle": ang[p].astype(np.float32),
+            "point_source_id": np.full(len(p), leg.source_id, np.uint16), "pulse": k[p],
+            "row": row, "column": col}
