@@ -74,8 +74,8 @@ def main():
     ax.set_title("the forest stand at 300 m, 10 pts/m2")
     fig.tight_layout()
     fig.savefig(OUT / "lidar_divergence.png", dpi=110)
-    print("divergence", divs, "share", [round(s, 4) for s in shares])
-    print("report", {k: report[k] for k in ("pulses", "points", "multiple_return_share",
+    print("divergence", divs, "share", [round(s, 4) for s in shares])  # noqa: T201
+    print("report", {k: report[k] for k in ("pulses", "points", "multiple_return_share",  # noqa: T201
                                               "density_first_per_m2", "by_class", "by_part")})
 
 
