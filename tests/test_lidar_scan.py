@@ -118,8 +118,10 @@ def test_planned_strips_cover_the_area_at_the_target_density():
 
 def test_stations_scan_at_the_angular_step():
     pre = get_preset("riegl-vz-400")
-    plan = plan_stations(np.array([[0.0, 0, 1.5], [10, 0, 1.5]]), pre, angular_step_deg=0.2)
-    assert len(plan.legs) == 2
-    pulses_per_line = plan.pulse_rate / plan.scan_rate
-    assert 100.0 / pulses_per_line == pytest.approx(0.2, rel=1e-6)
-    assert plan.legs[0].pan_rate_deg_s == pytest.approx(plan.scan_rate * 0.2)
+    for step, prr in ((0.05, 122e3), (0.2, 42e3)):     # 120 lines/s at most
+        plan = plan_stations(np.array([[0.0, 0, 1.5], [10, 0, 1.5]]), pre,
+                             angular_step_deg=step)
+        assert len(plan.legs) == 2 and plan.pulse_rate == prr
+        pulses_per_line = plan.pulse_rate / plan.scan_rate
+        assert 100.0 / pulses_per_line == pytest.approx(step, rel=1e-6)
+        assert plan.legs[0].pan_rate_deg_s == pytest.approx(plan.scan_rate * step)
