@@ -290,6 +290,8 @@ def fire(world: LidarWorld, scanner: Scanner, origins: np.ndarray, directions: n
 
 def _per_pulse(a: np.ndarray, s: int, layers: int) -> np.ndarray:
     """``(layers * n * s,)`` layer-major hits -> ``(n, layers * s)`` per pulse."""
+    if layers == 1:
+        return a.reshape(-1, s)
     return np.ascontiguousarray(a.reshape(layers, -1, s).transpose(1, 0, 2).reshape(
         -1, layers * s))
 
