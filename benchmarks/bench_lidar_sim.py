@@ -146,10 +146,10 @@ def _memory():
 
 
 def main():
+    ok = _memory()      # first: ru_maxrss of a child counts the parent's pages at its fork
     bundle, build_s = _forest()
-    ok = _cost_ratio(bundle)
+    ok = _cost_ratio(bundle) and ok
     ok = _hectare(bundle, build_s) and ok
-    ok = _memory() and ok
     return 0 if ok else 1
 
 
