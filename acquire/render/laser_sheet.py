@@ -1,7 +1,7 @@
 """The laser line projector (a sheet of light) and its fast frame renderer.
 
 Shared by the sheet-of-light methods: the turntable/stage scanner (:mod:`acquire.laser`)
-and the multi-view range-scanning head (:mod:`acquire.scans`); ``acquire.laser.sheet`` still
+and the multi-view range-scanning head (:mod:`acquire.scans`); ``acquire.render.laser_sheet`` still
 serves these names.
 
 A line laser spreads a beam into a planar fan: the sheet. Across the sheet the
