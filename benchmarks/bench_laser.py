@@ -20,7 +20,7 @@ from _timing import best_of, report
 
 from acquire.laser.capture import _hires, capture
 from acquire.laser.rig import LaserCaptureConfig, LaserRig
-from acquire.laser.sheet import camera_directions
+from acquire.render.laser_sheet import camera_directions
 from data_synth.scenes import build_scene
 from reconstruct.laser.pipeline import LaserReconConfig, run
 from reconstruct.laser.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _frame(material, inc, view):
-    from acquire.laser.sheet import LaserRenderer
+    from acquire.render.laser_sheet import LaserRenderer
     from data_synth.plates import laser_plate
 
     lp = laser_plate(material, incidence_deg=inc, view_deg=view)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.laser.sheet import LaserSheet
+from acquire.render.laser_sheet import LaserSheet
 from acquire.render.materials import Material
 from acquire.render.scene import RenderScene, SceneObject
 from core.meshes import make_mesh

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -61,12 +61,19 @@ def scene_names() -> list[str]:
 
 @dataclass
 class SceneBundle:
-    """A built scene: its spec, the render scene, and ground-truth world meshes."""
+    """A built scene: its spec, the render scene, and ground-truth world meshes.
+
+    ``origin`` (3,) float64: the scene's geometry is in a local frame, ``world = local +
+    origin`` (a survey's projected coordinates, millions of metres, stay exact);
+    ``crs_wkt``: the coordinate system of ``world`` when known.
+    """
 
     spec: dict
     render_scene: RenderScene
     meshes: dict  # name -> world-frame open3d mesh
     base_dir: Path | None = None
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    crs_wkt: str | None = None
 
     @property
     def name(self) -> str:
@@ -223,6 +230,11 @@ def build_scene(spec_or_name, *, seed: int | None = None) -> SceneBundle:
         raise InputError("expected a table", path=path, field="scene")
     if seed is not None:
         head["seed"] = int(seed)
+    if "forest" in spec:  # a stand of trees on a terrain (data_synth.forest)
+        from data_synth.forest import forest_from_spec
+
+        require(head, "seed", int, path=path, prefix="scene", default=0)
+        return forest_from_spec(spec, path=path, base_dir=base_dir)
     scene_seed = require(head, "seed", int, path=path, prefix="scene", default=0)
     head["seed"] = scene_seed
     ambient = require(head, "ambient", float, path=path, prefix="scene", default=0.1)
@@ -298,7 +310,12 @@ def build_scene(spec_or_name, *, seed: int | None = None) -> SceneBundle:
 
 
 def write_scene(bundle: SceneBundle, out_dir: str | os.PathLike) -> Path:
-    """Write a scene folder atomically (scene.toml, mesh.ply, objects/, materials.json)."""
+    """Write a scene folder atomically (scene.toml, mesh.ply, objects/, materials.json); a
+    forest's folder holds its truth instead of objects/ (:func:`data_synth.forest.write_forest`)."""
+    if "forest" in bundle.spec:
+        from data_synth.forest import write_forest
+
+        return write_forest(bundle, out_dir)
     out = Path(out_dir)
     spec = copy.deepcopy(bundle.spec)
     for obj in spec.get("objects", []):  # make external mesh paths absolute

@@ -1,6 +1,6 @@
 """Every material preset under the laser sheet and under the projector: a sphere of each
 reflectance (acquire.render.materials.MATERIAL_PRESETS) on a matte floor, seen by one camera,
-lit by a vertical laser sheet (the laser scanner's renderer, acquire.laser.sheet) and by a
+lit by a vertical laser sheet (the laser scanner's renderer, acquire.render.laser_sheet) and by a
 projector casting 8-pixel stripes (acquire.render.renderer with one bounce; on the translucent
 presets the stripes spread under the surface). Writes docs/img/material_gallery.png.
 
@@ -42,7 +42,7 @@ def main():
     import matplotlib.pyplot as plt
 
     from acquire.camera import Camera
-    from acquire.laser.sheet import LaserRenderer, LaserSheet
+    from acquire.render.laser_sheet import LaserRenderer, LaserSheet
     from acquire.render.materials import MATERIAL_PRESETS, Material
     from acquire.render.projector import PatternProjector
     from acquire.render.renderer import render

@@ -220,7 +220,7 @@ def test_rendered_board_corners_are_unbiased(s):
     in the ray grid, the high-res camera or the downsampling would show as a ~0.5/s px
     mean offset; measured |mean| 0.03 px at s = 1, under 0.01 px at s = 2)."""
     from acquire.laser.capture import _CALIB_AMBIENT, _calib_image, _facing, _hires
-    from acquire.laser.sheet import camera_directions
+    from acquire.render.laser_sheet import camera_directions
     from acquire.sensor import Sensor
     from acquire.targets import ChArUcoTarget
     from reconstruct.calibration.camera import detect_board

@@ -6,7 +6,7 @@ Airy-disc size, seeded; and on a scan, the stripe jitters more as the grain grow
 import numpy as np
 import pytest
 
-from acquire.laser.sheet import LaserRenderer
+from acquire.render.laser_sheet import LaserRenderer
 from acquire.render.materials import Material
 from acquire.render.speckle import grain_px, speckle_field
 from data_synth.plates import laser_plate

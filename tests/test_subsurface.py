@@ -6,7 +6,7 @@ and the incidence (Godin et al. 2001 on marble)."""
 import numpy as np
 import pytest
 
-from acquire.laser.sheet import LaserRenderer
+from acquire.render.laser_sheet import LaserRenderer
 from acquire.render.materials import Material
 from acquire.render.subsurface import (
     Dipole,

@@ -69,7 +69,7 @@ def test_a_laser_behind_a_sheet_shows_its_stripe_through_it(t):
     """The laser plate's sheet mirrored to the far side of a thin translucent plate meets
     it on the same line: the camera sees the stripe in the same place, with the light
     let through, ``t / (1 - t)`` of the stripe the sheet reflects from the front."""
-    from acquire.laser.sheet import LaserRenderer, LaserSheet
+    from acquire.render.laser_sheet import LaserRenderer, LaserSheet
     from data_synth.plates import laser_plate
 
     lp = laser_plate(Material(albedo=ALBEDO, brdf="translucent", transmission=t))

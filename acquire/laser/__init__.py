@@ -1,7 +1,8 @@
-"""acquire.laser: the sheet-of-light laser scanner: the laser sheet (a light), the rig
-(turntable or linear stage) and its capture with calibration views.
+"""acquire.laser: the sheet-of-light laser scanner on a turntable or stage: the rig
+(turntable or linear stage) and its capture with calibration views. The laser sheet itself
+is a light of the shared render room (:mod:`acquire.render.laser_sheet`).
 
-Modules: ``capture``, ``rig``, ``sheet``.
+Modules: ``capture``, ``rig``.
 
 Every name below is importable from the room (``from acquire.laser import NAME``), loaded on
 first use.
@@ -15,11 +16,6 @@ _EXPORTS = {
     "board_poses_laser": "capture",
     "LaserCaptureConfig": "rig",
     "LaserRig": "rig",
-    "LaserFrame": "sheet",
-    "LaserRenderer": "sheet",
-    "LaserSheet": "sheet",
-    "camera_directions": "sheet",
-    "plane_of": "sheet",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

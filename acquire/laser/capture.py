@@ -31,7 +31,7 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import write_capture
 from acquire.laser.rig import LaserCaptureConfig, LaserRig
-from acquire.laser.sheet import LaserRenderer, camera_directions
+from acquire.render.laser_sheet import LaserRenderer, camera_directions
 from acquire.render.scene import RenderScene
 from core.config import to_dict
 from core.files import atomic_dir

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera, look_at_cam_from_world
-from acquire.laser.sheet import LaserSheet
+from acquire.render.laser_sheet import LaserSheet
 from acquire.render.speckle import grain_px
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, target_from_dict

@@ -18,9 +18,11 @@ from acquire.render.subsurface import DEFAULT_ANISOTROPY
 from core.validate import check_array, check_choice, check_positive, check_range
 from procgen.noise import SOLID_TEXTURES, fbm
 
-__all__ = ["Material", "MATERIAL_KINDS", "BRDFS", "MATERIAL_PRESETS"]
+__all__ = ["Material", "MATERIAL_KINDS", "BRDFS", "MATERIAL_PRESETS", "LIDAR_WAVELENGTHS_NM"]
 
 MATERIAL_KINDS = ("constant", "solid", "image")
+#: The wavelengths of :attr:`Material.lidar_reflectance`, nm.
+LIDAR_WAVELENGTHS_NM = (905.0, 1064.0, 1550.0)
 
 # Named reflectances (fields of Material besides its colour and texture), the rows of a
 # material study: matte, a plastic's glossy coat at three roughnesses, polished metal,
@@ -98,6 +100,11 @@ class Material:
         and straight back (the local, angular part of the reflection,
         :func:`acquire.render.subsurface.single_scattering`); the diffusion depends only on the
         reduced mean free path.
+    lidar_reflectance : (3,) float in [0, 1], optional
+        Diffuse reflectance at the near-infrared LiDAR wavelengths 905, 1064 and 1550 nm
+        (a leaf reflects about 0.5 at 905 nm where it is dark in the visible). ``None``:
+        the mean of the albedo at every wavelength (:meth:`lidar_reflectance_at`). The
+        camera renderer ignores it.
     """
 
     kind: str = "constant"
@@ -113,6 +120,7 @@ class Material:
     mfp: float = 1e-3
     transmission: float = 0.5
     anisotropy: float = DEFAULT_ANISOTROPY
+    lidar_reflectance: tuple[float, float, float] | None = None
 
     def __post_init__(self):
         check_choice(self.kind, "kind", MATERIAL_KINDS)
@@ -125,6 +133,11 @@ class Material:
                                       lo_open=True, hi_open=True)
         self.albedo = np.clip(check_array(self.albedo, "albedo", shape=(3,)), 0, 1)
         self.scale = check_positive(self.scale, "scale")
+        if self.lidar_reflectance is not None:
+            r = check_array(self.lidar_reflectance, "lidar_reflectance", shape=(3,))
+            if r.min() < 0 or r.max() > 1:
+                raise ValueError(f"lidar_reflectance: expected values in [0, 1], got {r.tolist()}")
+            self.lidar_reflectance = tuple(float(x) for x in r)
         if self.kind == "solid":
             check_choice(self.texture, "texture", solid_texture_names())
         if self.kind == "image":
@@ -136,6 +149,18 @@ class Material:
             if img.ndim != 3 or img.shape[2] != 3:
                 raise ValueError(f"image: expected shape (h, w, 3), got {img.shape}")
             self.image = img.astype(np.float64) / (255.0 if img.dtype == np.uint8 else 1.0)
+
+    def lidar_reflectance_at(self, wavelength_nm: float) -> float:
+        """Diffuse reflectance at a LiDAR wavelength (nm), linear between 905, 1064 and
+        1550 nm (held constant beyond them); the albedo's mean when none is given.
+
+        >>> Material(lidar_reflectance=(0.4, 0.5, 0.3)).lidar_reflectance_at(905)
+        0.4
+        """
+        if self.lidar_reflectance is None:
+            return float(np.mean(self.albedo))
+        return float(np.interp(float(wavelength_nm), LIDAR_WAVELENGTHS_NM,
+                               self.lidar_reflectance))
 
     def albedo_at(self, points_object: np.ndarray, uvs: np.ndarray | None = None) -> np.ndarray:
         """Albedo ``(n, 3)`` at object-frame points (and UVs for image materials)."""

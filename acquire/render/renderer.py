@@ -283,8 +283,8 @@ def _albedo_tables(scene: RenderScene):
 
 def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:
     """Material albedo ``(n, 3)`` at the hits (0 on misses)."""
-    from acquire.render.materials import FBM_OCTAVES
     from acquire.render import _kernels as rk
+    from acquire.render.materials import FBM_OCTAVES
 
     out = np.zeros((len(hits.hit), 3))
     code, Tinv, scale, contrast, base, perms = _albedo_tables(scene)
@@ -418,8 +418,8 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
     the caller's (a light's direct light for :func:`one_bounce`, each pattern's for a
     structured-light capture): the indirect radiance is ``weight * L``. ``alb``: the
     albedo at the hits ``rows``, when the caller has it already."""
-    from acquire.render.brdf import sample_mixture
     from acquire.render import _kernels as rk
+    from acquire.render.brdf import sample_mixture
 
     rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else rows
     rows = np.asarray(rows, np.int64)
@@ -533,8 +533,8 @@ def _lambert(scene: RenderScene, hits: Hits, lights, ambient: float,
     (laser sheet, projector) through the light protocol."""
     import open3d as o3d
 
-    from acquire.render.lights import FAR, DirectionalLight, PointLight
     from acquire.render import _kernels as rk
+    from acquire.render.lights import FAR, DirectionalLight, PointLight
 
     n = len(hits.hit)
     E = np.full((n, 3), ambient)

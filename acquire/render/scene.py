@@ -38,6 +38,10 @@ class SceneObject:
         An exact shape the mesh approximates, in the object frame: ``{"type": "sphere",
         "center": (3,), "radius": r}`` or ``{"type": "plane", "point": (3,), "normal": (3,)}``.
         Hits are refined onto it, so depth is exact rather than faceted.
+    part_labels : (m,) uint8, optional
+        Per-triangle part codes into :data:`acquire.lidar.labels.PARTS` (ground, trunk,
+        leaf, building...), the truth a LiDAR survey's points inherit. The camera
+        renderer ignores them.
     """
 
     name: str
@@ -47,6 +51,7 @@ class SceneObject:
     object_id: int = 0
     vertex_uvs: np.ndarray | None = None
     analytic: dict | None = None
+    part_labels: np.ndarray | None = None
 
     def __post_init__(self):
         self.world_from_object = check_array(self.world_from_object, "world_from_object",
@@ -56,6 +61,9 @@ class SceneObject:
             raise ValueError(f"mesh: object {self.name!r} has no triangles")
         if self.vertex_uvs is not None:
             self.vertex_uvs = check_array(self.vertex_uvs, "vertex_uvs", shape=(len(v), 2))
+        if self.part_labels is not None:
+            self.part_labels = check_array(self.part_labels, "part_labels", shape=(len(f),),
+                                           dtype=np.uint8)
         if not self.mesh.has_vertex_normals():
             self.mesh.compute_vertex_normals()
 

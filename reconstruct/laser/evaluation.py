@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.laser.sheet import LaserSheet
+from acquire.render.laser_sheet import LaserSheet
 from core.frames import rotation_about
 from reconstruct.laser.calibration import intersect_rays_plane, pixel_rays
 

@@ -308,7 +308,7 @@ class RunFailed(RuntimeError):
 def _run_peaks(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
                material: dict | None = None) -> dict:
     """Render the scan's laser frames, detect the stripe, score against the true centre."""
-    from acquire.laser.sheet import LaserRenderer
+    from acquire.render.laser_sheet import LaserRenderer
     from core.progress import track
     from reconstruct.laser.pipeline import extract_frames
 

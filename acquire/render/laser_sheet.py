@@ -1,5 +1,9 @@
 """The laser line projector (a sheet of light) and its fast frame renderer.
 
+Shared by the sheet-of-light methods: the turntable/stage scanner (:mod:`acquire.laser`)
+and the multi-view range-scanning head (:mod:`acquire.scans`); ``acquire.render.laser_sheet`` still
+serves these names.
+
 A line laser spreads a beam into a planar fan: the sheet. Across the sheet the
 intensity is Gaussian (standard deviation ``thickness``, metres); along it the fan
 covers ``fan_angle`` radians around the central direction and spreads as ``1/r``.

@@ -1,0 +1,448 @@
+"""Forest worlds to survey: a stand of L-system trees on a fractal terrain, with its truth.
+
+A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
+``crown_radius``, ``species``: :func:`core.trees_io.read_tree_table`) or is procedural
+(density, species mix, height distribution, understory; seeded). Each tree is one of a few
+individuals grown per species (:func:`procgen.trees.grow_tree`), scaled to its height and
+crown, turned about its stem and stood on the terrain so that its top is exactly at
+ground + height.
+
+Coordinates are kept as given: an inventory's projected coordinates (millions of metres)
+are split into an ``origin`` (rounded to 10 m) and a local frame; the geometry (and so the
+render scene) lives in the local frame, the truth (``trees.csv``, ``dtm.tif``) in the
+inventory's coordinates. ``world = local + origin``.
+
+Every triangle carries a part (:data:`acquire.lidar.labels.PARTS`): ground (or road), trunk,
+branch, leaf, understory, building. Each tree is two objects (``treeNNNNN.wood``: trunk and
+branches, ``treeNNNNN.leaf``) sharing the object id ``NNNNN`` (1-based, the row of
+``trees.csv``); the ground is object 0, the understory and buildings the ids after the trees.
+
+A forest scene spec is a scene TOML with a ``[forest]`` table (the fields of
+:class:`ForestConfig`, and ``inventory = "FILE.csv"`` relative to the spec)::
+
+    [scene]
+    name = "forest"
+    seed = 0
+    [forest]
+    size = 60.0
+    density = 500.0
+    species = "PIAB:0.7,FASY:0.3"
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from acquire.lidar.labels import part_code
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
+from core.config import Config, from_dict, option, to_dict
+from core.files import atomic_dir, write_json, write_toml
+from core.meshes import make_mesh
+from core.raster_io import Raster, write_raster
+from core.trees_io import read_tree_table, write_tree_table
+from core.validate import InputError
+from data_synth.scenes import SceneBundle
+from procgen.terrain import fractal_terrain, heightfield_to_mesh
+from procgen.trees import SPECIES, TREE_PARTS, grow_tree, place_tree, species_for
+
+__all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse_species_mix",
+           "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS"]
+
+log = logging.getLogger(__name__)
+
+STEM_SINK = 0.3  # metres: stems start this far below the ground (no gap on a slope)
+
+# near-infrared reflectances (905, 1064, 1550 nm), typical values of the spectral
+# libraries: green leaves are bright at 905-1064 nm and darker at 1550 nm (water)
+MATERIALS = {
+    "ground": Material(albedo=(0.30, 0.25, 0.18), lidar_reflectance=(0.30, 0.33, 0.38)),
+    "road": Material(albedo=(0.12, 0.12, 0.13), lidar_reflectance=(0.12, 0.13, 0.15)),
+    "wood": Material(albedo=(0.35, 0.25, 0.17), lidar_reflectance=(0.35, 0.38, 0.40)),
+    "leaf": Material(albedo=(0.10, 0.30, 0.08), lidar_reflectance=(0.50, 0.48, 0.25)),
+    "needle": Material(albedo=(0.06, 0.20, 0.06), lidar_reflectance=(0.42, 0.40, 0.20)),
+    "understory": Material(albedo=(0.12, 0.32, 0.10), lidar_reflectance=(0.45, 0.44, 0.24)),
+    "building": Material(albedo=(0.55, 0.52, 0.48), lidar_reflectance=(0.35, 0.35, 0.35)),
+}
+
+
+@dataclass
+class ForestConfig(Config):
+    """A forest stand: procedural, or grown from an inventory."""
+
+    size: float = option(80.0, unit="m", range="[10, 2000]",
+                         help="side of a procedural stand (an inventory's stand is its trees' "
+                              "extent)")
+    margin: float = option(10.0, unit="m", range="[0, 500]",
+                           help="terrain beyond the stand on every side")
+    density: float = option(400.0, unit="1/ha", range="[0, 5000]",
+                            help="trees per hectare of a procedural stand")
+    species: str = option("PIAB:0.6,FASY:0.4",
+                          help="species mix of a procedural stand, CODE:share,... (codes: "
+                               + ", ".join(SPECIES) + ")")
+    height_mean: float = option(22.0, unit="m", range="(0, 120]", help="mean tree height")
+    height_sd: float = option(4.0, unit="m", range="[0, 50]",
+                              help="standard deviation of tree heights")
+    understory: float = option(300.0, unit="1/ha", range="[0, 20000]",
+                               help="shrubs per hectare (0.5-2.5 m tall)")
+    relief: float = option(2.0, unit="m", range="[0, 200]",
+                           help="terrain height standard deviation")
+    terrain_res: float = option(1.0, unit="m", range="(0, 20]",
+                                help="terrain grid spacing at most this")
+    elevation: float = option(0.0, unit="m", help="terrain mean elevation")
+    roads: bool = option(False, help="a few roads and buildings of the procedural city")
+    variants: int = option(4, range="[1, 32]", help="individuals grown per species")
+    crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
+                               "empty: none)")
+
+
+@dataclass
+class ForestBundle(SceneBundle):
+    """A forest scene and its truth (coordinates of the inventory: ``local + origin``).
+
+    Attributes
+    ----------
+    trees : dict of (n,) arrays
+        ``tree_id``, ``x``, ``y``, ``z_ground``, ``height``, ``crown_radius``, ``dbh``,
+        ``species``.
+    dtm : Raster
+        The terrain's heights on its grid (exact: the ground mesh is this grid).
+    inventory_path : Path or None
+    """
+
+    trees: dict = field(default_factory=dict)
+    dtm: Raster | None = None
+    inventory_path: Path | None = None
+
+
+def parse_species_mix(text: str, *, path=None, field_name: str = "forest.species"):
+    """``"PIAB:0.6,FASY:0.4"`` -> ``(codes, shares summing to 1)``.
+
+    >>> parse_species_mix("piab:3, FASY:1")
+    (['PIAB', 'FASY'], [0.75, 0.25])
+    """
+    codes, shares = [], []
+    for item in str(text).split(","):
+        if not item.strip():
+            continue
+        name, _, share = item.partition(":")
+        try:
+            w = float(share) if share.strip() else 1.0
+        except ValueError:
+            raise InputError(f"expected CODE:share, got {item.strip()!r}", path=path,
+                             field=field_name) from None
+        if not w > 0:
+            raise InputError(f"expected a positive share, got {item.strip()!r}", path=path,
+                             field=field_name)
+        codes.append(species_for(name).code)
+        shares.append(w)
+    if not codes:
+        raise InputError("expected at least one species", path=path, field=field_name)
+    total = sum(shares)
+    return codes, [w / total for w in shares]
+
+
+def terrain_height(dtm: Raster, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Height of the triangulated terrain at ``x, y (n,)`` (exactly the ground mesh).
+
+    The grid's cells are split along the diagonal from sample ``[i, j]`` to ``[i+1, j+1]``
+    as :func:`procgen.terrain.heightfield_to_mesh` does; points outside are clamped.
+    """
+    z = dtm.values
+    r, c = z.shape
+    u = np.clip((np.asarray(x, float) - dtm.x0) / dtm.res, 0, c - 1)
+    v = np.clip((np.asarray(y, float) - dtm.y0) / dtm.res, 0, r - 1)
+    j = np.minimum(np.floor(u).astype(np.int64), c - 2)
+    i = np.minimum(np.floor(v).astype(np.int64), r - 2)
+    fu, fv = u - j, v - i
+    za, zb, zc, zd = z[i, j], z[i, j + 1], z[i + 1, j], z[i + 1, j + 1]
+    lower = fu >= fv  # triangle (a, b, d)
+    return np.where(lower, za + fu * (zb - za) + fv * (zd - zb),
+                    za + fv * (zc - za) + fu * (zd - zc))
+
+
+def _procedural_trees(cfg: ForestConfig, rng: np.random.Generator, *, path) -> dict:
+    codes, shares = parse_species_mix(cfg.species, path=path)
+    area = cfg.size ** 2
+    n = int(rng.poisson(cfg.density * area / 1e4))
+    min_d = 0.5 * np.sqrt(1e4 / max(cfg.density, 1e-9))
+    pts = np.empty((0, 2))
+    tries = 0
+    while len(pts) < n and tries < 30:  # dart throwing: no two stems closer than min_d
+        tries += 1
+        cand = rng.uniform(0, cfg.size, size=(2 * n, 2))
+        for p in cand:
+            if len(pts) >= n:
+                break
+            if len(pts) == 0 or np.min(np.sum((pts - p) ** 2, axis=1)) >= min_d ** 2:
+                pts = np.vstack([pts, p])
+    m = len(pts)
+    h = np.maximum(rng.normal(cfg.height_mean, cfg.height_sd, m), 2.0)
+    sp = np.array(codes)[rng.choice(len(codes), size=m, p=shares)] if m else np.empty(0, str)
+    return {"x": pts[:, 0], "y": pts[:, 1], "height": h, "species": sp}
+
+
+def _terrain(cfg: ForestConfig, lo: np.ndarray, hi: np.ndarray, rng) -> Raster:
+    extent = float(max(hi - lo)) + 2 * cfg.margin
+    n = 2
+    while extent / (2 ** n) > cfg.terrain_res:
+        n += 1
+    size = 2 ** n + 1
+    z = fractal_terrain(size, rng=rng, method="fbm", hurst=0.8, height=cfg.relief,
+                        frequency=max(extent / 80.0, 1.0), octaves=6)
+    res = extent / (size - 1)
+    return Raster(z + cfg.elevation, x0=float(lo[0] - cfg.margin),
+                  y0=float(lo[1] - cfg.margin), res=res)
+
+
+def _tree_table(cfg, inventory, rng, path):
+    if inventory is not None:
+        t = read_tree_table(inventory, required=("x", "y", "height"))
+        n = len(t["x"])
+        sp = (np.array([species_for(s).code for s in t["species"]]) if "species" in t
+              else np.full(n, "GENB"))
+        return {"x": t["x"], "y": t["y"], "height": t["height"], "species": sp,
+                "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius")}
+    return _procedural_trees(cfg, rng, path=path)
+
+
+def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str = "forest",
+                 spec: dict | None = None, path=None) -> ForestBundle:
+    """Grow a stand (from ``inventory``, a CSV path, or procedurally) and its truth.
+
+    Returns
+    -------
+    ForestBundle
+        Its render scene and meshes in the local frame; ``origin`` and the truth
+        (``trees``, ``dtm``) in the inventory's coordinates.
+    """
+    rng = np.random.default_rng(seed)
+    t = _tree_table(cfg, inventory, rng, path)
+    n = len(t["x"])
+    if inventory is not None:
+        xy = np.stack([t["x"], t["y"]], 1)
+        lo, hi = xy.min(0), xy.max(0)
+        origin = np.array([np.floor(lo[0] / 10) * 10, np.floor(lo[1] / 10) * 10, 0.0])
+    else:
+        lo, hi = np.zeros(2), np.full(2, cfg.size)
+        origin = np.zeros(3)
+    dtm_local = _terrain(cfg, lo - origin[:2], hi - origin[:2], rng)
+    xl, yl = t["x"] - origin[0], t["y"] - origin[1]
+    zg = terrain_height(dtm_local, xl, yl)
+    objects, meshes = [], {}
+    ground_parts = _ground(cfg, dtm_local, rng, objects, meshes)
+    crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes)
+    if cfg.understory > 0:
+        _understory(cfg, dtm_local, lo - origin[:2], hi - origin[:2], rng, objects, meshes,
+                    object_id=n + 1)
+    del ground_parts
+    trees = {"tree_id": np.arange(1, n + 1), "x": t["x"], "y": t["y"],
+             "z_ground": zg + origin[2], "height": t["height"], "crown_radius": crowns,
+             "dbh": dbhs, "species": np.asarray(t["species"], str)}
+    dtm = Raster(dtm_local.values + origin[2], x0=dtm_local.x0 + origin[0],
+                 y0=dtm_local.y0 + origin[1], res=dtm_local.res, crs_wkt=_crs_wkt(cfg.crs))
+    spec = spec if spec is not None else forest_spec(cfg, seed=seed, name=name)
+    return ForestBundle(spec=spec, render_scene=RenderScene(objects, [], 0.3), meshes=meshes,
+                        base_dir=None if path is None else Path(path).parent, origin=origin,
+                        crs_wkt=dtm.crs_wkt, trees=trees, dtm=dtm,
+                        inventory_path=None if inventory is None else Path(inventory))
+
+
+def _crs_wkt(crs: str) -> str | None:
+    if not crs:
+        return None
+    from rasterio.crs import CRS
+
+    try:
+        return CRS.from_user_input(crs).to_wkt()
+    except Exception as e:
+        raise InputError(f"not a coordinate system rasterio knows ({e})",
+                         field="forest.crs") from None
+
+
+def _add(objects, meshes, name, V, F, parts, material, object_id):
+    mesh = make_mesh(V, F)
+    so = SceneObject(name, mesh, material, np.eye(4), object_id,
+                     part_labels=np.asarray(parts, np.uint8))
+    objects.append(so)
+    meshes[name] = mesh
+
+
+def _ground(cfg, dtm: Raster, rng, objects, meshes):
+    mesh = heightfield_to_mesh(dtm.values, spacing=dtm.res, origin=(dtm.x0, dtm.y0, 0.0))
+    V = np.asarray(mesh.vertices)
+    F = np.asarray(mesh.triangles).astype(np.int64)
+    parts = np.full(len(F), part_code("ground"), np.uint8)
+    if cfg.roads:
+        _roads_and_buildings(cfg, dtm, V, F, parts, rng, objects, meshes)
+    _add(objects, meshes, "ground", V, F, parts, MATERIALS["ground"], 0)
+    return parts
+
+
+def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
+    n = len(xl)
+    models = {}
+    crowns, dbhs = np.empty(n), np.full(n, np.nan)
+    codes = tuple(TREE_PARTS)
+    lut = np.array([part_code(p) for p in codes], np.uint8)
+    for k in range(n):
+        sp = species_for(str(t["species"][k]))
+        if sp.code not in models:
+            models[sp.code] = [grow_tree(sp, rng=rng) for _ in range(cfg.variants)]
+        model = models[sp.code][int(rng.integers(len(models[sp.code])))]
+        h = float(t["height"][k])
+        cr = t["crown_radius"][k] if t.get("crown_radius") is not None else np.nan
+        if not cr > 0:
+            cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
+        dbh = t["dbh"][k] if t.get("dbh") is not None else np.nan
+        V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
+                             height=h + STEM_SINK, crown_radius=float(cr),
+                             dbh=float(dbh) if dbh > 0 else None,
+                             azimuth=float(rng.uniform(0, 2 * np.pi)))
+        crowns[k] = cr
+        if dbh > 0:
+            dbhs[k] = dbh
+        wood = P != codes.index("leaf")
+        foliage = MATERIALS["needle" if sp.form == "conifer" else "leaf"]
+        for suffix, sel, mat in (("wood", wood, MATERIALS["wood"]), ("leaf", ~wood, foliage)):
+            if np.any(sel):
+                _add(objects, meshes, f"tree{k + 1:05d}.{suffix}", V, F[sel], lut[P[sel]], mat,
+                     k + 1)
+    return crowns, dbhs
+
+
+def _understory(cfg, dtm, lo, hi, rng, objects, meshes, *, object_id):
+    area = float(np.prod(hi - lo))
+    m = int(rng.poisson(cfg.understory * area / 1e4))
+    if m == 0:
+        return
+    protos = [grow_tree("GENB", rng=rng) for _ in range(2)]
+    xy = rng.uniform(lo, hi, size=(m, 2))
+    zs = terrain_height(dtm, xy[:, 0], xy[:, 1])
+    vs, fs, count = [], [], 0
+    for k in range(m):
+        h = rng.uniform(0.5, 2.5)
+        V, F, _ = place_tree(protos[k % 2], position=(xy[k, 0], xy[k, 1], zs[k] - 0.1),
+                             height=h, crown_radius=0.4 * h,
+                             azimuth=float(rng.uniform(0, 2 * np.pi)))
+        vs.append(V)
+        fs.append(F + count)
+        count += len(V)
+    F = np.vstack(fs)
+    _add(objects, meshes, "understory", np.vstack(vs), F,
+         np.full(len(F), part_code("understory"), np.uint8), MATERIALS["understory"], object_id)
+
+
+def _roads_and_buildings(cfg, dtm, V, F, parts, rng, objects, meshes):
+    """Label the ground under the city's roads, and stand its buildings on the terrain."""
+    from procgen.city import HIGHWAY_HALF_WIDTH, STREET_HALF_WIDTH, CityConfig, generate_city
+
+    r, c = dtm.values.shape
+    extent = dtm.res * (max(r, c) - 1)
+    city = generate_city(rng, CityConfig(size=max(extent, 100.0), highway_length=extent / 3,
+                                         street_length=extent / 4, snap_radius=extent / 10,
+                                         river_width=0.0, parks=0, max_segments=12,
+                                         lot_width=14.0, lot_depth=14.0, voxel=1.0))
+    shift = np.array([dtm.x0 + extent / 2, dtm.y0 + extent / 2])
+    if len(city.edges) == 0:
+        return
+    cen = V[F].mean(1)[:, :2] - shift
+    a, b = city.nodes[city.edges[:, 0]], city.nodes[city.edges[:, 1]]
+    half = np.where(city.highway, HIGHWAY_HALF_WIDTH, STREET_HALF_WIDTH)
+    for p, q, hw in zip(a, b, half, strict=True):
+        d = q - p
+        s = np.clip(((cen - p) @ d) / max(d @ d, 1e-12), 0, 1)
+        on = np.hypot(*(cen - p - s[:, None] * d).T) <= hw
+        parts[on] = part_code("road")
+    bv = city.vertices[city.part == 0]
+    if len(bv) == 0:
+        return
+    keep = np.all(city.part[city.triangles] == 0, axis=1)
+    bf = city.triangles[keep]
+    owner = city.owner
+    bv_all = city.vertices.copy()
+    bv_all[:, :2] += shift
+    base = np.array([float(np.min(terrain_height(dtm, *bv_all[owner == i, :2].T)))
+                     if np.any(owner == i) else 0.0 for i in range(len(city.buildings))])
+    on_b = city.part == 0
+    bv_all[on_b, 2] += base[owner[on_b]] - 0.5
+    used, inv = np.unique(bf, return_inverse=True)
+    _add(objects, meshes, "buildings", bv_all[used], inv.reshape(-1, 3),
+         np.full(len(bf), part_code("building"), np.uint8), MATERIALS["building"], 10 ** 6)
+
+
+def forest_spec(cfg: ForestConfig, *, seed: int, name: str = "forest",
+                inventory: str | None = None) -> dict:
+    """The scene spec (``scene.toml``) that rebuilds this forest."""
+    forest = to_dict(cfg)
+    if inventory is not None:
+        forest["inventory"] = str(inventory)
+    return {"scene": {"name": name, "seed": int(seed)}, "forest": forest}
+
+
+def forest_from_spec(spec: dict, *, path=None, base_dir=None) -> ForestBundle:
+    """Build the forest of a spec with a ``[forest]`` table (see the module docstring)."""
+    table = dict(spec.get("forest") or {})
+    inv = table.pop("inventory", None)
+    cfg = from_dict(ForestConfig, table, path=path, prefix="forest.")
+    inventory = None
+    if inv is not None:
+        p = Path(inv)
+        inventory = p if p.is_absolute() or base_dir is None else Path(base_dir) / p
+    head = spec.get("scene", {})
+    return build_forest(cfg, inventory=inventory, seed=int(head.get("seed", 0)),
+                        name=str(head.get("name", "forest")), spec=spec, path=path)
+
+
+PART_COLORS = {"ground": (0.55, 0.45, 0.30), "trunk": (0.35, 0.20, 0.10),
+               "branch": (0.65, 0.45, 0.25), "leaf": (0.20, 0.60, 0.15),
+               "understory": (0.65, 0.80, 0.20), "building": (0.75, 0.30, 0.30),
+               "road": (0.25, 0.25, 0.28), "water": (0.2, 0.4, 0.8), "glass": (0.6, 0.8, 0.9),
+               "unlabelled": (0.5, 0.5, 0.5)}
+"""Colour of each part in ``mesh.ply`` and the renders."""
+
+
+def write_forest(bundle: ForestBundle, out_dir) -> Path:
+    """Write a forest scene folder atomically: ``scene.toml`` (+ ``inventory.csv``),
+    ``mesh.ply`` (local frame; each vertex coloured and labelled by its part, the names in
+    ``labels.json``), ``trees.csv`` and ``dtm.tif`` (the truth, in the inventory's
+    coordinates), ``materials.json``."""
+    from acquire.lidar.labels import PARTS
+    from core.mesh_io import write_labeled_mesh
+
+    out = Path(out_dir)
+    spec = {k: (dict(v) if isinstance(v, dict) else v) for k, v in bundle.spec.items()}
+    spec["scene"]["origin"] = [float(v) for v in bundle.origin]
+    objs = bundle.render_scene.objects
+    vs, fs, labs, count = [], [], [], 0
+    for o in objs:
+        v, f = np.asarray(o.mesh.vertices), np.asarray(o.mesh.triangles)
+        lab = np.zeros(len(v), np.int64)
+        lab[f] = o.part_labels[:, None]
+        vs.append(v)
+        fs.append(f + count)
+        labs.append(lab)
+        count += len(v)
+    lab = np.concatenate(labs)
+    palette = np.array([PART_COLORS[p] for p in PARTS])
+    with atomic_dir(out) as tmp:
+        if bundle.inventory_path is not None:
+            shutil.copyfile(bundle.inventory_path, tmp / "inventory.csv")
+            spec["forest"]["inventory"] = "inventory.csv"
+        write_toml(tmp / "scene.toml", spec)
+        write_labeled_mesh(tmp / "mesh.ply", np.vstack(vs), np.vstack(fs), colors=palette[lab],
+                           labels=lab, names=dict(enumerate(PARTS)))
+        tr = bundle.trees
+        write_tree_table(tmp / "trees.csv", {k: tr[k] for k in (
+            "tree_id", "x", "y", "z_ground", "height", "crown_radius", "dbh", "species")})
+        write_raster(tmp / "dtm.tif", bundle.dtm)
+        write_json(tmp / "materials.json", {
+            "origin": bundle.origin.tolist(),
+            "objects": len(objs), "trees": int(len(tr["x"])),
+            "lidar_reflectance": {name: m.lidar_reflectance for name, m in MATERIALS.items()}})
+    return out
