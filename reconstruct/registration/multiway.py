@@ -196,7 +196,7 @@ def _solve_graph(views: list[Oriented], edges: dict, members: list[int], root: i
         joint = JointAlignment([views[k] for k in members],
                                [(sub[i], sub[j]) for i, j in edges], anchor=sub[root])
         solved = joint.run([poses[k] for k in members],
-                           thresholds=[3.0 * voxel] * 4 + [2.0 * voxel] * 4 + [voxel] * 6)
+                           thresholds=[3.0 * voxel] * 3 + [2.0 * voxel] * 3 + [voxel] * 4)
         for m, k in enumerate(members):
             poses[k] = solved[m]
         worst, worst_dev = None, (0.0, 0.0)

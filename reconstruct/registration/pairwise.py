@@ -145,7 +145,7 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
         T = icp_point_to_plane(s.points, t.points, t.normals, h, 3.0 * voxel, target.tree,
                                iterations=10)
         T = icp_point_to_plane(s.points, t.points, t.normals, T, 1.5 * voxel, target.tree,
-                               iterations=15)
+                               iterations=30)
         v = verify_pair(t, s, T, tau=voxel, target_map=target.view, source_map=source.view,
                         target_tree=target.tree, options=options)
         if not v.accepted:

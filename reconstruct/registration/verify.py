@@ -6,7 +6,8 @@ overlap while the rest of the scan floats in front of the other. Each candidate
 ``target_from_source`` is therefore judged on:
 
 - **overlap**: the fraction of the smaller scan's samples within ``tau`` of the other;
-- **agreement**: the RMS distance over that overlap, and the normals there (a surface
+- **agreement**: the RMS point-to-plane distance over that overlap (a fraction of
+  ``tau``: a wrong fit spreads its distances over the whole band), and the normals there (a surface
   that the two scanners saw from opposite sides -- normals opposed -- is *seen from the
   back*);
 - **free space**: each scanner saw through the space between itself and its surface. A
@@ -39,6 +40,7 @@ class VerifyOptions:
     min_overlap: float = 0.15
     max_backfacing: float = 0.1
     max_blocking: float = 0.03
+    max_plane_rms: float = 0.25   # of tau
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class Verdict:
     """The checks of one candidate.
 
     ``overlap``: fraction of the smaller scan's samples within ``tau`` of the other;
-    ``rms``: RMS distance over the overlap (metres); ``backfacing``: fraction of the
+    ``rms``: RMS point-to-plane distance over the overlap (metres); ``backfacing``: fraction of the
     overlap with opposed normals; ``blocking``: fraction of the samples that project into
     the other scan's view and lie in front of what it saw (the larger of the two ways);
     ``reason``: empty when accepted.
@@ -173,7 +175,9 @@ def verify_pair(target: Oriented, source: Oriented, target_from_source: np.ndarr
     n_near = int(near.sum())
     overlap = n_near / max(1, min(len(source), len(target)))
     overlap = min(overlap, 1.0)
-    rms = float(np.sqrt(np.mean(d[near] ** 2))) if n_near else float("nan")
+    gap = np.sum((moved.points[near] - target.points[j[near]]) * target.normals[j[near]],
+                 axis=1)
+    rms = float(np.sqrt(np.mean(gap ** 2))) if n_near else float("nan")
     back = float(np.mean(np.sum(moved.normals[near] * target.normals[j[near]], axis=1) < 0)
                  ) if n_near else 0.0
     target_map = ViewMap(target, tau) if target_map is None else target_map
@@ -185,6 +189,9 @@ def verify_pair(target: Oriented, source: Oriented, target_from_source: np.ndarr
     reason = ""
     if overlap < options.min_overlap:
         reason = f"overlap {100 * overlap:.0f} % < {100 * options.min_overlap:.0f} %"
+    elif rms > options.max_plane_rms * tau:
+        reason = (f"the surfaces disagree (RMS {rms:.3g} m over the overlap > "
+                  f"{options.max_plane_rms * tau:.3g} m)")
     elif back > options.max_backfacing:
         reason = f"seen from the back ({100 * back:.0f} % of the overlap has opposed normals)"
     elif blocking > options.max_blocking:

@@ -110,7 +110,15 @@ def _register(scans, cfg: ScansReconConfig, initial):
 
 
 def _merge(scans, poses, cfg: ScansReconConfig):
-    """The merged mesh and the merge's report."""
+    """The merged mesh as arrays (vertices, triangles: the stage cache pickles them) and
+    the merge's report."""
+    from core.meshes import mesh_arrays
+
+    mesh, rep = _merge_mesh(scans, poses, cfg)
+    return mesh_arrays(mesh), rep
+
+
+def _merge_mesh(scans, poses, cfg: ScansReconConfig):
     t = time.perf_counter()
     if cfg.merge == "poisson":
         from reconstruct.surface.meshing import poisson_mesh
@@ -131,6 +139,7 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
         from_stage: str | None = None) -> Path:
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
     into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
+    from core.meshes import make_mesh
     from core.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
 
@@ -153,11 +162,12 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
         if not placed:
             raise RuntimeError("no two scans could be registered to each other: "
                                + "; ".join(f"{s.name}: {s.reason}" for s in result.scans))
-        mesh, merge_rep = st.run(
+        (verts, tris), merge_rep = st.run(
             "merge", _merge, [scans[k] for k in placed],
             [result.scans[k].model_from_scan for k in placed], cfg,
             depends={"merge": cfg.merge, "resolution": cfg.resolution,
                      "fill_holes": cfg.fill_holes})
+        mesh = make_mesh(verts, tris)
         _write_outputs(tmp, scans, result, mesh, merge_rep, cfg, t_load,
                        time.perf_counter() - t0, st)
     return out_dir
