@@ -12,8 +12,8 @@ materials, shadows, speckle) and digitised by the sensor model (shot and read no
 quantisation); the head's firmware finds the stripe and triangulates it with the head's
 factory geometry. Output folder::
 
-    scans/scan_00.ply ...  PLY range grids in each scanner's frame (core.range_io), with
-                           obj_info sight_origin / sight_row_step (the camera's sweep)
+    scans/scan_00.ply ...  PLY range grids in each scanner's frame (core.range_io); the
+                           camera at the origin saw every point
     poses.json, poses.conf the true model_from_scan of each scan (evaluation only)
     gt/mesh.ply            the scene's surface in the model (world) frame
     capture.json           kind "scans": head, sensor, views, scene reference, seed
@@ -29,7 +29,7 @@ import numpy as np
 
 from acquire.camera import look_at_cam_from_world
 from acquire.capture_io import write_capture
-from acquire.laser.sheet import LaserRenderer, camera_directions
+from acquire.render.laser_sheet import LaserRenderer, camera_directions
 from acquire.scans.head import ScanHead, stripe_peaks
 from acquire.sensor import Sensor
 from core.config import Config, option, to_dict
@@ -76,8 +76,10 @@ def view_poses(n: int, aim, *, standoff: float, elevation_min_deg: float,
     spread over the elevation band (Fibonacci lattice), rolled up to ``roll_deg`` at random.
 
     >>> T = view_poses(3, [0, 0, 0], standoff=0.4, elevation_min_deg=0, elevation_max_deg=0)
-    >>> [round(float(np.linalg.norm(t[:3, 3])), 9) for t in T], float(T[0][2, 2])
-    ([0.4, 0.4, 0.4], -1.0)
+    >>> [round(float(np.linalg.norm(t[:3, 3])), 9) for t in T]       # at the stand-off
+    [0.4, 0.4, 0.4]
+    >>> bool(np.allclose(T[0][:3, 2], -T[0][:3, 3] / 0.4))           # looking at the aim
+    True
     """
     aim = np.asarray(aim, np.float64)
     lo, hi = np.sin(np.radians([elevation_min_deg, elevation_max_deg]))
@@ -102,30 +104,25 @@ def scan_view(renderer: LaserRenderer, head: ScanHead, model_from_scan: np.ndarr
               sensor: Sensor, rng: np.random.Generator) -> RangeGrid:
     """One sweep of the head placed at ``model_from_scan``: the range grid it measures,
     in its own frame (row = sweep step, column = image row)."""
-    laser = head.laser()
-    sweep = head.sweep()
+    cam_from_world = np.linalg.inv(model_from_scan)
     rows = np.arange(head.height, dtype=np.float64)
     index = np.full((head.steps, head.height), -1, np.int64)
     points = []
     count = 0
-    for s, x in enumerate(sweep):
-        world_from_cam = model_from_scan @ rigid(np.eye(3), [x, 0.0, 0.0])
-        frame = renderer.frame(np.linalg.inv(world_from_cam), laser.transformed(world_from_cam),
+    for s, x in enumerate(head.sweep()):
+        frame = renderer.frame(cam_from_world, head.laser(x).transformed(model_from_scan),
                                ambient=head.ambient, rng=rng)
         image = sensor.apply(frame.radiance, rng)
         cols = stripe_peaks(image, min_peak=head.min_peak, window=head.window)
         ok = np.flatnonzero(np.isfinite(cols))
-        P = head.triangulate(rows[ok], cols[ok])
+        P = head.triangulate(rows[ok], cols[ok], x)
         good = np.isfinite(P).all(axis=1)
-        ok, P = ok[good], P[good] + [x, 0.0, 0.0]
+        ok, P = ok[good], P[good]
         index[s, ok] = count + np.arange(len(ok))
         count += len(ok)
         points.append(P)
-    step = sweep[1] - sweep[0]
-    info = {"scanner": "scanamp_sheet_of_light", "sight_origin": f"{sweep[0]:.17g} 0 0",
-            "sight_row_step": f"{step:.17g} 0 0"}
     return RangeGrid(np.concatenate(points) if points else np.empty((0, 3)), index,
-                     obj_info=info)
+                     obj_info={"scanner": "scanamp_sheet_of_light"})
 
 
 def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Generator, *,

@@ -1,27 +1,29 @@
-"""The range scanner's head: a sheet-of-light triangulation scanner on a linear sweep, with
-its factory geometry and its on-board peak detection.
+"""The range scanner's head: a camera and a line laser on a linear sweep, with its factory
+geometry and its on-board peak detection.
 
-Like a Cyberware head, the scanner knows its own geometry: its camera and laser sheet are
-fixed to each other and calibrated at the factory, so every profile it measures comes out
-in the scanner's own frame without any calibration by the user. Here that geometry is the
-design itself (the camera is distortion-free and the sheet is where it was designed):
-the scanner's frame is its camera's (OpenCV: x right, y down, z forward) at the middle of
-the sweep.
+Like a Cyberware or Minolta head, the scanner knows its own geometry: its camera and the
+laser's sweep are built and calibrated at the factory, so every profile it measures comes
+out in the scanner's own frame without any calibration by the user. Here that geometry is
+the design itself (the camera is distortion-free, the sheet is where it was designed). The
+scanner's frame is its camera's (OpenCV: x right, y down, z forward) and the camera stays
+put: the laser alone rides the linear sweep, so every line of sight passes through the
+origin (a range image seen from the origin, as :mod:`reconstruct.scans` assumes).
 
 Geometry (scanner frame, metres)::
 
-    camera at (x_s, 0, 0) looking along +z, x_s the sweep position of step s
-    laser at  (x_s + B, 0, 0), B = standoff * tan(triangulation angle); its sheet holds
-              the y axis and crosses the optical axis at z = standoff
+    camera at the origin looking along +z
+    laser at (x_s + B, 0, 0), B = standoff * tan(triangulation angle), x_s the sweep
+          position of step s; its sheet holds the y axis and, at x_s = 0, crosses the
+          optical axis at z = standoff (the sheet translates: its normal is fixed)
 
-so the stripe runs down the image (one peak per image row, the profile) and the sweep
-along x moves it across the scene. A scan is a range grid: row ``s`` is sweep step ``s``,
-column ``v`` image row ``v``.
+so the stripe runs down the image (one peak per image row, the profile) and the sweep moves
+it across. A scan is a range grid: row ``s`` is sweep step ``s``, column ``v`` image row
+``v``. The default sweep crosses the camera's horizontal field at the stand-off.
 
-The firmware (:func:`stripe_peaks`) finds in each image row the brightest column, and
-refines it to the centroid of the light above the row's median within ``window`` pixels;
-a row whose peak does not stand ``min_peak`` digital numbers above its median has no
-sample. The camera ray through ``(row, sub-pixel column)`` meets the sheet's plane
+The firmware (:func:`stripe_peaks`) finds in each image row the brightest column and refines
+it to the centroid of the light above the row's median within ``window`` pixels; a row whose
+peak does not stand ``min_peak`` digital numbers above its median has no sample. The camera
+ray through ``(row, sub-pixel column)`` meets the sheet of that step
 (:meth:`ScanHead.triangulate`).
 """
 
@@ -32,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.laser.sheet import LaserSheet
+from acquire.render.laser_sheet import LaserSheet
 from core.config import Config, option
 from core.validate import check_array
 
@@ -45,21 +47,20 @@ class ScanHead(Config):
     Angles in degrees, lengths in metres."""
 
     standoff: float = option(0.40, unit="m", range="(0, inf)",
-                             help="working distance: where the sheet crosses the optical axis")
-    range_near: float = option(0.28, unit="m", range="(0, inf)",
-                               help="nearest depth measured (sets the image columns read)")
-    range_far: float = option(0.56, unit="m", range="(0, inf)",
-                              help="farthest depth measured (sets the image columns read)")
+                             help="working distance: where the sheet crosses the optical axis "
+                                  "mid-sweep")
     height: int = option(160, unit="px", range="[8, 8192]",
                          help="image rows: samples along each profile")
-    fov_deg: float = option(30.0, unit="deg", range="[1, 120]",
-                            help="field of view along the stripe (the image rows)")
-    triangulation_angle_deg: float = option(30.0, unit="deg", range="[1, 80]",
+    width: int = option(160, unit="px", range="[8, 8192]", help="image columns")
+    fov_deg: float = option(32.0, unit="deg", range="[1, 120]",
+                            help="field of view along the image rows (vertical)")
+    triangulation_angle_deg: float = option(35.0, unit="deg", range="[1, 80]",
                                             help="angle between the camera axis and the sheet")
     steps: int = option(100, range="[2, 100000]", help="sweep steps: profiles per scan")
-    sweep_length: float = option(0.25, unit="m", range="(0, inf)",
-                                 help="travel of the linear sweep")
-    fan_angle_deg: float = option(50.0, unit="deg", range="[1, 170]", help="laser fan angle")
+    sweep_length: float | None = option(None, unit="m", range="(0, inf)",
+                                        help="travel of the laser (none: the camera's "
+                                             "horizontal field at the stand-off)")
+    fan_angle_deg: float = option(60.0, unit="deg", range="[1, 170]", help="laser fan angle")
     laser_thickness: float = option(0.001, unit="m", range="(0, inf)",
                                     help="sheet thickness (Gaussian standard deviation; "
                                          "about a pixel at the stand-off, for sub-pixel peaks)")
@@ -74,67 +75,60 @@ class ScanHead(Config):
 
     def __post_init__(self):
         super().__post_init__()
-        if not self.range_near < self.standoff < self.range_far:
-            raise ValueError(f"standoff: expected between range_near ({self.range_near}) and "
-                             f"range_far ({self.range_far}), got {self.standoff}")
+        if self.travel / 2 >= self.baseline:
+            raise ValueError(f"sweep_length: expected less than twice the baseline "
+                             f"({2 * self.baseline:.4g} m; the laser would pass the camera), "
+                             f"got {self.travel:.4g}")
 
     @property
     def baseline(self) -> float:
-        """Camera to laser distance B (m)."""
+        """Camera to laser distance B (m) at mid-sweep."""
         return self.standoff * float(np.tan(np.radians(self.triangulation_angle_deg)))
 
     @property
     def focal(self) -> float:
         return 0.5 * self.height / float(np.tan(np.radians(self.fov_deg) / 2))
 
-    def _columns(self) -> tuple[float, float]:
-        """Stripe columns (relative to the principal point) at the far and near depths."""
-        k = self.focal * self.baseline
-        return (k * (1 / self.range_far - 1 / self.standoff),
-                k * (1 / self.range_near - 1 / self.standoff))
-
     @property
-    def width(self) -> int:
-        """Image columns read: those the stripe crosses over the measuring range, plus the
-        peak window on either side (a sensor's region of interest)."""
-        lo, hi = self._columns()
-        return int(np.ceil(hi - lo)) + 2 * self.window + 3
+    def travel(self) -> float:
+        """The sweep's length (m): ``sweep_length`` or the field at the stand-off."""
+        if self.sweep_length is not None:
+            return float(self.sweep_length)
+        return self.standoff * self.width / self.focal
 
     def camera(self) -> Camera:
-        """The head's camera in the scanner frame at sweep position 0 (no distortion; its
-        principal point placed so that the measuring range fills the columns)."""
+        """The head's camera: at the scanner frame's origin, no distortion."""
         f = self.focal
-        lo, _ = self._columns()
-        return Camera(self.width, self.height, f, f, self.window + 1 - lo,
+        return Camera(self.width, self.height, f, f, (self.width - 1) / 2,
                       (self.height - 1) / 2, np.zeros(5), np.eye(4))
 
-    def sheet_plane(self) -> tuple[np.ndarray, float]:
-        """``(n (3,), d)``: the sheet's plane ``n . x = d`` in the camera's frame."""
+    def sweep(self) -> np.ndarray:
+        """Sweep positions ``(steps,)`` of the laser (m along the scanner's x), centred."""
+        return np.linspace(-self.travel / 2, self.travel / 2, self.steps)
+
+    def sheet_plane(self, x: float = 0.0) -> tuple[np.ndarray, float]:
+        """``(n (3,), d)``: the sheet's plane ``n . X = d`` at sweep position ``x``."""
         B, D = self.baseline, self.standoff
         n = np.array([D, 0.0, B]) / np.hypot(D, B)
-        return n, float(n @ [B, 0.0, 0.0])
+        return n, float(n[0] * (B + x))
 
-    def laser(self) -> LaserSheet:
-        """The head's laser in the camera's frame."""
-        n, _ = self.sheet_plane()
-        return LaserSheet(np.array([self.baseline, 0.0, 0.0]), n,
+    def laser(self, x: float = 0.0) -> LaserSheet:
+        """The head's laser at sweep position ``x``, in the scanner frame."""
+        n, _ = self.sheet_plane(x)
+        return LaserSheet(np.array([self.baseline + x, 0.0, 0.0]), n,
                           np.array([-self.baseline, 0.0, self.standoff]),
                           np.radians(self.fan_angle_deg), self.laser_thickness,
                           self.laser_power, None, self.speckle, 0.0)
 
-    def sweep(self) -> np.ndarray:
-        """Sweep positions ``(steps,)`` (m along the scanner's x), centred on 0."""
-        return np.linspace(-self.sweep_length / 2, self.sweep_length / 2, self.steps)
-
-    def triangulate(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Points ``(k, 3)`` in the camera's frame seen at pixels ``(rows, cols) (k,)``
-        on the sheet (NaN where the ray misses it in front of the camera)."""
+    def triangulate(self, rows: np.ndarray, cols: np.ndarray, x: float = 0.0) -> np.ndarray:
+        """Points ``(k, 3)`` in the scanner frame seen at pixels ``(rows, cols) (k,)`` on the
+        sheet at sweep position ``x`` (NaN where the ray misses it in front of the camera)."""
         rows = check_array(rows, "rows", shape=(None,))
         cols = check_array(cols, "cols", shape=(len(rows),), finite=False)
         cam = self.camera()
         ray = np.stack([(cols - cam.cx) / cam.fx, (rows - cam.cy) / cam.fy,
                         np.ones(len(rows))], -1)
-        n, d = self.sheet_plane()
+        n, d = self.sheet_plane(x)
         denom = ray @ n
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.where(np.abs(denom) > 1e-12, d / denom, np.nan)
