@@ -106,7 +106,7 @@ def test_all_placed_near_their_true_poses_and_the_foreign_scan_reported(blob_set
     assert err.rotation_deg.max() < 0.05, err.table()
     assert err.displacement_rms.max() < 5e-5, err.table()
     placed = [(s.name, s.rms, s.overlap) for s in registered.scans if s.registered]
-    assert all(0 < rms < 1e-4 and overlap > 0.2 for _, rms, overlap in placed), placed
+    assert all(0 < rms < 5e-4 and overlap > 0.2 for _, rms, overlap in placed), placed
 
 
 def test_order_and_rotation_of_the_inputs_do_not_change_the_poses(blob_set, registered):

@@ -126,12 +126,14 @@ def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlie
     if len(idx) == 0:
         return []
     hyp = kabsch(a[idx], b[idx])
-    counts = np.empty(len(idx), np.int64)
-    for s in range(0, len(idx), chunk):
-        h = hyp[s:s + chunk]
-        moved = np.einsum("hij,nj->hni", h[:, :3, :3], cs) + h[:, None, :3, 3]
-        counts[s:s + chunk] = np.count_nonzero(
-            np.sum((moved - cd) ** 2, axis=2) < inlier ** 2, axis=1)
+    # preemptive scoring: every hypothesis on a fixed subset of the matches, the best
+    # five hundred on all of them
+    sub = np.arange(len(cs)) if len(cs) <= 400 else np.sort(
+        rng.choice(len(cs), 400, replace=False))
+    counts = _count_inliers(hyp, cs[sub], cd[sub], inlier, chunk)
+    top = np.argsort(-counts, kind="stable")[:500]
+    hyp = hyp[top]
+    counts = _count_inliers(hyp, cs, cd, inlier, chunk)
     order = np.argsort(-counts, kind="stable")
     out: list[np.ndarray] = []
     for k in order:
@@ -142,6 +144,16 @@ def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlie
         if all(_differ(T, o, inlier) for o in out):
             out.append(T)
     return out
+
+
+def _count_inliers(hyp, cs, cd, inlier, chunk):
+    counts = np.empty(len(hyp), np.int64)
+    for s in range(0, len(hyp), chunk):
+        h = hyp[s:s + chunk]
+        moved = np.einsum("hij,nj->hni", h[:, :3, :3], cs) + h[:, None, :3, 3]
+        counts[s:s + chunk] = np.count_nonzero(
+            np.sum((moved - cd) ** 2, axis=2) < inlier ** 2, axis=1)
+    return counts
 
 
 def _differ(a: np.ndarray, b: np.ndarray, tol: float) -> bool:

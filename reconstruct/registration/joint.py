@@ -120,14 +120,15 @@ class JointAlignment:
 
     def run(self, poses: list[np.ndarray], *, thresholds, tol: float = 1e-7
             ) -> list[np.ndarray]:
-        """Steps at each threshold of ``thresholds`` in turn (stopping early at the last
-        one when the largest increment falls under ``tol``)."""
+        """Steps at each threshold of ``thresholds`` in turn (stopping early, once at the
+        last threshold, when the largest increment falls under ``tol``: radians and
+        metres alike)."""
         poses = [np.array(p, dtype=np.float64) for p in poses]
         thresholds = list(thresholds)
         for k, th in enumerate(thresholds):
             poses = self.step(poses, th)
             log.debug("joint step %d at %.3g: largest increment %.3g", k, th, self.last["step"])
-            if k >= len(thresholds) // 2 and self.last["step"] < tol:
+            if th == thresholds[-1] and self.last["step"] < tol:
                 break
         return poses
 

@@ -38,6 +38,9 @@ from .verify import VerifyOptions, verify_pair
 
 log = logging.getLogger(__name__)
 
+#: scans with at most this many points take part in the fine alignment unthinned
+_RAW_POINTS = 20000
+
 __all__ = ["MultiwayOptions", "ScanPlacement", "MultiwayResult", "register_scans",
            "auto_voxel"]
 
@@ -56,6 +59,7 @@ class MultiwayOptions:
     prune_deg: float = 3.0
     prune_voxels: float = 3.0
     fine_iterations: int = 30
+    fine_min_overlap: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -226,9 +230,12 @@ def _fine(views: list[Oriented], poses: list, members: list[int], anchor: int,
         tree = cKDTree(coarse[i].points)
         for j in members[a + 1:]:
             rel = np.linalg.inv(poses[i]) @ poses[j]
-            d, _ = tree.query(coarse[j].points @ rel[:3, :3].T + rel[:3, 3],
+            d, k = tree.query(coarse[j].points @ rel[:3, :3].T + rel[:3, 3],
                               distance_upper_bound=2.0 * voxel)
-            if np.mean(np.isfinite(d)) >= 0.05:
+            near = np.isfinite(d)
+            facing = np.sum((coarse[j].normals[near] @ rel[:3, :3].T)
+                            * coarse[i].normals[k[near]], axis=1) > 0.5
+            if facing.sum() >= opts.fine_min_overlap * min(len(coarse[i]), len(coarse[j])):
                 pairs.append((i, j))
     sub = {k: m for m, k in enumerate(members)}
     joint = JointAlignment([views[k] for k in members], [(sub[i], sub[j]) for i, j in pairs],
@@ -236,7 +243,8 @@ def _fine(views: list[Oriented], poses: list, members: list[int], anchor: int,
     start, end = 2.0 * voxel, 2.0 * fine
     ramp = list(np.geomspace(start, end, 8)) if start > end else [end] * 8
     solved = joint.run([poses[k] for k in members],
-                       thresholds=ramp + [end] * max(1, opts.fine_iterations - len(ramp)))
+                       thresholds=ramp + [end] * max(4, opts.fine_iterations - len(ramp)),
+                       tol=1e-3 * fine)
     last = joint.last
     stats = {}
     for m, k in enumerate(members):
@@ -332,8 +340,12 @@ def _fine_view(scan, canon_from_scan: np.ndarray, fine: float) -> Oriented:
     """The scan's samples for the fine alignment, weighted by its confidence if it has one
     (VRIP's: low at grazing angles and near the scan's edges, where range images curl)."""
     R, t = canon_from_scan[:3, :3], canon_from_scan[:3, 3]
+    conf = getattr(scan, "confidence", None)
+    if len(scan.points) <= _RAW_POINTS:  # small scans: every sample, nothing to thin
+        return Oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T,
+                        None if conf is None else np.asarray(conf, float))
     return thin_oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T, fine,
-                         getattr(scan, "confidence", None))
+                         conf)
 
 
 def _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned, voxel,

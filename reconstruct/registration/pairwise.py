@@ -152,6 +152,8 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
             rejected.append(v.reason)
         elif best_v is None or v.score > best_v.score:
             best, best_v = T, v
+        if best_v is not None and best_v.overlap >= 0.5 and best_v.rms < 0.1 * voxel:
+            break  # a clear match: the weaker hypotheses cannot beat it
     if best is None:
         reason = rejected[0] if rejected else "no consistent feature matches"
         best_v = Verdict(0.0, float("nan"), 0.0, 0.0, 0, reason)
