@@ -200,3 +200,26 @@ def test_cli_needs_two_scans(tmp_path, blob_set):
     out = tmp_path / "out"
     assert main(["reconstruct", "scans", str(f), "--out", str(out)]) == 2
     assert not out.exists()
+
+
+def test_pipeline_writes_poses_mesh_and_pictures(tmp_path, blob_set):
+    from core.range_io import read_conf, read_poses_json, write_range_grid
+    from reconstruct.scans.pipeline import ScansReconConfig, run
+
+    scans, truth, foreign = blob_set
+    folder = tmp_path / "scans"
+    folder.mkdir()
+    for s in [*scans[:5], foreign]:
+        write_range_grid(folder / f"{s.name}.ply", RangeGrid(s.points, s.grid))
+    out = run(ScansReconConfig(seed=3), [folder], tmp_path / "rec")
+    for f in ("mesh.ply", "poses.json", "poses.conf", "report.json", "scans_before.png",
+              "scans_after.png", "residuals.png"):
+        assert (out / f).is_file(), f
+    poses = {p.file: p for p in read_poses_json(out / "poses.json")}
+    assert not poses["foreign.ply"].registered and poses["foreign.ply"].reason
+    placed = {n: p.model_from_scan for n, p in poses.items() if p.registered}
+    assert sorted(placed) == [f"scan_0{k}.ply" for k in range(5)]
+    assert {n for n, _ in read_conf(out / "poses.conf")} == set(placed)
+    err = compare_scan_poses(placed, {f"{n}.ply": T for n, T in truth.items()},
+                             {f"{s.name}.ply": s.points for s in scans})
+    assert err.rotation_deg.max() < 0.05, err.table()

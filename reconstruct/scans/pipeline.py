@@ -173,6 +173,19 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
     return out_dir
 
 
+def _up(sights: list[np.ndarray]) -> np.ndarray:
+    """The model's likely up, for the renders: the mean line of sight when the scanners
+    looked down from all around, else the axis the lines of sight turn about (a
+    turntable's), +y of the model frame's side."""
+    s = np.concatenate(sights)
+    mean = s.mean(axis=0)
+    if np.linalg.norm(mean) > 0.3:
+        return mean / np.linalg.norm(mean)
+    _, vec = np.linalg.eigh(s.T @ s)
+    up = vec[:, 0]
+    return up if up[1] >= 0 else -up
+
+
 def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, t_load, t_total, st):
     from core.image_io import write_image
     from core.mesh_io import write_mesh
@@ -220,8 +233,10 @@ def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, t_load, t_tot
                 after_p.append(s.points[i] @ T[:3, :3].T + T[:3, 3])
                 after_n.append(s.normals[i] @ T[:3, :3].T)
                 cols.append(palette[k])
-        write_image(tmp / "scans_after.png", render_scans(after_p, after_n,
-                                                          colors=np.array(cols)))
+        write_image(tmp / "scans_after.png", render_scans(after_p, after_n, up=_up(
+            [scans[k].sight[::50] @ result.scans[k].model_from_scan[:3, :3].T
+             for k in range(len(scans)) if result.scans[k].registered]),
+            colors=np.array(cols)))
         write_image(tmp / "residuals.png", plot_residuals(
             [s.name for s in result.scans], [s.rms for s in result.scans],
             [s.overlap for s in result.scans], [s.registered for s in result.scans]))
