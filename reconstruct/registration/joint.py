@@ -106,7 +106,11 @@ class JointAlignment:
                     H[6 * u:6 * u + 6, 6 * v:6 * v + 6] += (Ju * w[:, None]).T @ Jv
                 for u, Ju in ((a, Ja), (b, Jb)):
                     g[6 * u:6 * u + 6] += (Ju * w[:, None]).T @ r
-        free = np.array([k for k in range(n) if k != self.anchor])
+        free = np.array([k for k in range(n) if k != self.anchor], dtype=np.int64)
+        if len(free) == 0:
+            self.last = {"sq": sq, "count": cnt, "matched": matched, "pair_rms": pair_rms,
+                         "step": 0.0}
+            return list(poses)
         idx = (6 * free[:, None] + np.arange(6)).ravel()
         Hf = H[np.ix_(idx, idx)]
         Hf += 1e-9 * np.trace(Hf) / max(1, len(idx)) * np.eye(len(idx)) + 1e-12 * np.eye(len(idx))

@@ -6,9 +6,11 @@ alignment of all scans.
    candidate judged on overlap, agreement and lines of sight (:mod:`.verify`).
 2. **Pose graph**: the verified pairs are the edges. A maximum spanning tree (by
    overlap) gives first poses; all edges then pull together (a joint point-to-plane
-   solve restricted to the edges, :mod:`.joint`), and an edge whose own alignment
-   disagrees with the solution by more than ``prune_deg`` / ``prune_voxels`` -- the
-   loop through it does not close -- is pruned and the graph solved again.
+   solve restricted to the edges, :mod:`.joint`: the edges say which scans meet, the
+   correspondences come from the current poses, so a pair's imprecise ICP does not
+   matter), and an edge whose own alignment disagrees with the solution by more than
+   ``prune_deg`` / ``prune_voxels`` -- the loop through it does not close: a wrong
+   match -- is pruned and the graph solved again.
 3. **Fine**: multi-view ICP over every pair that overlaps at the solution (loop
    closures the pair stage missed included), on denser samples, with a shrinking
    matching distance.
@@ -56,8 +58,8 @@ class MultiwayOptions:
     min_overlap: float = 0.15
     max_backfacing: float = 0.1
     max_blocking: float = 0.03
-    prune_deg: float = 3.0
-    prune_voxels: float = 3.0
+    prune_deg: float = 15.0
+    prune_voxels: float = 10.0
     fine_iterations: int = 30
     fine_min_overlap: float = 0.3
 
