@@ -242,8 +242,13 @@ def _fine(views: list[Oriented], poses: list, members: list[int], anchor: int,
     sub = {k: m for m, k in enumerate(members)}
     joint = JointAlignment([views[k] for k in members], [(sub[i], sub[j]) for i, j in pairs],
                            anchor=sub[anchor])
-    start, end = 2.0 * voxel, 2.0 * fine
-    ramp = list(np.geomspace(start, end, 8)) if start > end else [end] * 8
+    # down to 3/4 of the samples' own spacing: a wider band lets matches across the
+    # other scan's border pull (measured on 12 rendered scans started on their true poses:
+    # 0.22 degrees off at twice the fine voxel, 0.07 at 3/4 of the spacing)
+    spacing = float(np.median([np.median(joint.trees[m].query(
+        v.points[:: max(1, len(v) // 500)], k=2)[0][:, 1]) for m, v in enumerate(joint.views)]))
+    start, end = 2.0 * voxel, 0.75 * spacing
+    ramp = list(np.geomspace(start, end, 10)) if start > end else [end] * 10
     solved = joint.run([poses[k] for k in members],
                        thresholds=ramp + [end] * max(4, opts.fine_iterations - len(ramp)),
                        tol=1e-3 * fine)
