@@ -69,7 +69,7 @@ def render_scans(points: Sequence[np.ndarray], normals: Sequence[np.ndarray], *,
     if len(allp) == 0:
         return img
     q = allp @ axes.T
-    lo, hi = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+    lo, hi = np.percentile(q[:, :2], [0.2, 99.8], axis=0)  # stray samples do not frame it
     scale = 0.92 * min(w / max(hi[0] - lo[0], 1e-12), h / max(hi[1] - lo[1], 1e-12))
     mid = (lo + hi) / 2
     light = -axes[2] + 0.5 * axes[0] - 0.7 * axes[1]
