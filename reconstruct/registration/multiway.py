@@ -54,7 +54,7 @@ class MultiwayOptions:
     voxel: float = 0.0
     fine_voxel: float = 0.0
     seed: int = 0
-    ransac_iterations: int = 4000
+    ransac_iterations: int = 2500
     min_overlap: float = 0.15
     max_backfacing: float = 0.1
     max_blocking: float = 0.03

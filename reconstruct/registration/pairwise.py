@@ -126,7 +126,7 @@ def rigid_step(x: np.ndarray) -> np.ndarray:
 
 
 def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
-               iterations: int = 4000, keep: int = 4,
+               iterations: int = 2500, keep: int = 4,
                options: VerifyOptions | None = None) -> PairMatch:
     """Find and verify ``target_from_source`` (module docstring)."""
     options = VerifyOptions() if options is None else options
@@ -144,6 +144,10 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
             continue
         T = icp_point_to_plane(s.points, t.points, t.normals, h, 3.0 * voxel, target.tree,
                                iterations=10)
+        d, _ = target.tree.query(s.points @ T[:3, :3].T + T[:3, 3], distance_upper_bound=voxel)
+        if np.mean(np.isfinite(d)) < 0.7 * options.min_overlap:  # no need to refine it
+            rejected.append("overlap too small after a coarse ICP")
+            continue
         T = icp_point_to_plane(s.points, t.points, t.normals, T, 1.5 * voxel, target.tree,
                                iterations=30)
         v = verify_pair(t, s, T, tau=voxel, target_map=target.view, source_map=source.view,

@@ -46,7 +46,7 @@ class ScansReconConfig(Config):
                                help="sample spacing of the fine multi-view alignment (0: a "
                                     "third of voxel, at least twice the scans' spacing)")
     seed: int = option(0, help="seed of the RANSAC (same seed, same bytes)")
-    ransac_iterations: int = option(4000, range="[100, 10000000]",
+    ransac_iterations: int = option(2500, range="[100, 10000000]",
                                     help="triples drawn per pair of scans")
     min_overlap: float = option(0.15, range="(0, 1)",
                                 help="a pair must share at least this fraction of the smaller "
