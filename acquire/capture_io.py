@@ -5,7 +5,7 @@ calibration entries)::
 
     {
       "format": "scanamp.capture/1",
-      "kind": "laser" | "stereo" | "structured-light" | "sfm" | "views",
+      "kind": "laser" | "stereo" | "structured-light" | "sfm" | "views" | "scans",
       "seed": 0,
       "scene": {"path": "...", "name": "object", "seed": 0},
       "sensor": {...Sensor settings...},
@@ -34,7 +34,7 @@ from core.validate import InputError
 __all__ = ["FORMAT", "KINDS", "Capture", "load_capture", "write_capture"]
 
 FORMAT = "scanamp.capture/1"
-KINDS = ("laser", "stereo", "structured-light", "sfm", "views")
+KINDS = ("laser", "stereo", "structured-light", "sfm", "views", "scans")
 
 
 @dataclass

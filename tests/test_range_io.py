@@ -242,31 +242,28 @@ def test_e57_round_trip_with_poses_and_grids(tmp_path):
     assert back[1].grid() is None and back[1].intensity is None
 
 
-class _Bounded(np.ndarray):
-    """An array whose bounds include 0, even when empty: pye57 takes the bounds of the
-    valid points (a scan with none is what the test needs) and gives the invalid-state
-    field the default value 0, which must lie within its bounds."""
-
-    def min(self, *a, **k):
-        return 0 if self.size == 0 else min(0, np.asarray(self).min())
-
-    def max(self, *a, **k):
-        return 0.0 if self.size == 0 else np.asarray(self).max()
-
-
 def test_e57_errors(tmp_path):
-    import pye57
-
-    p = tmp_path / "empty_scan.e57"
-    e = pye57.E57(str(p), mode="w")
-    xyz = np.zeros(2).view(_Bounded)
-    e.write_scan_raw({"cartesianX": xyz, "cartesianY": xyz, "cartesianZ": xyz,
-                      "cartesianInvalidState": np.array([2, 2], np.int8).view(_Bounded)},
-                     name="void")
-    e.close()
-    with pytest.raises(InputError) as exc:
-        read_e57(p)
-    assert exc.value.field == "data3D[0] (void)" and "no points" in exc.value.message
+    # an E57 scan with no valid points: tests/test_range_scans.py (with the CLI's)
     (tmp_path / "x.e57").write_text("not an e57")
     with pytest.raises(InputError, match="not a readable E57"):
         read_e57(tmp_path / "x.e57")
+
+
+def test_big_endian_range_grid_as_scanalyze_writes_it(tmp_path):
+    g = _grid(np.random.default_rng(4), rows=3, cols=4, holes=3)
+    flat = g.index.reshape(-1)
+    head = ("ply\nformat binary_big_endian 1.0\nobj_info num_cols 4\nobj_info num_rows 3\n"
+            f"element vertex {len(g.points)}\nproperty float x\nproperty float y\n"
+            "property float z\nproperty uchar intensity\n"
+            f"element range_grid {flat.size}\nproperty list uchar int vertex_indices\n"
+            "end_header\n")
+    rec = np.empty(len(g.points), [("x", ">f4"), ("y", ">f4"), ("z", ">f4"), ("i", "u1")])
+    rec["x"], rec["y"], rec["z"] = g.points.T
+    rec["i"] = np.arange(len(g.points))
+    cells = b"".join(b"\x00" if i < 0 else b"\x01" + np.array([i], ">i4").tobytes()
+                     for i in flat)
+    (tmp_path / "be.ply").write_bytes(head.encode() + rec.tobytes() + cells)
+    back = read_range_grid(tmp_path / "be.ply")
+    assert np.array_equal(back.index, g.index)
+    np.testing.assert_array_equal(back.points, g.points.astype(np.float32))
+    np.testing.assert_array_equal(back.intensity, np.arange(len(g.points)))

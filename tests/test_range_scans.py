@@ -81,13 +81,6 @@ def test_sight_conventions_of_range_images():
     np.testing.assert_allclose(s.sight, -g.points / np.linalg.norm(g.points, axis=1)[:, None])
     cyb = scan_from_grid(RangeGrid(g.points, g.index, obj_info={"is_cyberware_data": "1"}))
     assert np.all(cyb.sight == [0, 0, 1])
-    swept = scan_from_grid(RangeGrid(g.points, g.index,
-                                     obj_info={"sight_origin": "0 -0.01 0",
-                                               "sight_row_step": "0 0.005 0"}))
-    eye = np.array([0, -0.01, 0]) + np.nonzero(g.index >= 0)[0][:, None] * [0, 0.005, 0]
-    expect = eye - g.points
-    np.testing.assert_allclose(swept.sight, expect / np.linalg.norm(expect, axis=1)[:, None])
-    np.testing.assert_allclose(swept.origin, [0, -0.01 + 1.5 * 0.005, 0])
 
 
 def test_scan_of_points_orients_normals_toward_the_scanner():
@@ -157,3 +150,82 @@ def test_load_scans_bad_inputs(tmp_path):
                       np.empty(0))
     with pytest.raises(InputError, match="no points"):
         check_scans([empty, empty])
+
+
+class _Bounded(np.ndarray):
+    """An array whose bounds include 0, even when empty: pye57 takes the bounds of the
+    valid points (a scan with none is what the test needs) and gives the invalid-state
+    field the default value 0, which must lie within its bounds."""
+
+    def min(self, *a, **k):
+        return 0 if self.size == 0 else min(0, np.asarray(self).min())
+
+    def max(self, *a, **k):
+        return 0.0 if self.size == 0 else np.asarray(self).max()
+
+
+def _void_e57(path):
+    """An E57 file whose one scan has no valid point."""
+    import pye57
+
+    e = pye57.E57(str(path), mode="w")
+    xyz = np.zeros(2).view(_Bounded)
+    e.write_scan_raw({"cartesianX": xyz, "cartesianY": xyz, "cartesianZ": xyz,
+                      "cartesianInvalidState": np.array([2, 2], np.int8).view(_Bounded)},
+                     name="void")
+    e.close()
+
+
+def test_an_e57_scan_without_points(tmp_path):
+    from core.e57_io import read_e57
+
+    _void_e57(tmp_path / "void.e57")
+    with pytest.raises(InputError) as exc:
+        read_e57(tmp_path / "void.e57")
+    assert exc.value.field == "data3D[0] (void)" and "no points" in exc.value.message
+    with pytest.raises(InputError) as exc:
+        load_scans([tmp_path / "void.e57", tmp_path / "void.e57"])
+    assert exc.value.path == str(tmp_path / "void.e57")
+
+
+def _bad_inputs(root):
+    """(case, argv inputs, the file and field the one-line error must name)."""
+    good = _image(np.full((4, 5), 0.5))
+    write_range_grid(root / "good.ply", good)
+    write_range_grid(root / "good2.ply", good)
+    text = (root / "good.ply").read_bytes()
+    (root / "size.ply").write_bytes(text.replace(b"obj_info num_rows 4", b"obj_info num_rows 5"))
+    bad = RangeGrid(good.points, good.index)
+    write_range_grid(root / "index.ply", bad, ascii=True)
+    lines = (root / "index.ply").read_text().splitlines()
+    lines[-1] = "1 999"
+    (root / "index.ply").write_text("\n".join(lines) + "\n")
+    (root / "empty.ply").write_text(
+        "ply\nformat ascii 1.0\nobj_info num_cols 1\nobj_info num_rows 1\nelement vertex 0\n"
+        "property float x\nproperty float y\nproperty float z\nelement range_grid 1\n"
+        "property list uchar int vertex_indices\nend_header\n0\n")
+    write_conf(root / "p.conf", [("good.ply", np.eye(4)), ("gone.ply", np.eye(4))])
+    _void_e57(root / "void.e57")
+    return [("grid size", ["size.ply", "good2.ply"], ("size.ply", "range_grid")),
+            ("cell index", ["index.ply", "good2.ply"], ("index.ply", "range_grid", "999")),
+            ("no points", ["empty.ply", "good2.ply"], ("empty.ply", "vertex")),
+            ("e57 without points", ["void.e57", "good2.ply"], ("void.e57", "data3D[0]")),
+            ("conf missing file", ["p.conf"], ("p.conf", "gone.ply")),
+            ("one scan", ["good.ply"], ("good.ply", "scans"))]
+
+
+def test_bad_scans_through_the_cli(tmp_path, capsys):
+    """``scanamp reconstruct scans`` on each bad input: exit 2, one line naming the file and
+    the field, nothing written (the command comes with the registration pipeline)."""
+    pytest.importorskip("scanamp.commands.reconstruct_scans")
+    from scanamp.cli import main
+
+    for case, inputs, words in _bad_inputs(tmp_path):
+        before = sorted(p.name for p in tmp_path.iterdir())
+        code = main(["-q", "reconstruct", "scans", *(str(tmp_path / f) for f in inputs),
+                     "--out", str(tmp_path / "out")])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2, (case, err)
+        assert len(err) == 1 and err[0].startswith("error: "), (case, err)
+        assert all(w in err[0] for w in words), (case, err[0])
+        assert sorted(p.name for p in tmp_path.iterdir()) == before, case

@@ -1,9 +1,11 @@
 """acquire.render: the ray-cast renderer and what it renders: materials, BRDFs, subsurface
-transport, lights (the pattern projector is one), the scene description, laser speckle,
-point splats and glyphs, and the Mitsuba 3 reference.
+transport, lights (the pattern projector and the laser sheet are two), the laser-frame
+renderer of the sheet-of-light scanners, the scene description, laser speckle, point splats
+and glyphs, and the Mitsuba 3 reference.
 
-Modules: ``brdf``, ``glyphs``, ``lights``, ``materials``, ``mitsuba_reference``,
-``projector``, ``renderer``, ``scene``, ``speckle``, ``splats``, ``subsurface``.
+Modules: ``brdf``, ``glyphs``, ``laser_sheet``, ``lights``, ``materials``,
+``mitsuba_reference``, ``projector``, ``renderer``, ``scene``, ``speckle``, ``splats``,
+``subsurface``.
 
 Every name below is importable from the room (``from acquire.render import NAME``), loaded
 on first use.
@@ -25,6 +27,12 @@ _EXPORTS = {
     "glyph_triangles": "glyphs",
     "heading_colors": "glyphs",
     "render_glyphs": "glyphs",
+    "LaserFrame": "laser_sheet",
+    "LaserRenderer": "laser_sheet",
+    "LaserSheet": "laser_sheet",
+    "camera_directions": "laser_sheet",
+    "plane_of": "laser_sheet",
+    "subsurface_reach": "laser_sheet",
     "DirectionalLight": "lights",
     "Light": "lights",
     "PointLight": "lights",

@@ -15,13 +15,11 @@ of sight as normal and confidence 0.
 
 Lines of sight (unit vectors from each point toward the scanner) of a range image:
 
-- a scanamp scan (``obj_info sight_origin X Y Z`` and ``obj_info sight_row_step DX DY DZ``):
-  the scanner's camera at grid row ``r`` is at ``sight_origin + r * sight_row_step`` (the
-  scanner sweeps along its rows);
 - a Cyberware scan (``obj_info is_cyberware_data 1``, the Stanford repository's): the
   scanner looks down its -z axis from far away, so every line of sight is +z (checked on
   the dragon: the outward normals of every scan point to +z);
-- any other range image: a perspective scanner at the frame's origin.
+- any other range image (``scanamp capture scans`` writes these): a perspective scanner at
+  the frame's origin.
 
 A plain point cloud or mesh (:func:`scan_from_points`) is seen from ``origin``; normals
 are estimated (k-nearest-neighbour plane fits) and turned toward it when the file has
@@ -63,8 +61,8 @@ class RangeScan:
     grid : (rows, cols) int64 or None
         Point index of each grid cell (-1 empty) for a range image.
     origin : (3,) float64
-        The scanner's position in the scan frame (zeros for range images seen from the
-        origin; the middle of the sweep for a swept scanner).
+        The scanner's position in the scan frame: zeros for range images (for Cyberware
+        scans, whose lines of sight are parallel, it means nothing: use ``sight``).
     path : Path or None
         The file it came from.
     model_from_scan : (4, 4) float64 or None
@@ -97,16 +95,19 @@ class RangeScan:
 
 
 def sample_spacing(scan: RangeScan) -> float:
-    """The scan's typical sample spacing (metres): the median distance between measured
-    grid neighbours of a range image, the median edge of a mesh's triangles, or the median
-    nearest-neighbour distance of a point cloud."""
+    """The scan's typical sample spacing (metres): for a range image the geometric mean of
+    the median distances between measured neighbours along its rows and along its columns
+    (the side of the square one sample covers); the median edge of a mesh's triangles; or
+    the median nearest-neighbour distance of a point cloud."""
     if scan.grid is not None:
         g, v = scan.grid, scan.points
-        pairs = [(g[:, :-1], g[:, 1:]), (g[:-1, :], g[1:, :])]
-        d = np.concatenate([np.linalg.norm(v[a[(a >= 0) & (b >= 0)]] - v[b[(a >= 0) & (b >= 0)]],
-                                           axis=1) for a, b in pairs])
-        if len(d):
-            return float(np.median(d))
+        axes = []
+        for a, b in ((g[:, :-1], g[:, 1:]), (g[:-1, :], g[1:, :])):
+            ok = (a >= 0) & (b >= 0)
+            if ok.any():
+                axes.append(np.median(np.linalg.norm(v[a[ok]] - v[b[ok]], axis=1)))
+        if axes:
+            return float(np.sqrt(np.prod(axes)) if len(axes) == 2 else axes[0])
     if len(scan.triangles):
         f = scan.triangles
         v = scan.points
@@ -122,32 +123,10 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
-def _info_vector(grid: RangeGrid, key: str) -> np.ndarray | None:
-    text = grid.obj_info.get(key)
-    if text is None:
-        return None
-    try:
-        v = np.array(text.split(), np.float64)
-    except ValueError:
-        v = np.empty(0)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise InputError(f"expected three numbers, got {text!r}", path=grid.path,
-                         field=f"obj_info {key}")
-    return v
-
-
 def grid_sight(grid: RangeGrid) -> tuple[np.ndarray, np.ndarray]:
     """Lines of sight ``(n, 3)`` of a range image's points and the scanner's ``origin (3,)``
-    (module docstring: scanamp sweep, Cyberware, or a scanner at the origin)."""
+    (module docstring: Cyberware, or a scanner at the origin)."""
     p = grid.points
-    start, step = _info_vector(grid, "sight_origin"), _info_vector(grid, "sight_row_step")
-    if start is not None:
-        step = np.zeros(3) if step is None else step
-        rows = np.zeros(len(p))
-        r, _c = np.nonzero(grid.index >= 0)
-        rows[grid.index[grid.index >= 0]] = r
-        eye = start + rows[:, None] * step
-        return _unit(eye - p), start + (grid.rows - 1) / 2 * step
     if grid.obj_info.get("is_cyberware_data", "0").strip() == "1":
         return np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy(), np.zeros(3)
     return _unit(-p), np.zeros(3)

@@ -1,0 +1,163 @@
+"""Simulated multi-view range scanning (acquire.scans, ``scanamp capture scans``)."""
+
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
+from acquire.scans import ScanHead, ScansCaptureConfig, capture_scans, stripe_peaks, view_poses
+from core.range_io import read_conf, read_poses_json
+from reconstruct.scans import load_scans
+from scanamp.cli import main
+
+R = 0.05                     # sphere radius (m)
+CENTRE = np.array([0.0, 0.0, R])
+# a small head: 96 rows over 24 degrees keep ~1 px per mm-wide stripe (fewer rows, and the
+# sub-pixel peak locks onto pixels: 64 rows over 30 degrees gave a 0.2-0.5 mm median)
+HEAD = dict(steps=40, height=96, width=96, fov_deg=24.0)
+
+
+def _scene() -> RenderScene:
+    sph = o3d.geometry.TriangleMesh.create_sphere(R, 40)
+    sph.translate(CENTRE)
+    sph.compute_vertex_normals()
+    plate = o3d.geometry.TriangleMesh.create_box(0.24, 0.24, 0.01)
+    plate.translate([-0.12, -0.12, -0.01])               # top face at z = 0
+    plate.compute_vertex_normals()
+    return RenderScene([
+        SceneObject("sphere", sph, Material("solid", [0.8, 0.6, 0.4]), object_id=1,
+                    analytic={"type": "sphere", "center": CENTRE, "radius": R}),
+        SceneObject("plate", plate, Material("constant", [0.5, 0.5, 0.5]), object_id=2,
+                    analytic={"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]})],
+        [], 0.1)
+
+
+def _config(**kw) -> ScansCaptureConfig:
+    return ScansCaptureConfig(views=3, head=ScanHead(**HEAD), elevation_min_deg=20,
+                              elevation_max_deg=50, **kw)
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scans") / "cap"
+    capture_scans(_scene(), _config(), out, np.random.default_rng(0), seed=0)
+    return out
+
+
+def _truth_distance(p: np.ndarray) -> np.ndarray:
+    """Distance (m) of model-frame points to the nearer of the sphere and the plate's top."""
+    return np.minimum(np.abs(np.linalg.norm(p - CENTRE, axis=1) - R), np.abs(p[:, 2]))
+
+
+def test_scans_placed_with_the_true_poses_land_on_the_truth(captured):
+    poses = {Path(p.file).name: p.model_from_scan for p in
+             read_poses_json(captured / "poses.json")}
+    scans = load_scans(captured)
+    assert [s.name for s in scans] == ["scan_00.ply", "scan_01.ply", "scan_02.ply"]
+    for s in scans:
+        assert len(s.points) > 500 and s.grid.shape == (HEAD["steps"], HEAD["height"])
+        assert np.all(s.points[:, 2] > 0)                  # OpenCV: in front of the scanner
+        T = poses[s.name]
+        d = _truth_distance(s.points @ T[:3, :3].T + T[:3, 3])
+        good = s.confidence > 0.3
+        # one pixel of stripe is ~3 mm of depth here; sub-pixel peaks measured 0.06 mm
+        # median, 0.3 mm 95th percentile (one-sided bounds at twice that)
+        assert np.median(d) < 0.15e-3, np.median(d)
+        assert np.percentile(d[good], 95) < 0.6e-3, np.percentile(d[good], 95)
+
+
+def test_poses_conf_and_json_agree_and_views_surround_the_scene(captured):
+    conf = read_conf(captured / "poses.conf")
+    js = read_poses_json(captured / "poses.json")
+    assert [n for n, _ in conf] == [p.file for p in js] == [
+        f"scans/scan_{i:02d}.ply" for i in range(3)]
+    for (_, a), p in zip(conf, js, strict=True):
+        np.testing.assert_allclose(a, p.model_from_scan, atol=1e-12)
+        assert p.registered and p.reason == ""
+    eyes = np.array([p.model_from_scan[:3, 3] for p in js])
+    assert len({round(float(np.arctan2(e[1], e[0])), 3) for e in eyes}) == 3
+
+
+def test_every_line_of_sight_goes_to_the_camera_at_the_origin(captured):
+    scan = load_scans(captured)[1]
+    np.testing.assert_allclose(scan.sight, -scan.points / np.linalg.norm(
+        scan.points, axis=1)[:, None], atol=1e-12)
+    np.testing.assert_array_equal(scan.origin, 0)
+    # each sweep step is one stripe: its points lie on that step's sheet
+    head = ScanHead(**HEAD)
+    for s, x in enumerate(head.sweep()[::7]):
+        idx = scan.grid[7 * s][scan.grid[7 * s] >= 0]
+        n, d = head.sheet_plane(x)
+        np.testing.assert_allclose(scan.points[idx] @ n, d, atol=1e-9)
+
+
+def test_same_seed_same_bytes_and_another_seed_other_noise(tmp_path, captured):
+    capture_scans(_scene(), _config(), tmp_path / "again", np.random.default_rng(0), seed=0)
+    capture_scans(_scene(), _config(seed=1), tmp_path / "other", np.random.default_rng(1),
+                  seed=1)
+    for rel in ("scans/scan_00.ply", "scans/scan_02.ply", "poses.json", "poses.conf"):
+        assert (tmp_path / "again" / rel).read_bytes() == (captured / rel).read_bytes(), rel
+    assert ((tmp_path / "other" / "scans/scan_00.ply").read_bytes()
+            != (captured / "scans/scan_00.ply").read_bytes())
+
+
+def test_the_firmware_finds_a_stripe_to_a_twentieth_of_a_pixel():
+    rng = np.random.default_rng(3)
+    true = rng.uniform(10, 50, 40)
+    cols = np.arange(64)
+    img = 10 + 180 * np.exp(-0.5 * ((cols[None, :] - true[:, None]) / 1.0) ** 2)
+    img = np.round(img + rng.normal(0, 1, img.shape))
+    found = stripe_peaks(img.astype(np.uint8), min_peak=12, window=3)
+    assert np.max(np.abs(found - true)) < 0.05
+    dim = np.round(10 + 8 * np.exp(-0.5 * ((cols - 30.0) / 1.0) ** 2))[None, :]
+    assert np.isnan(stripe_peaks(dim, min_peak=12)).all()   # too faint: no sample
+
+
+def test_the_head_triangulates_what_it_sees():
+    head = ScanHead()
+    cam = head.camera()
+    rows = np.linspace(0, head.height - 1, 7)
+    for x in (head.sweep()[0], 0.0, head.sweep()[-1]):
+        n, d = head.sheet_plane(x)
+        for depth in (0.3, head.standoff, 0.5):
+            y = (rows - cam.cy) / cam.fy * depth
+            px = (d - n[1] * y - n[2] * depth) / n[0]        # on the sheet at that depth
+            cols = cam.cx + cam.fx * px / depth
+            P = head.triangulate(rows, cols, x)
+            np.testing.assert_allclose(P, np.stack([px, y, np.full(7, depth)], -1),
+                                       atol=1e-12)
+    # mid-sweep, the stripe crosses the optical axis at the stand-off
+    np.testing.assert_allclose(head.triangulate([cam.cy], [cam.cx])[0], [0, 0, head.standoff])
+    with pytest.raises(ValueError, match="sweep_length"):
+        ScanHead(sweep_length=0.6)                         # the laser would pass the camera
+
+
+def test_view_poses_spread_over_the_band():
+    aim = np.array([0.0, 0.0, 0.1])
+    poses = view_poses(12, aim, standoff=0.4, elevation_min_deg=10, elevation_max_deg=55)
+    eyes = np.array([T[:3, 3] for T in poses]) - aim
+    el = np.degrees(np.arcsin(eyes[:, 2] / 0.4))
+    assert np.all((el > 10) & (el < 55)) and np.all(np.diff(el) > 0)
+    np.testing.assert_allclose(np.linalg.norm(eyes, axis=1), 0.4)
+    for T in poses:
+        np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(T[:3, 2], -(T[:3, 3] - aim) / 0.4, atol=1e-12)
+    az = np.sort(np.degrees(np.arctan2(eyes[:, 1], eyes[:, 0])) % 360)
+    assert np.max(np.diff(np.append(az, az[0] + 360))) < 60     # all around
+
+
+def test_cli_capture_and_its_bad_inputs(tmp_path, capsys):
+    argv = ["-q", "capture", "scans", "object", "--views", "2", "--head.steps", "6",
+            "--head.height", "12", "--head.width", "12"]
+    assert main([*argv, "--out", str(tmp_path / "ok")]) == 0
+    assert len(load_scans(tmp_path / "ok", min_scans=2)) == 2
+    capsys.readouterr()
+    assert main([*argv, "--elevation-min-deg", "60", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "elevation-min-deg" in err[0] and not (tmp_path / "bad").exists()
+    assert main([*argv, "--head.sweep-length", "0.9", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sweep-length" in err[0] and not (tmp_path / "bad").exists()
