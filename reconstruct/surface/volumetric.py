@@ -102,15 +102,16 @@ class _View:
 
 # ----------------------------------------------------------------------------- inputs
 def _spacings(scan) -> np.ndarray:
-    """Sample spacings of one scan: its triangles' edge lengths (nearest-neighbour
-    distances without triangles), from at most 100,000 of them, evenly taken."""
+    """Sample spacings of one scan: the two shorter edges of each triangle (a range
+    image's grid steps, not its diagonals; nearest-neighbour distances without
+    triangles), from at most 100,000 triangles, evenly taken."""
     p = np.asarray(scan.points, np.float64)
     t = np.asarray(scan.triangles, np.int64).reshape(-1, 3)
     if len(t):
         t = t[:: max(1, len(t) // 100_000)]
-        e = np.concatenate([p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 1]],
-                            p[t[:, 0]] - p[t[:, 2]]])
-        d = np.linalg.norm(e, axis=1)
+        e = np.stack([np.linalg.norm(p[t[:, k]] - p[t[:, (k + 1) % 3]], axis=1)
+                      for k in range(3)], axis=1)
+        d = np.sort(e, axis=1)[:, :2].ravel()
     elif len(p) > 1:
         from scipy.spatial import cKDTree
 
@@ -121,8 +122,8 @@ def _spacings(scan) -> np.ndarray:
 
 
 def sample_spacing(scans: Sequence) -> float:
-    """The median sample spacing of scans (metres): the median length of their
-    triangles' edges (of nearest-neighbour distances for a scan without triangles)."""
+    """The median sample spacing of scans (metres): the median of their triangles' two
+    shorter edges (of nearest-neighbour distances for a scan without triangles)."""
     lengths = np.concatenate([_spacings(s) for s in scans] or [np.zeros(0)])
     if not len(lengths):
         raise ValueError("scans: no two distinct samples, so no sample spacing")
@@ -239,8 +240,9 @@ def _cast(pv, tri, kind, pitch, f, lo, hi, name):
 
 def _fill_gaps(planes, conf, zdepth, shape, gap: int) -> None:
     """Pixels that hit nothing within ``gap`` pixels of a hit (the seams of a scan at its
-    depth jumps) carve up to the farthest surface around them instead of all the way:
-    the scanner saw that surface through the seam. Marked ``conf == -2``; in place."""
+    depth jumps) carve up to the farthest surface around them instead of all the way
+    (the scanner saw that surface through the seam), and say nothing behind it. Marked
+    ``conf == -2``; in place."""
     from scipy.ndimage import maximum_filter
 
     if gap < 1:
@@ -343,9 +345,11 @@ def _integrate(points, M, kind, proj, planes, conf, band, min_cos, D, Wt, carved
             d = (planes[i, j, 3] / dot - 1.0) * r
         if d > band:
             carved[q] += 1
+        elif c < 0.0:   # a seam (-2) only carves: what lies behind it is anyone's guess
+            continue
         elif d < -band:
             behind[q] += 1
-        elif c >= 0.0:   # a seam (-2) only carves
+        else:
             c = max(c, 1e-3)   # a scan's edge (confidence 0) still says where it is
             w = c if d >= -half else c * (band + d) / half
             D[q] += w * d
