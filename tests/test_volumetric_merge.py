@@ -272,3 +272,16 @@ def test_bad_input_names_the_scan_and_field(sphere_scans):
         merge_scans([bare], Ts[:1])
     with pytest.raises(ValueError, match="voxel_size"):
         MergeOptions(voxel_size=-1.0)
+
+
+def test_edge_fill_keeps_only_closing_surface_next_to_the_data(sphere_scans, sphere_merged):
+    scans, Ts = sphere_scans
+    bare, _ = merge_scans(scans, Ts, MergeOptions(edge_fill_voxels=0.0))
+    assert not np.any(np.asarray(bare.triangle_material_ids))
+    mesh, rep = sphere_merged[False]
+    filled = np.asarray(mesh.triangle_material_ids) == 1
+    assert len(mesh.triangles) >= len(bare.triangles)
+    # what the default adds lies on the data: within a voxel of the true sphere
+    v, t = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+    r = np.linalg.norm(v[t[filled]].reshape(-1, 3), axis=1)
+    assert np.all(np.abs(r - R) < rep["voxel_size"])
