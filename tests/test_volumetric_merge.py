@@ -156,10 +156,12 @@ def test_the_merge_is_deterministic_and_blocks_weld_exactly(sphere_scans):
 def test_voxel_size_defaults_to_the_sample_spacing(sphere_scans, sphere_merged):
     scans, _ = sphere_scans
     h = sphere_merged[False][1]["voxel_size"]
-    assert h == sample_spacing(scans)
+    assert h == 0.5 * sample_spacing(scans)   # MergeOptions.voxel_scale
     # a pixel of the 160-px, 40-degree scanner at the sphere's front (0.25 m) is
     # 0.25 * 2 tan(20 deg) / 160 = 1.14 mm; the sphere's slopes stretch it
-    assert 1.1e-3 < h < 1.8e-3
+    assert 1.1e-3 < sample_spacing(scans) < 1.8e-3
+    _, rep = merge_scans(scans[:2], sphere_scans[1][:2], MergeOptions(voxel_scale=1.0))
+    assert rep["voxel_size"] == sample_spacing(scans[:2])
 
 
 def _cup():

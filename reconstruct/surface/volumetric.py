@@ -59,8 +59,11 @@ class MergeOptions(Config):
     """Options of :func:`merge_scans`."""
 
     voxel_size: float | None = option(
-        None, unit="m", help="voxel edge (default: the scans' median sample spacing)",
-        range="(0, inf)")
+        None, unit="m", help="voxel edge (default: voxel_scale times the scans' median "
+        "sample spacing)", range="(0, inf)")
+    voxel_scale: float = option(
+        0.5, help="voxel edge in median sample spacings, when voxel_size is not given "
+        "(0.5 keeps the detail the samples resolve)", range="(0, 16]")
     ramp_voxels: float = option(
         4.0, help="half-width of the signed-distance band in voxels: the weight falls to "
         "zero this far behind the surface, and voxels farther in front are carved",
@@ -667,7 +670,8 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     Ts = [check_array(T, f"model_from_scans[{k}]", shape=(4, 4))
           for k, T in enumerate(model_from_scans)]
     lengths = [_spacings(s) for s in scans]
-    h = float(opt.voxel_size) if opt.voxel_size else float(np.median(np.concatenate(lengths)))
+    h = (float(opt.voxel_size) if opt.voxel_size
+         else opt.voxel_scale * float(np.median(np.concatenate(lengths))))
     grid = _grid(scans, Ts, h, opt)
     corners = grid.corners()
     views = [_virtual_view(s, T, h, opt, n, corners, float(np.median(d)))
