@@ -6,7 +6,7 @@ against Open3D's screened Poisson of the same posed scans, in the same run.
    scene's mesh (reconstruct.evaluation.evaluate), ours (default options, and with
    ``fill_holes``) against Open3D's Poisson (depth 8 and 9, untrimmed and with the
    house's 2 % density trim). Target: ours at least as high as the best Poisson.
-2. The same on 12 finer pinhole range scans rendered here (480 x 360, 0.1 mm noise).
+2. The same on 12 finer pinhole range scans rendered here (320 x 240, 0.1 mm noise).
 3. Real: the Stanford dragon's 15 Cyberware range images on their published poses
    (``../shared/data/real/dragon_stand``, or ``$SCANAMP_REAL/dragon_stand``): time
    against Poisson (depth 10) in the same process; peak memory of the merge in a
@@ -49,7 +49,7 @@ def _render_scans(n_views=12, seed=0):
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(gt))
     rng = np.random.default_rng(seed)
-    H, W, fov = 360, 480, np.radians(32.0)
+    H, W, fov = 240, 320, np.radians(32.0)
     f = 0.5 * W / np.tan(fov / 2)
     jj, ii = np.meshgrid(np.arange(W), np.arange(H))
     d = np.stack([(jj - (W - 1) / 2) / f, (ii - (H - 1) / 2) / f, np.ones((H, W))], -1)
@@ -163,7 +163,7 @@ def captured():
 
 def renders():
     scans, poses, gt = _render_scans()
-    print(f"   renders: {len(scans)} pinhole range scans of 'object' (480 x 360), "
+    print(f"   renders: {len(scans)} pinhole range scans of 'object' (320 x 240), "
           f"{sum(len(s.points) for s in scans):,} points, on their true poses")
     return _score(_merge_rows(scans, poses), gt, "renders")
 
