@@ -519,7 +519,8 @@ def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float) -> np.nd
         p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
         c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // _CHUNK
         near[c[:, 0], c[:, 1], c[:, 2]] = True
-    r = int(np.ceil((grid.band + max_edge) / (_CHUNK * grid.h))) + 1
+    # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's
+    r = int(np.ceil((grid.band + max_edge + grid.h) / (_CHUNK * grid.h)))
     return binary_dilation(near, np.ones((2 * r + 1,) * 3, bool))
 
 
