@@ -566,7 +566,9 @@ def _block_field(grid: _Grid, views, start, shape, opt, near: np.ndarray):
                    else np.where(far, UNSEEN, 255).astype(np.uint8))
     local = [(start[a] + np.arange(shape[a])) // _CHUNK - ci[a][0] for a in range(3)]
     state = chunk_state[np.ix_(*local)]
-    value = np.where(state == EMPTY, grid.band, -grid.band).astype(np.float32)
+    # without fill_holes a far chunk is positive: no surface (to be dropped) around it
+    value = np.where((state == EMPTY) | ~opt.fill_holes, grid.band, -grid.band).astype(
+        np.float32)
     todo = state == 255
     if todo.any():
         pts = _block_points(grid.origin, grid.h, start, shape)[todo.ravel()]
