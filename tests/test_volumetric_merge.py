@@ -156,10 +156,12 @@ def test_the_merge_is_deterministic_and_blocks_weld_exactly(sphere_scans):
 def test_voxel_size_defaults_to_the_sample_spacing(sphere_scans, sphere_merged):
     scans, _ = sphere_scans
     h = sphere_merged[False][1]["voxel_size"]
-    assert h == sample_spacing(scans)
+    assert h == 0.5 * sample_spacing(scans)   # MergeOptions.voxel_scale
     # a pixel of the 160-px, 40-degree scanner at the sphere's front (0.25 m) is
     # 0.25 * 2 tan(20 deg) / 160 = 1.14 mm; the sphere's slopes stretch it
-    assert 1.1e-3 < h < 1.8e-3
+    assert 1.1e-3 < sample_spacing(scans) < 1.8e-3
+    _, rep = merge_scans(scans[:2], sphere_scans[1][:2], MergeOptions(voxel_scale=1.0))
+    assert rep["voxel_size"] == sample_spacing(scans[:2])
 
 
 def _cup():
@@ -272,3 +274,16 @@ def test_bad_input_names_the_scan_and_field(sphere_scans):
         merge_scans([bare], Ts[:1])
     with pytest.raises(ValueError, match="voxel_size"):
         MergeOptions(voxel_size=-1.0)
+
+
+def test_edge_fill_keeps_only_closing_surface_next_to_the_data(sphere_scans, sphere_merged):
+    scans, Ts = sphere_scans
+    bare, _ = merge_scans(scans, Ts, MergeOptions(edge_fill_voxels=0.0))
+    assert not np.any(np.asarray(bare.triangle_material_ids))
+    mesh, rep = sphere_merged[False]
+    filled = np.asarray(mesh.triangle_material_ids) == 1
+    assert len(mesh.triangles) >= len(bare.triangles)
+    # what the default adds lies on the data: within a voxel of the true sphere
+    v, t = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+    r = np.linalg.norm(v[t[filled]].reshape(-1, 3), axis=1)
+    assert np.all(np.abs(r - R) < rep["voxel_size"])

@@ -59,8 +59,11 @@ class MergeOptions(Config):
     """Options of :func:`merge_scans`."""
 
     voxel_size: float | None = option(
-        None, unit="m", help="voxel edge (default: the scans' median sample spacing)",
-        range="(0, inf)")
+        None, unit="m", help="voxel edge (default: voxel_scale times the scans' median "
+        "sample spacing)", range="(0, inf)")
+    voxel_scale: float = option(
+        0.5, help="voxel edge in median sample spacings, when voxel_size is not given "
+        "(0.5 keeps the detail the samples resolve)", range="(0, 16]")
     ramp_voxels: float = option(
         4.0, help="half-width of the signed-distance band in voxels: the weight falls to "
         "zero this far behind the surface, and voxels farther in front are carved",
@@ -74,8 +77,12 @@ class MergeOptions(Config):
     block_voxels: int = option(
         96, help="edge of the cubic blocks the volume is processed in (memory grows with "
         "its cube)", range="[8, 1024]")
+    edge_fill_voxels: float = option(
+        1.0, help="without fill_holes, the hole-closing surface within this many voxels of a "
+        "sample is kept too: it carries the scanned surface to the edge of the data "
+        "(0: only the surface between observed voxels)", range="[0, 8]")
     oversampling: float = option(
-        2.0, help="virtual range image pixels per voxel edge", range="[1, 8]")
+        1.0, help="virtual range image pixels per voxel edge", range="[1, 8]")
     min_cosine: float = option(
         0.05, help="a scan's surface seen more obliquely than this cosine along the line of "
         "sight gives no distance", range="(0, 1)")
@@ -98,15 +105,16 @@ class _View:
 
 # ----------------------------------------------------------------------------- inputs
 def _spacings(scan) -> np.ndarray:
-    """Sample spacings of one scan: its triangles' edge lengths (nearest-neighbour
-    distances without triangles), from at most 100,000 of them, evenly taken."""
+    """Sample spacings of one scan: the two shorter edges of each triangle (a range
+    image's grid steps, not its diagonals; nearest-neighbour distances without
+    triangles), from at most 100,000 triangles, evenly taken."""
     p = np.asarray(scan.points, np.float64)
     t = np.asarray(scan.triangles, np.int64).reshape(-1, 3)
     if len(t):
         t = t[:: max(1, len(t) // 100_000)]
-        e = np.concatenate([p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 1]],
-                            p[t[:, 0]] - p[t[:, 2]]])
-        d = np.linalg.norm(e, axis=1)
+        e = np.stack([np.linalg.norm(p[t[:, k]] - p[t[:, (k + 1) % 3]], axis=1)
+                      for k in range(3)], axis=1)
+        d = np.sort(e, axis=1)[:, :2].ravel()
     elif len(p) > 1:
         from scipy.spatial import cKDTree
 
@@ -117,8 +125,8 @@ def _spacings(scan) -> np.ndarray:
 
 
 def sample_spacing(scans: Sequence) -> float:
-    """The median sample spacing of scans (metres): the median length of their
-    triangles' edges (of nearest-neighbour distances for a scan without triangles)."""
+    """The median sample spacing of scans (metres): the median of their triangles' two
+    shorter edges (of nearest-neighbour distances for a scan without triangles)."""
     lengths = np.concatenate([_spacings(s) for s in scans] or [np.zeros(0)])
     if not len(lengths):
         raise ValueError("scans: no two distinct samples, so no sample spacing")
@@ -235,8 +243,9 @@ def _cast(pv, tri, kind, pitch, f, lo, hi, name):
 
 def _fill_gaps(planes, conf, zdepth, shape, gap: int) -> None:
     """Pixels that hit nothing within ``gap`` pixels of a hit (the seams of a scan at its
-    depth jumps) carve up to the farthest surface around them instead of all the way:
-    the scanner saw that surface through the seam. Marked ``conf == -2``; in place."""
+    depth jumps) carve up to the farthest surface around them instead of all the way
+    (the scanner saw that surface through the seam), and say nothing behind it. Marked
+    ``conf == -2``; in place."""
     from scipy.ndimage import maximum_filter
 
     if gap < 1:
@@ -339,9 +348,12 @@ def _integrate(points, M, kind, proj, planes, conf, band, min_cos, D, Wt, carved
             d = (planes[i, j, 3] / dot - 1.0) * r
         if d > band:
             carved[q] += 1
+        elif c < 0.0:   # a seam (-2) only carves: what lies behind it is anyone's guess
+            continue
         elif d < -band:
             behind[q] += 1
-        elif c >= 0.0:   # a seam (-2) only carves
+        else:
+            c = max(c, 1e-3)   # a scan's edge (confidence 0) still says where it is
             w = c if d >= -half else c * (band + d) / half
             D[q] += w * d
             Wt[q] += w
@@ -437,30 +449,28 @@ def _contour(value: np.ndarray):
     return verts, tris.reshape(-1, 3)
 
 
-def _edge_vertices(verts: np.ndarray, value: np.ndarray, start: np.ndarray,
-                   dims: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _edge_vertices(verts: np.ndarray, value: np.ndarray, state: np.ndarray,
+                   start: np.ndarray, dims: np.ndarray):
     """Marching-cubes vertices named by the voxel edge they lie on (a global id: the
     lower end's index and the axis) and placed on it in float64 from the two voxel
-    values, so that blocks sharing a face weld exactly, to the bit."""
+    values, so that blocks sharing a face weld exactly, to the bit. Returns ``(keys (v,)
+    int64, positions (v, 3) in global voxel units, observed (v,) bool)``: observed when
+    the scans saw both ends of the edge."""
     frac = verts - np.round(verts)
     axis = np.argmax(np.abs(frac), axis=1)
     idx = np.round(verts).astype(np.int64)
     rows = np.arange(len(verts))
     idx[rows, axis] = np.floor(verts[rows, axis]).astype(np.int64)
     step = np.eye(3, dtype=np.int64)[axis]
-    v0 = value[idx[:, 0], idx[:, 1], idx[:, 2]].astype(np.float64)
     up = idx + step
+    v0 = value[idx[:, 0], idx[:, 1], idx[:, 2]].astype(np.float64)
     v1 = value[up[:, 0], up[:, 1], up[:, 2]].astype(np.float64)
+    observed = ((state[idx[:, 0], idx[:, 1], idx[:, 2]] == OBSERVED)
+                & (state[up[:, 0], up[:, 1], up[:, 2]] == OBSERVED))
     pos = (idx + start).astype(np.float64) + step * (v0 / (v0 - v1))[:, None]
     idx += start
-    return ((idx[:, 0] * dims[1] + idx[:, 1]) * dims[2] + idx[:, 2]) * 3 + axis, pos
-
-
-def _observed_cells(state: np.ndarray) -> np.ndarray:
-    """(nx-1, ny-1, nz-1) bool: cells whose eight corners were all observed."""
-    o = state == OBSERVED
-    c = o[:-1, :-1, :-1] & o[1:, :-1, :-1] & o[:-1, 1:, :-1] & o[:-1, :-1, 1:]
-    return c & o[1:, 1:, :-1] & o[1:, :-1, 1:] & o[:-1, 1:, 1:] & o[1:, 1:, 1:]
+    keys = ((idx[:, 0] * dims[1] + idx[:, 1]) * dims[2] + idx[:, 2]) * 3 + axis
+    return keys, pos, observed
 
 
 # ------------------------------------------------------------------------ the volume
@@ -495,6 +505,25 @@ def _grid(scans, model_from_scans, h: float, opt: MergeOptions) -> _Grid:
     return _Grid(origin, h, dims, band)
 
 
+_CHUNK = 8   # voxels per edge of the chunks that narrow-band culling decides on
+
+
+def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float) -> np.ndarray:
+    """(cx, cy, cz) bool: chunks of ``_CHUNK``^3 voxels within the band (plus the longest
+    triangle edge) of some sample: the only ones where a scan can observe a voxel."""
+    from scipy.ndimage import binary_dilation
+
+    shape = -(-grid.dims // _CHUNK)
+    near = np.zeros(shape, bool)
+    for s, T in zip(scans, model_from_scans, strict=True):
+        p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
+        c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // _CHUNK
+        near[c[:, 0], c[:, 1], c[:, 2]] = True
+    # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's
+    r = int(np.ceil((grid.band + max_edge + grid.h) / (_CHUNK * grid.h)))
+    return binary_dilation(near, np.ones((2 * r + 1,) * 3, bool))
+
+
 def _blocks(dims: np.ndarray, b: int):
     """Block starts and shapes; neighbours share one layer of voxels, so every cell is in
     exactly one block."""
@@ -506,12 +535,51 @@ def _blocks(dims: np.ndarray, b: int):
                 yield s, np.minimum(s + b + 1, dims) - s
 
 
-def _block_mesh(grid: _Grid, views, start, shape, opt):
-    """Fuse and contour one block: ``(keys, verts, triangles, observed (t,) bool)``."""
-    pts = _block_points(grid.origin, grid.h, start, shape)
-    value, state, _ = _fuse(pts, views, grid.band, opt)
-    value = value.reshape(shape)
-    state = state.reshape(shape)
+def _lattice_states(grid: _Grid, views, opt, ci: list, far: np.ndarray) -> np.ndarray:
+    """(nx, ny, nz) uint8 per chunk ``ci`` (chunk ranges per axis): the state its eight
+    corner voxels agree on, or 255 where they differ or the chunk is near a surface."""
+    corners = [np.unique(np.minimum(np.concatenate([c * _CHUNK, (c + 1) * _CHUNK]),
+                                    grid.dims[a] - 1)) for a, c in enumerate(ci)]
+    g = np.meshgrid(*[grid.origin[a] + grid.h * corners[a] for a in range(3)], indexing="ij")
+    _, st, _ = _fuse(np.stack([x.ravel() for x in g], 1), views, grid.band, opt)
+    st = st.reshape(g[0].shape)
+    lo = [np.searchsorted(corners[a], np.minimum(c * _CHUNK, grid.dims[a] - 1))
+          for a, c in enumerate(ci)]
+    hi = [np.searchsorted(corners[a], np.minimum((c + 1) * _CHUNK, grid.dims[a] - 1))
+          for a, c in enumerate(ci)]
+    out = st[np.ix_(lo[0], lo[1], lo[2])].copy()
+    for b in range(1, 8):
+        ix = [(hi if b >> a & 1 else lo)[a] for a in range(3)]
+        out[st[np.ix_(*ix)] != out] = 255
+    out[~far] = 255
+    return out
+
+
+def _block_field(grid: _Grid, views, start, shape, opt, near: np.ndarray):
+    """The merged ``(value, state)`` of a block, each ``shape``: voxel by voxel in the
+    chunks near a surface (and, with fill_holes, where a far chunk's corners disagree);
+    a far chunk is otherwise unseen, or with fill_holes all in its corners' state."""
+    ci = [np.arange(start[a] // _CHUNK, (start[a] + shape[a] - 1) // _CHUNK + 1)
+          for a in range(3)]
+    far = ~near[np.ix_(*ci)]
+    chunk_state = (_lattice_states(grid, views, opt, ci, far) if opt.fill_holes
+                   else np.where(far, UNSEEN, 255).astype(np.uint8))
+    local = [(start[a] + np.arange(shape[a])) // _CHUNK - ci[a][0] for a in range(3)]
+    state = chunk_state[np.ix_(*local)]
+    # without fill_holes a far chunk is positive: no surface (to be dropped) around it
+    value = np.where((state == EMPTY) | ~opt.fill_holes, grid.band, -grid.band).astype(
+        np.float32)
+    todo = state == 255
+    if todo.any():
+        pts = _block_points(grid.origin, grid.h, start, shape)[todo.ravel()]
+        value[todo], state[todo], _ = _fuse(pts, views, grid.band, opt)
+    return value, state
+
+
+def _block_mesh(grid: _Grid, views, start, shape, opt, near: np.ndarray, samples):
+    """Fuse and contour one block: ``(keys, verts, triangles, observed (t,) bool)``;
+    ``samples`` is a cKDTree of the posed samples (for ``edge_fill_voxels``)."""
+    value, state = _block_field(grid, views, start, shape, opt, near)
     if opt.fill_holes:   # the volume's outer layer is empty, so every surface closes
         edge = np.zeros(shape, bool)
         for a in range(3):
@@ -529,13 +597,15 @@ def _block_mesh(grid: _Grid, views, start, shape, opt):
     verts, tris = _contour(value)
     if not len(tris):
         return None
-    cell = np.floor(verts[tris].mean(axis=1)).astype(np.int64)
-    cell = np.minimum(np.maximum(cell, 0), np.array(shape) - 2)
-    obs = _observed_cells(state)[cell[:, 0], cell[:, 1], cell[:, 2]]
+    keys, pos, seen = _edge_vertices(verts, value, state, start, grid.dims)
+    obs = seen[tris].all(axis=1)   # a triangle of values the scans measured
     if not opt.fill_holes:
-        tris = tris[obs]
-        obs = obs[obs]
-    keys, pos = _edge_vertices(verts, value, start, grid.dims)
+        keep = obs.copy()
+        if opt.edge_fill_voxels > 0 and not obs.all():
+            reach = opt.edge_fill_voxels * grid.h
+            centre = grid.origin + grid.h * pos[tris[~obs]].mean(axis=1)
+            keep[~obs] = samples.query(centre, k=1, distance_upper_bound=reach)[0] <= reach
+        tris, obs = tris[keep], obs[keep]
     return keys, pos, tris, obs
 
 
@@ -585,12 +655,29 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     -------
     mesh : open3d.geometry.TriangleMesh
         The zero set of the merged distance, model frame, outward normals;
-        ``triangle_material_ids`` is 1 on the triangles that close a hole (some corner of
-        their cell unseen by every scan), 0 on those the scans saw.
+        ``triangle_material_ids`` is 1 on the triangles that close a hole (a vertex on a
+        voxel edge with an end no scan observed), 0 on those the scans saw.
     report : dict
         ``voxel_size``, ``grid``, ``blocks``, per-scan ``scans`` (lines of sight),
         ``triangles``, ``fill_fraction`` (share of the area that closes holes),
         ``watertight``, ``seconds``.
+
+    Examples
+    --------
+    A 40 x 40 range image of a plane 0.3 m in front of its scanner, 1 mm apart:
+
+    >>> from core.range_io import RangeGrid
+    >>> from reconstruct.scans import scan_from_grid
+    >>> r, c = np.mgrid[0:40, 0:40]
+    >>> pts = np.stack([(c.ravel() - 20) * 1e-3, (r.ravel() - 20) * 1e-3,
+    ...                 np.full(1600, 0.3)], -1)
+    >>> scan = scan_from_grid(RangeGrid(pts, np.arange(1600).reshape(40, 40)))
+    >>> mesh, report = merge_scans([scan], [np.eye(4)])
+    >>> round(report["voxel_size"], 9)          # half the sample spacing
+    0.0005
+    >>> seen = np.asarray(mesh.triangles)[np.asarray(mesh.triangle_material_ids) == 0]
+    >>> bool(np.allclose(np.asarray(mesh.vertices)[seen][..., 2], 0.3, atol=1e-6))
+    True
     """
     opt = options or MergeOptions()
     t0 = time.perf_counter()
@@ -603,15 +690,23 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     Ts = [check_array(T, f"model_from_scans[{k}]", shape=(4, 4))
           for k, T in enumerate(model_from_scans)]
     lengths = [_spacings(s) for s in scans]
-    h = float(opt.voxel_size) if opt.voxel_size else float(np.median(np.concatenate(lengths)))
+    h = (float(opt.voxel_size) if opt.voxel_size
+         else opt.voxel_scale * float(np.median(np.concatenate(lengths))))
     grid = _grid(scans, Ts, h, opt)
     corners = grid.corners()
     views = [_virtual_view(s, T, h, opt, n, corners, float(np.median(d)))
              for s, T, n, d in zip(scans, Ts, names, lengths, strict=True)]
+    near = _near_chunks(scans, Ts, grid, float(np.percentile(np.concatenate(lengths), 99)))
+    samples = None
+    if not opt.fill_holes and opt.edge_fill_voxels > 0:
+        from scipy.spatial import cKDTree
+
+        samples = cKDTree(np.concatenate([np.asarray(s.points, np.float64) @ T[:3, :3].T
+                                          + T[:3, 3] for s, T in zip(scans, Ts, strict=True)]))
     blocks = list(_blocks(grid.dims, int(opt.block_voxels)))
     parts = []
     for k, (start, shape) in enumerate(blocks):
-        part = _block_mesh(grid, views, start, shape, opt)
+        part = _block_mesh(grid, views, start, shape, opt, near, samples)
         if part is not None:
             parts.append(part)
         if progress is not None:
