@@ -60,7 +60,8 @@ class ScansReconConfig(Config):
     merge: str = option("volumetric", choices=MERGE_METHODS,
                         help="how the registered scans become one surface")
     resolution: float = option(0.0, unit="m", range="[0, inf)",
-                               help="voxel of the merge (0: the scans' sample spacing)")
+                               help="voxel of the merge (0: the merge's default from the "
+                                    "scans' sample spacing)")
     fill_holes: bool = option(False, help="close holes where the carved space allows (a "
                                           "watertight model)")
     renders: bool = option(True, help="write the before/after renders and the residual plot")
