@@ -1,8 +1,8 @@
 """reconstruct.evaluation: measures against ground truth: F-score, accuracy and completeness
 of a surface; disparity metrics (Middlebury); the similarity alignment and pose errors of
-cameras.
+cameras; the errors of registered scan poses after a robust gauge fit.
 
-Modules: ``disparity``, ``evaluate``, ``sim3``.
+Modules: ``disparity``, ``evaluate``, ``sim3``, ``scan_poses``.
 
 Every name below is importable from the room (``from reconstruct.evaluation import NAME``),
 loaded on first use.
@@ -24,6 +24,8 @@ _EXPORTS = {
     "Sim3": "sim3",
     "align_cameras": "sim3",
     "umeyama": "sim3",
+    "ScanPoseErrors": "scan_poses",
+    "compare_scan_poses": "scan_poses",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,7 +1,8 @@
 """reconstruct.surface: from points and depth maps to a clean surface: TSDF fusion, screened
 Poisson, mesh cleaning, and which way is up and which part is the ground.
 
-Modules: ``clean``, ``ground``, ``meshing``, ``tsdf``, ``up``.
+Modules: ``clean``, ``ground``, ``meshing``, ``tsdf``, ``up``, ``volumetric`` (merging
+registered range scans, Curless and Levoy's VRIP).
 
 Every name below is importable from the room (``from reconstruct.surface import NAME``),
 loaded on first use.
@@ -22,6 +23,10 @@ _EXPORTS = {
     "TSDFVolume": "tsdf",
     "fuse_depth_maps": "tsdf",
     "undistort_depth": "tsdf",
+    "MergeOptions": "volumetric",
+    "merge_scans": "volumetric",
+    "sample_spacing": "volumetric",
+    "scan_signed_distance": "volumetric",
     "UpEstimate": "up",
     "estimate_up": "up",
     "find_camera_model": "up",

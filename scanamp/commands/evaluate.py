@@ -1,4 +1,9 @@
-"""``scanamp evaluate RECON --reference GT.ply``: score a reconstruction against ground truth."""
+"""``scanamp evaluate RECON --reference GT.ply``: score a reconstruction against ground truth.
+
+``scanamp evaluate RECON --poses-reference FILE``: the scan poses of a ``reconstruct scans``
+folder (or its ``poses.json``, or a ``.conf``) against reference poses (``.conf`` or
+``poses.json``): per-scan rotation error and RMS displacement of the scan's own points,
+after a robust fit of the free gauge (:mod:`reconstruct.evaluation.scan_poses`)."""
 
 from __future__ import annotations
 
@@ -20,8 +25,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recon", type=Path, metavar="RECON",
                         help="reconstructed mesh or point cloud (.ply .obj .stl .off .glb "
                              ".pcd .xyz ...); a file without faces is a point cloud")
-    parser.add_argument("--reference", type=Path, required=True, metavar="GT",
-                        help="ground-truth mesh (or point cloud)")
+    parser.add_argument("--reference", type=Path, default=None, metavar="GT",
+                        help="ground-truth mesh (or point cloud); required unless "
+                             "--poses-reference is given")
+    parser.add_argument("--poses-reference", type=Path, default=None, metavar="FILE",
+                        help="reference scan poses (.conf or poses.json): compare the poses "
+                             "of RECON (a 'reconstruct scans' folder, its poses.json or a "
+                             ".conf) per scan after fitting the gauge robustly")
     parser.add_argument("--json", type=Path, default=None, metavar="OUT",
                         help="also write the figures to this JSON file")
     parser.add_argument("--icp", action="store_true", help="the same as --align icp")
@@ -36,6 +46,11 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.registration.rigid import LOW_FITNESS
 
+    if args.poses_reference is not None:
+        return _run_poses(args)
+    if args.reference is None:
+        raise InputError("expected --reference GT (or --poses-reference FILE)",
+                         field="--reference")
     recon = read_geometry(args.recon)
     reference = read_geometry(args.reference)
     align = config.align
@@ -63,4 +78,57 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     if args.json is not None:
         write_json(args.json, {"recon": str(args.recon), "reference": str(args.reference),
                                **result.to_dict()})
+    return 0
+
+
+def _read_poses(path: Path) -> tuple[dict, Path]:
+    """``{file name: model_from_scan or None}`` and the folder its files are relative to."""
+    from core.range_io import read_conf, read_poses_json
+    from core.validate import InputError
+
+    if path.is_dir():
+        path = path / "poses.json"
+    if not path.is_file():
+        raise InputError("no such file", path=path)
+    if path.suffix.lower() == ".conf":
+        return {Path(f).name: T for f, T in read_conf(path)}, path.parent
+    if path.suffix.lower() == ".json":
+        return {Path(p.file).name: (p.model_from_scan if p.registered else None)
+                for p in read_poses_json(path)}, path.parent
+    raise InputError("expected a .conf or poses.json", path=path, field="--poses-reference")
+
+
+def _scan_points(name: str, folders: list[Path]):
+    """The points of scan ``name``, found beside either poses file (or in scans/)."""
+    from reconstruct.scans import load_scans
+
+    for d in folders:
+        for f in (d / name, d / "scans" / name):
+            if f.is_file():
+                return load_scans([f], min_scans=1)[0].points
+    return None
+
+
+def _run_poses(args: argparse.Namespace) -> int:
+    from core.files import write_json
+    from core.validate import InputError
+    from reconstruct.evaluation.scan_poses import compare_scan_poses
+
+    est, est_dir = _read_poses(Path(args.recon))
+    ref, ref_dir = _read_poses(Path(args.poses_reference))
+    points = {}
+    for n in ref:
+        if n in est:
+            p = _scan_points(n, [ref_dir, est_dir])
+            if p is not None:
+                points[n] = p
+    if not any(est.get(n) is not None for n in points):
+        raise InputError(f"no scan of {args.recon} is both placed and found beside the "
+                         "reference", path=args.poses_reference, field="scans")
+    errors = compare_scan_poses(est, ref, points)
+    sys.stdout.write(f"{args.recon} vs {args.poses_reference}\n{errors.table()}\n")
+    if args.json is not None:
+        write_json(args.json, {"recon": str(args.recon),
+                               "poses_reference": str(args.poses_reference),
+                               **errors.to_dict()})
     return 0

@@ -1,0 +1,166 @@
+"""Registering two scans with no initial pose: features, a seeded RANSAC, ICP, and a
+verdict on the geometry for every candidate (:mod:`.verify`).
+
+Each scan is first put in its canonical frame (:func:`.oriented.canonical_frame`) and
+thinned there, so the result does not depend on how the scan was turned in its file.
+
+>>> import numpy as np
+>>> from .oriented import Oriented
+>>> rng = np.random.default_rng(0)
+>>> u, v = np.meshgrid(np.linspace(-1, 1, 60), np.linspace(-1, 1, 60))
+>>> z = 0.3 * np.sin(3 * u) * np.cos(2 * v) + 0.2 * u * v
+>>> pts = np.stack([u.ravel(), v.ravel(), z.ravel()], 1)
+>>> nrm = np.stack([-np.gradient(z, axis=1).ravel() / (2 / 59),
+...                 -np.gradient(z, axis=0).ravel() / (2 / 59), np.ones(z.size)], 1)
+>>> nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+>>> sight = np.tile([0, 0, 1.0], (len(pts), 1))
+>>> left, right = pts[:, 0] < 0.4, pts[:, 0] > -0.4
+>>> a = prepare("a", pts[left], nrm[left], sight[left], voxel=0.08)
+>>> b = prepare("b", pts[right], nrm[right], sight[right], voxel=0.08)
+>>> m = match_pair(a, b, rng=np.random.default_rng(1))
+>>> m.verdict.accepted, bool(np.allclose(m.target_from_source, np.eye(4), atol=0.02))
+(True, True)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .features import fpfh, match_features, ransac_rigid
+from .oriented import Oriented, canonical_frame, thin_oriented
+from .verify import Verdict, VerifyOptions, ViewMap, verify_pair
+
+__all__ = ["Prepared", "PairMatch", "prepare", "match_pair", "icp_point_to_plane"]
+
+
+@dataclass
+class Prepared:
+    """A scan made ready for matching (all in its canonical frame).
+
+    Attributes
+    ----------
+    name : str
+    canon_from_scan : (4, 4) float64
+    samples : Oriented
+        Voxel-thinned samples.
+    features : (n, 33) float64
+        FPFH of ``samples``.
+    voxel : float
+    """
+
+    name: str
+    canon_from_scan: np.ndarray
+    samples: Oriented
+    features: np.ndarray
+    voxel: float
+    tree: object = field(repr=False, default=None)
+    view: ViewMap | None = field(repr=False, default=None)
+
+
+@dataclass(frozen=True)
+class PairMatch:
+    """The best verified alignment of a pair, or the reason there is none.
+
+    ``target_from_source`` maps the source scan's own frame into the target's (4x4);
+    ``verdict`` is its check; ``rejected`` the reasons of the other candidates.
+    """
+
+    target: str
+    source: str
+    target_from_source: np.ndarray
+    verdict: Verdict
+    candidates: int
+    rejected: tuple = ()
+
+    @property
+    def accepted(self) -> bool:
+        return self.verdict.accepted
+
+
+def prepare(name: str, points: np.ndarray, normals: np.ndarray, sight: np.ndarray, *,
+            voxel: float) -> Prepared:
+    """Thin, describe and index one scan (points, normals, sight: (n, 3) float64)."""
+    from scipy.spatial import cKDTree
+
+    T = canonical_frame(points)
+    samples = thin_oriented(points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T,
+                            sight @ T[:3, :3].T, voxel)
+    feats = fpfh(samples.points, samples.normals, 5.0 * voxel)
+    return Prepared(name, T, samples, feats, voxel, cKDTree(samples.points),
+                    ViewMap(samples, voxel))
+
+
+def icp_point_to_plane(src: np.ndarray, dst: np.ndarray, dst_normals: np.ndarray,
+                       init: np.ndarray, threshold: float, tree, *,
+                       iterations: int = 30) -> np.ndarray:
+    """``dst_from_src`` (4x4) refined by point-to-plane ICP from ``init`` with matches
+    within ``threshold``; deterministic (linearised steps, Low 2004)."""
+    T = np.array(init, dtype=np.float64)
+    for _ in range(iterations):
+        p = src @ T[:3, :3].T + T[:3, 3]
+        d, j = tree.query(p, distance_upper_bound=threshold)
+        ok = np.isfinite(d)
+        if ok.sum() < 6:
+            break
+        p, q, n = p[ok], dst[j[ok]], dst_normals[j[ok]]
+        a = np.hstack([np.cross(p, n), n])
+        x = np.linalg.solve(a.T @ a + 1e-12 * np.eye(6), a.T @ np.einsum("ij,ij->i", q - p, n))
+        T = rigid_step(x) @ T
+        if np.linalg.norm(x[:3]) < 1e-7 and np.linalg.norm(x[3:]) < 1e-4 * threshold:
+            break
+    return T
+
+
+def rigid_step(x: np.ndarray) -> np.ndarray:
+    """The rigid 4x4 of a small step ``x = (rotation vector, translation)`` (6,)."""
+    from core.frames import axis_angle_matrix
+
+    T = np.eye(4)
+    angle = float(np.linalg.norm(x[:3]))
+    if angle > 0:
+        T[:3, :3] = axis_angle_matrix(x[:3] / angle, angle)
+    T[:3, 3] = x[3:]
+    return T
+
+
+def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
+               iterations: int = 2500, keep: int = 4,
+               options: VerifyOptions | None = None) -> PairMatch:
+    """Find and verify ``target_from_source`` (module docstring)."""
+    options = VerifyOptions() if options is None else options
+    voxel = max(target.voxel, source.voxel)
+    s, t = source.samples, target.samples
+    matches = match_features(source.features, target.features)
+    hyps = ransac_rigid(s.points, t.points, matches, inlier=1.5 * voxel, rng=rng,
+                        iterations=iterations, keep=keep)
+    best, best_v, rejected = None, None, []
+    for h in hyps:
+        d, _ = target.tree.query(s.points @ h[:3, :3].T + h[:3, 3],
+                                 distance_upper_bound=2.0 * voxel)
+        if np.mean(np.isfinite(d)) < 0.5 * options.min_overlap:
+            rejected.append("overlap too small at the feature match")
+            continue
+        T = icp_point_to_plane(s.points, t.points, t.normals, h, 3.0 * voxel, target.tree,
+                               iterations=10)
+        d, _ = target.tree.query(s.points @ T[:3, :3].T + T[:3, 3], distance_upper_bound=voxel)
+        if np.mean(np.isfinite(d)) < 0.7 * options.min_overlap:  # no need to refine it
+            rejected.append("overlap too small after a coarse ICP")
+            continue
+        T = icp_point_to_plane(s.points, t.points, t.normals, T, 1.5 * voxel, target.tree,
+                               iterations=30)
+        v = verify_pair(t, s, T, tau=voxel, target_map=target.view, source_map=source.view,
+                        target_tree=target.tree, options=options)
+        if not v.accepted:
+            rejected.append(v.reason)
+        elif best_v is None or v.score > best_v.score:
+            best, best_v = T, v
+        if best_v is not None and best_v.overlap >= 0.5 and best_v.rms < 0.1 * voxel:
+            break  # a clear match: the weaker hypotheses cannot beat it
+    if best is None:
+        reason = rejected[0] if rejected else "no consistent feature matches"
+        best_v = Verdict(0.0, float("nan"), 0.0, 0.0, 0, reason)
+        best = np.eye(4)
+    scan_T = np.linalg.inv(target.canon_from_scan) @ best @ source.canon_from_scan
+    return PairMatch(target.name, source.name, scan_T, best_v, len(hyps), tuple(rejected))
