@@ -265,11 +265,31 @@ def _open_reader(path: Path):
         raise InputError(f"not a readable LAS/LAZ file ({e})", path=path, field="header") from None
 
 
+def _geokeys_wkt(header) -> str | None:
+    """The CRS of a LAS 1.0-1.3 file's GeoTIFF keys (an EPSG code of a projected or
+    geographic system, as most surveys write it) as WKT; None when there is none."""
+    for vlr in header.vlrs:
+        if getattr(vlr, "record_id", None) != 34735 or not hasattr(vlr, "geo_keys"):
+            continue
+        for key_id in (3072, 2048):  # ProjectedCSTypeGeoKey, GeographicTypeGeoKey
+            for k in vlr.geo_keys:
+                if k.id == key_id and k.tiff_tag_location == 0 and 1024 <= k.value_offset < 32767:
+                    try:
+                        from rasterio.crs import CRS
+
+                        return CRS.from_epsg(int(k.value_offset)).to_wkt()
+                    except Exception:  # an EPSG code the PROJ database does not know
+                        return None
+    return None
+
+
 def _info(path: Path, header) -> LasInfo:
     wkt = None
     for vlr in list(header.vlrs) + list(getattr(header, "evlrs", None) or []):
         if getattr(vlr, "record_id", None) == 2112 and hasattr(vlr, "string"):
             wkt = vlr.string.rstrip("\0") or None
+    if wkt is None:
+        wkt = _geokeys_wkt(header)
     extra = tuple(header.point_format.extra_dimension_names)
     std = [d for d in STANDARD_FIELDS if d in {"x", "y", "z"}
            or d in set(header.point_format.dimension_names)]
