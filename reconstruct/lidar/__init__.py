@@ -23,6 +23,8 @@ _EXPORTS = {
     "DELTA_GROUND": "evaluation",
     "H_PREC": "evaluation",
     "dtm_errors": "evaluation",
+    "evaluate_lidar": "evaluation",
+    "lidar_table": "evaluation",
     "match_trees": "evaluation",
     "tree_scores": "evaluation",
     "LidarReconConfig": "pipeline",

@@ -22,7 +22,8 @@ import numpy as np
 from core.raster_io import Raster
 from core.validate import check_array
 
-__all__ = ["match_trees", "tree_scores", "dtm_errors", "DELTA_GROUND", "H_PREC"]
+__all__ = ["match_trees", "tree_scores", "dtm_errors", "evaluate_lidar", "lidar_table",
+           "DELTA_GROUND", "H_PREC"]
 
 DELTA_GROUND = 2.1  # metres: lidaRtRee's buffer around the stem
 H_PREC = 0.14  # of the reference tree's height: its buffer around the apex
@@ -142,3 +143,53 @@ def dtm_errors(dtm: Raster, reference: Raster | None = None, *,
         raise ValueError("reference: no overlap with the DTM")
     return {"rmse": float(np.sqrt(np.mean(e ** 2))), "bias": float(np.mean(e)),
             "p95_abs": float(np.percentile(np.abs(e), 95)), "n": int(len(e))}
+
+
+def evaluate_lidar(result_dir, truth_dir) -> dict:
+    """Score a ``reconstruct lidar`` folder against a forest scene's truth.
+
+    Parameters
+    ----------
+    result_dir : path
+        Holds ``trees.csv`` and ``dtm.tif`` (``scanamp reconstruct lidar``).
+    truth_dir : path
+        Holds ``trees.csv`` (``x, y, height``) and ``dtm.tif`` (``scanamp scene forest``).
+
+    Returns
+    -------
+    dict
+        ``trees`` (:func:`tree_scores`, over the reference trees inside the result's DTM)
+        and ``dtm`` (:func:`dtm_errors` at the result's cells the truth covers).
+    """
+    from pathlib import Path
+
+    from core.raster_io import read_raster
+    from core.trees_io import read_tree_table
+
+    result_dir, truth_dir = Path(result_dir), Path(truth_dir)
+    det = read_tree_table(result_dir / "trees.csv")
+    ref = read_tree_table(truth_dir / "trees.csv")
+    dtm = read_raster(result_dir / "dtm.tif")
+    truth_dtm = read_raster(truth_dir / "dtm.tif")
+    xs, ys = dtm.centres()
+    inside = ((ref["x"] >= xs[0]) & (ref["x"] <= xs[-1]) & (ref["y"] >= ys[0])
+              & (ref["y"] <= ys[-1]))
+    r = np.column_stack([ref["x"], ref["y"], ref["height"]])[inside]
+    d = np.column_stack([det["x"], det["y"], det["height"]])
+    return {"trees": tree_scores(r, d), "dtm": dtm_errors(dtm, truth_dtm),
+            "reference_trees_outside": int((~inside).sum())}
+
+
+def lidar_table(scores: dict) -> str:
+    """The figures of :func:`evaluate_lidar` as a few aligned lines."""
+    t, g = scores["trees"], scores["dtm"]
+    return "\n".join([
+        f"trees      reference {t['reference']}  detected {t['detected']}  matched "
+        f"{t['matched']}",
+        f"detection  {t['detection']:.3f}  omission {t['omission']:.3f}  commission "
+        f"{t['commission']:.3f}  F {t['f']:.3f}",
+        f"height     RMSE {t['height_rmse']:.2f} m  bias {t['height_bias']:+.2f} m  "
+        f"(position RMSE {t['position_rmse']:.2f} m)",
+        f"DTM        RMSE {g['rmse']:.3f} m  bias {g['bias']:+.3f} m  P95 |e| {g['p95_abs']:.3f} m"
+        f"  ({g['n']} cells)",
+    ])

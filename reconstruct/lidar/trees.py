@@ -4,7 +4,7 @@ Tops: the CHM is smoothed (Gaussian, ``smooth`` metres), and a cell is a tree to
 at least ``min_height`` tall and the highest within a disc whose diameter grows with its
 height, ``window_base + window_slope * height`` (the variable window of Popescu and Wynne
 2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
-tops (``scipy.ndimage.watershed_ift``), within the cells at least ``min_height`` tall. A tree's
+tops (flooding from the highest level down), within the cells at least ``min_height`` tall. A tree's
 height is the highest raw CHM cell of its crown; its position the centre of its top cell.
 
 >>> import numpy as np
@@ -53,6 +53,30 @@ def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
     return maximum_filter(z, footprint=(xx ** 2 + yy ** 2) <= r * r + 1e-9, mode="nearest")
 
 
+def _flood(height: np.ndarray, labels: np.ndarray, mask: np.ndarray, *, step: float):
+    """Marker-controlled watershed by flooding: the water level falls from the highest
+    top in ``step`` metres; at each level every labelled region grows into the unlabelled
+    cells of ``mask`` at or above the level that touch it (8-neighbours), until none is
+    left. Where two regions meet, the larger label takes the contested cell."""
+    from scipy.ndimage import maximum_filter
+
+    lab = labels.copy()
+    top = float(height[lab > 0].max())
+    bottom = float(height[mask].min()) if np.any(mask) else top
+    for level in np.arange(top, bottom - step, -step):
+        region = mask & (height >= level)
+        while True:
+            grow = region & (lab == 0)
+            if not np.any(grow):
+                break
+            near = maximum_filter(lab, size=3, mode="constant")
+            new = grow & (near > 0)
+            if not np.any(new):
+                break
+            lab[new] = near[new]
+    return lab
+
+
 def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
     """Tree tops and crowns.
 
@@ -69,7 +93,7 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
         by height, tallest first) and ``crowns`` (rows, cols) int32: the tree (1-based) of
         each cell, 0 for none.
     """
-    from scipy.ndimage import gaussian_filter, watershed_ift
+    from scipy.ndimage import gaussian_filter
 
     o = options or TreeOptions()
     raw = np.nan_to_num(chm.values, nan=0.0)
@@ -97,14 +121,9 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
     order = np.argsort(-s[ti, tj], kind="stable")
     ti, tj = ti[order], tj[order]
     k = len(ti)
-    markers = np.zeros(raw.shape, np.int32)
-    markers[~tall] = -1  # background: every cell below min_height
-    markers[ti, tj] = np.arange(1, k + 1)
-    hi = max(float(s.max()), 1e-9)
-    cost = np.round((1.0 - s / hi) * 65534).astype(np.uint16)
-    crowns = watershed_ift(cost, markers, structure=np.ones((3, 3), int))
-    crowns[crowns < 0] = 0
-    crowns[~tall] = 0
+    crowns = np.zeros(raw.shape, np.int32)
+    crowns[ti, tj] = np.arange(1, k + 1)
+    crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * o.smooth + 0.05))
     area = np.bincount(crowns.ravel(), minlength=k + 1)[1:] * res * res
     height = np.zeros(k + 1)
     np.maximum.at(height, crowns.ravel(), raw.ravel())

@@ -13,15 +13,19 @@ OUTPUT = "file"
 OUTPUT_DEST = "json"
 CONFIG = EvaluateConfig
 HELP = ("score a reconstruction (mesh or point cloud) against a ground-truth surface: "
-        "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff")
+        "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff; or a "
+        "'reconstruct lidar' folder against a forest scene's truth: tree detection, heights, "
+        "DTM")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recon", type=Path, metavar="RECON",
                         help="reconstructed mesh or point cloud (.ply .obj .stl .off .glb "
-                             ".pcd .xyz ...); a file without faces is a point cloud")
+                             ".pcd .xyz ...); a file without faces is a point cloud; or a "
+                             "'reconstruct lidar' folder (trees.csv, dtm.tif)")
     parser.add_argument("--reference", type=Path, required=True, metavar="GT",
-                        help="ground-truth mesh (or point cloud)")
+                        help="ground-truth mesh (or point cloud); for a LiDAR result, the forest "
+                             "scene folder (its trees.csv and dtm.tif)")
     parser.add_argument("--json", type=Path, default=None, metavar="OUT",
                         help="also write the figures to this JSON file")
     parser.add_argument("--icp", action="store_true", help="the same as --align icp")
@@ -36,6 +40,8 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.registration.rigid import LOW_FITNESS
 
+    if args.recon.is_dir() and (args.recon / "trees.csv").is_file():
+        return _run_lidar(args)
     recon = read_geometry(args.recon)
     reference = read_geometry(args.reference)
     align = config.align
@@ -63,4 +69,17 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     if args.json is not None:
         write_json(args.json, {"recon": str(args.recon), "reference": str(args.reference),
                                **result.to_dict()})
+    return 0
+
+
+def _run_lidar(args: argparse.Namespace) -> int:
+    """A LiDAR result against a forest scene: lidaRtRee's tree matching and the DTM."""
+    from core.files import write_json
+    from reconstruct.lidar.evaluation import evaluate_lidar, lidar_table
+
+    scores = evaluate_lidar(args.recon, args.reference)
+    sys.stdout.write(f"{args.recon} vs {args.reference}\n{lidar_table(scores)}\n")
+    if args.json is not None:
+        write_json(args.json, {"recon": str(args.recon), "reference": str(args.reference),
+                               **scores})
     return 0
