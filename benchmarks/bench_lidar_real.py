@@ -14,7 +14,9 @@
 4. Simulation against reality: a stand grown from MixedConifer's crowns (positions,
    heights, crown radii), flown by ``scanamp capture lidar`` (riegl-lms-q560) at the
    survey's pulse density; point density, share of pulses with several returns, ground
-   share, vegetation height P50/P95 and tree detection F side by side.
+   share, vegetation height P50/P95 and tree detection F side by side (the real tile holds
+   first returns only -- its number_of_returns still says how many the pulse had -- so the
+   simulated survey is compared by its first returns too).
 
 The data are read from ``$SCANAMP_REAL_DATA`` or ``../shared/data/real`` beside the
 repository (or beside its worktree folder); without them each part says so and is skipped.
@@ -107,7 +109,7 @@ def _survey_figures(pts, res, ref_trees, area):
     veg = h[(~ground) & (h > 2.0)]
     tr = res.trees
     s = tree_scores(ref_trees, np.column_stack([tr["x"], tr["y"], tr["height"]]))
-    return {"points per m2": len(first) / area, "pulses per m2": first.sum() / area,
+    return {"points per m2": len(first) / area, "first returns per m2": first.sum() / area,
             "pulses with several returns": float(np.mean(pts["number_of_returns"][first] > 1)),
             "ground share": float(np.mean(ground)),
             "vegetation height P50 (m)": float(np.percentile(veg, 50)),
@@ -188,20 +190,23 @@ def simulation_vs_reality(real_pts, real_res, ref):
         write_forest(bundle, d / "scene")
         t_scene = time.perf_counter() - t0
         t0 = time.perf_counter()
-        run_lidar_capture(str(d / "scene"), LidarCaptureConfig(density=real["pulses per m2"]),
+        run_lidar_capture(str(d / "scene"),
+                          LidarCaptureConfig(density=real["first returns per m2"]),
                           d / "survey")
         t_survey = time.perf_counter() - t0
         sim_pts, _ = read_las(d / "survey" / "points.laz")
         keep = ((sim_pts["x"] >= xy[:, 0].min()) & (sim_pts["x"] <= xy[:, 0].max())
                 & (sim_pts["y"] >= xy[:, 1].min()) & (sim_pts["y"] <= xy[:, 1].max()))
+        if np.all(real_pts["return_number"] == 1):  # the tile keeps first returns only
+            keep &= sim_pts["return_number"] == 1
         sim_pts = {k: v[keep] for k, v in sim_pts.items()}
         sim_res = reconstruct_points(sim_pts)
         truth = read_tree_table(d / "scene" / "trees.csv")
         sim_ref = np.column_stack([truth["x"], truth["y"], truth["height"]])
         sim = _survey_figures(sim_pts, sim_res, sim_ref, area)
     print(f"   simulation against reality (stand of {len(ref)} trees grown {t_scene:.0f} s, "
-          f"flown {t_survey:.0f} s by riegl-lms-q560 at {real['pulses per m2']:.2f} "
-          "pulses/m2; the same 90 x 90 m):")
+          f"flown {t_survey:.0f} s by riegl-lms-q560 at {real['first returns per m2']:.2f} "
+          "pulses/m2; the same 90 x 90 m; first returns only, as the real tile keeps):")
     print(f"   {'':32s} {'real':>9s} {'simulated':>10s}")
     for k in real:
         print(f"   {k:32s} {real[k]:9.3f} {sim[k]:10.3f}")

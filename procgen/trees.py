@@ -150,15 +150,17 @@ def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int) -> str:
                     for _ in range(k))
     # the crown is the last `years` whorls; the bole below it has shed its branches
     bole = years * internode * (1.0 - sp.crown_ratio) / sp.crown_ratio
-    s = 0.22
+    # needle clusters: two pairs on the sides of each year's shoot and one ahead, large
+    # enough that a crown is as opaque to a laser as a real one (several layers deep)
+    s = 0.5
     needle = _NEEDLE.format(s=s)
     return "\n".join([
         f"n: {years}",
         f"tropism: 0, 0, -1, {0.3 * sp.droop:.3f}",
         f"axiom: '(0)!(0.3)F({bole:.3f})A(0.25)",
         f"A(w) -> !(w)F({internode})[{whorl}]/(137.5)A(w * 0.85)",
-        f"B(l) -> !(0.04)F(l)[-(55)$!(0.02){needle}]"
-        f"[+(55)$!(0.02){needle}]{needle}B(l * {gr})",
+        f"B(l) -> !(0.04)F(l)[-(55)${needle}][+(55)${needle}]/(90)[-(40)${needle}]"
+        f"[+(40)${needle}]{needle}B(l * {gr})",
     ])
 
 
@@ -166,8 +168,8 @@ def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
     depth = sp.whorl
     a = sp.branch_angle + rng.uniform(-5, 5)
     bole = (1.0 - sp.crown_ratio) * 12.0
-    leaf = _LEAF.format(s=0.35)
-    cluster = f"{leaf}/(120){leaf}/(120){leaf}"
+    leaf = _LEAF.format(s=1.2)
+    cluster = "/(72)".join([leaf] * 5)
     fork2 = (f"[&({a:.1f})!(w * 0.7)F(l)X(l * 0.82, w * 0.7, d + 1)]/(180)"
              f"[&({a * 0.8:.1f})!(w * 0.7)F(l * 0.9)X(l * 0.8, w * 0.7, d + 1)]")
     fork3 = (f"[&({a:.1f})!(w * 0.65)F(l)X(l * 0.82, w * 0.65, d + 1)]/(120)"
@@ -177,11 +179,11 @@ def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
         f"n: {depth + 1}",
         f"tropism: 0, 0, 1, {0.12 - sp.droop:.3f}",
         f"axiom: '(0)!(0.4)F({bole:.3f})'(1)X(3.2, 0.3, 0)",
-        f"X(l, w, d) : d < {depth - 3} -(0.55)-> /(137.5){fork2}",
-        f"X(l, w, d) : d < {depth - 3} -(0.45)-> /(137.5){fork3}",
+        f"X(l, w, d) : d < 1 -(0.55)-> /(137.5){fork2}",
+        f"X(l, w, d) : d < 1 -(0.45)-> /(137.5){fork3}",
         # the outer forks carry leaves along them too, not only at their tips
-        f"X(l, w, d) : d >= {depth - 3} && d < {depth - 1} -(0.55)-> /(137.5){leaf}{fork2}",
-        f"X(l, w, d) : d >= {depth - 3} && d < {depth - 1} -(0.45)-> /(137.5){leaf}{fork3}",
+        f"X(l, w, d) : d >= 1 && d < {depth - 1} -(0.55)-> /(137.5){cluster}{fork2}",
+        f"X(l, w, d) : d >= 1 && d < {depth - 1} -(0.45)-> /(137.5){cluster}{fork3}",
         f"X(l, w, d) : d >= {depth - 1} -> {cluster}F(l * 0.5){cluster}",
     ])
 
