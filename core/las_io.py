@@ -84,7 +84,8 @@ class LasInfo:
     mins, maxs : (3,) float64
         Bounding box of the points (metres).
     crs_wkt : str or None
-        The OGC WKT coordinate system when the file has one.
+        The OGC WKT coordinate system when the file has one (LAS 1.4 WKT record, or the
+        EPSG code of a LAS 1.2 GeoTIFF key directory).
     extra_dims : tuple of str
         Names of the extra dimensions (extra bytes).
     dims : tuple of str
@@ -265,22 +266,20 @@ def _open_reader(path: Path):
         raise InputError(f"not a readable LAS/LAZ file ({e})", path=path, field="header") from None
 
 
-def _geokeys_wkt(header) -> str | None:
-    """The CRS of a LAS 1.0-1.3 file's GeoTIFF keys (an EPSG code of a projected or
-    geographic system, as most surveys write it) as WKT; None when there is none."""
-    for vlr in header.vlrs:
-        if getattr(vlr, "record_id", None) != 34735 or not hasattr(vlr, "geo_keys"):
-            continue
-        for key_id in (3072, 2048):  # ProjectedCSTypeGeoKey, GeographicTypeGeoKey
-            for k in vlr.geo_keys:
-                if k.id == key_id and k.tiff_tag_location == 0 and 1024 <= k.value_offset < 32767:
-                    try:
-                        from rasterio.crs import CRS
+def _geokeys_wkt(vlr) -> str | None:
+    """WKT of the EPSG code in a LAS 1.2 GeoTIFF key directory (projected 3072, else
+    geographic 2048), through rasterio; None when there is none or it is unknown."""
+    codes = {k.id: k.value_offset for k in getattr(vlr, "geo_keys", [])
+             if k.tiff_tag_location == 0}
+    code = codes.get(3072) or codes.get(2048)
+    if not code or code == 32767:        # 32767: user-defined, not an EPSG code
+        return None
+    try:
+        from rasterio.crs import CRS
 
-                        return CRS.from_epsg(int(k.value_offset)).to_wkt()
-                    except Exception:  # an EPSG code the PROJ database does not know
-                        return None
-    return None
+        return CRS.from_epsg(int(code)).to_wkt()
+    except Exception:  # rasterio missing or an unknown code: no CRS rather than no file
+        return None
 
 
 def _info(path: Path, header) -> LasInfo:
@@ -288,11 +287,13 @@ def _info(path: Path, header) -> LasInfo:
     for vlr in list(header.vlrs) + list(getattr(header, "evlrs", None) or []):
         if getattr(vlr, "record_id", None) == 2112 and hasattr(vlr, "string"):
             wkt = vlr.string.rstrip("\0") or None
-    if wkt is None:
-        wkt = _geokeys_wkt(header)
+        elif getattr(vlr, "record_id", None) == 34735 and wkt is None:
+            wkt = _geokeys_wkt(vlr)
     extra = tuple(header.point_format.extra_dimension_names)
-    std = [d for d in STANDARD_FIELDS if d in {"x", "y", "z"}
-           or d in set(header.point_format.dimension_names)]
+    names = set(header.point_format.dimension_names)
+    if "scan_angle_rank" in names:
+        names.add("scan_angle")
+    std = [d for d in STANDARD_FIELDS if d in {"x", "y", "z"} or d in names]
     return LasInfo(point_count=int(header.point_count), version=str(header.version),
                    point_format=int(header.point_format.id),
                    scales=np.asarray(header.scales, np.float64),

@@ -73,11 +73,11 @@ def scene_crs(bundle) -> str | None:
 class _Survey:
     """A scene, its world and the planned survey: rebuilt identically in every worker."""
 
-    def __init__(self, scene: str, config: LidarCaptureConfig):
+    def __init__(self, scene: str, config: LidarCaptureConfig, bundle=None):
         from scanamp.methods import scene_for_capture
 
         self.preset = get_preset(config.preset)
-        self.bundle = scene_for_capture(scene)
+        self.bundle = bundle if bundle is not None else scene_for_capture(scene)
         self.world = LidarWorld(self.bundle.render_scene, self.preset.wavelength_nm)
         self.bounds = self.bundle.bounds()
         self.plan = plan_survey(self.world, self.bounds, config, self.preset)
@@ -143,11 +143,12 @@ def _run_parallel(tasks: list, workers: int, client) -> list:
 
 
 def run_lidar_capture(scene: str, config: LidarCaptureConfig, out_dir: str | os.PathLike, *,
-                      client=None) -> dict:
+                      client=None, bundle=None) -> dict:
     """Survey ``scene`` (a built-in name or scene folder) into ``out_dir``; the report.
 
     ``client``: a ``distributed.Client`` to run the legs on (else ``config.scheduler``
-    when given, else ``config.workers`` local processes, else this process).
+    when given, else ``config.workers`` local processes, else this process). ``bundle``:
+    the scene already built from ``scene`` (workers still rebuild it from ``scene``).
     """
     t0 = time.perf_counter()
     get_preset(config.preset)                     # an unknown preset: before any work
@@ -155,7 +156,7 @@ def run_lidar_capture(scene: str, config: LidarCaptureConfig, out_dir: str | os.
         from scanamp.study.runner import connect
 
         client = connect(config.scheduler)
-    sv = _Survey(scene if not os.path.exists(scene) else str(Path(scene).resolve()), config)
+    sv = _Survey(sv_scene(scene), config, bundle)
     legs = sv.plan.legs
     stations = sv.plan.platform == "tripod"
     split = config.per_strip or stations or config.workers > 1 or client is not None

@@ -113,3 +113,24 @@ def _one_point(tmp_path):
     with LasWriter(path, origin=ORIGIN) as w:
         w.write({"x": [ORIGIN[0]], "y": [ORIGIN[1]], "z": [ORIGIN[2]]})
     return path
+
+
+def test_a_las_12_file_reads_its_scan_angle_rank_and_epsg_code(tmp_path):
+    """Real surveys are often LAS 1.2 (point format 1): a scan angle rank in degrees and
+    the CRS as a GeoTIFF key directory (EPSG 25832 here), read as WKT."""
+    import laspy
+    from laspy.vlrs.known import GeoKeyDirectoryVlr, GeoKeyEntryStruct
+
+    key = GeoKeyEntryStruct()
+    key.id, key.tiff_tag_location, key.count, key.value_offset = 3072, 0, 1, 25832
+    vlr = GeoKeyDirectoryVlr()
+    vlr.geo_keys, vlr.geo_keys_header.number_of_keys = [key], 1
+    h = laspy.LasHeader(point_format=1, version="1.2")
+    h.vlrs.append(vlr)
+    las = laspy.LasData(h)
+    las.x, las.y, las.z = np.array([5e5, 5e5 + 1]), np.array([6e6, 6e6]), np.array([1.0, 2.0])
+    las.scan_angle_rank = np.array([-12, 30])
+    las.write(tmp_path / "old.las")
+    pts, info = read_las(tmp_path / "old.las")
+    assert info.version == "1.2" and pts["scan_angle"].tolist() == [-12.0, 30.0]
+    assert info.crs_wkt is not None and "UTM zone 32N" in info.crs_wkt

@@ -142,3 +142,24 @@ def test_a_pulse_through_a_gap_between_two_leaves(gap, returns):
         assert e["part"][0] == PARTS.index("leaf")
         assert e["range_true"][0] == pytest.approx(90.0, abs=0.05)
     assert e["range_true"][-1] == pytest.approx(100.0, abs=0.05)
+
+
+def test_a_window_returns_its_own_echo_and_the_room_behind_it():
+    """Glass (part 'glass', reflectance 0.05) 5 m in front of a wall: two echoes, the
+    wall's energy reduced by the two passes through the pane, (1 - 0.05)^2."""
+    pane = _quad("pane", [[-2, -2, 15.0], [2, -2, 15.0], [2, 2, 15.0], [-2, 2, 15.0]], 5,
+                 "glass", 0.05)
+    w = _world(_ground(), pane)
+    e = fire(w, _scanner(), np.array([[0.0, 0.0, 100.0]]), np.array([[0.0, 0.0, -1.0]]),
+             rng=np.random.default_rng(0))
+    assert e["part"].tolist() == [PARTS.index("glass"), PARTS.index("ground")]
+    assert e["range_true"] == pytest.approx([85.0, 100.0], abs=0.01)
+    assert e["energy"][0] == pytest.approx(0.05 / 85.0 ** 2, rel=0.03)
+    assert e["energy"][1] == pytest.approx(RHO * 0.95 ** 2 / 100.0 ** 2, rel=0.03)
+    assert e["true_z"] == pytest.approx([15.0, 0.0], abs=0.01)
+    # without the glass part the same pane is opaque: one echo
+    opaque = _quad("pane", [[-2, -2, 15.0], [2, -2, 15.0], [2, 2, 15.0], [-2, 2, 15.0]], 5,
+                   "building", 0.05)
+    e = fire(_world(_ground(), opaque), _scanner(), np.array([[0.0, 0.0, 100.0]]),
+             np.array([[0.0, 0.0, -1.0]]), rng=np.random.default_rng(0))
+    assert e["part"].tolist() == [PARTS.index("building")]

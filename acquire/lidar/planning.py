@@ -184,15 +184,22 @@ def plan_stations(positions: np.ndarray, preset: ScannerPreset, *,
                   gps_start: float = 0.0) -> SurveyPlan:
     """Terrestrial stations at ``positions (k, 3)`` (the scanner's optical centre), each a
     full 360 degree pan. ``angular_step_deg`` sets the line rate (points ``step`` apart
-    along a line) and the pan rate (lines ``step`` apart), within the scanner's limits."""
+    along a line) and the pan rate (lines ``step`` apart), within the scanner's limits;
+    the pulse rate (unless given) is the fastest selectable one whose lines the mirror
+    can sweep that fast (else points along a line are closer than ``step``)."""
     pos = np.asarray(positions, np.float64).reshape(-1, 3)
-    prr = float(pulse_rate or preset.pulse_rate_hz)
     step = float(angular_step_deg)
     if step <= 0:
         raise InputError(f"expected a positive angular step, got {step}",
                          field="angular_step")
     span = preset.fov_deg[1] - preset.fov_deg[0]
-    rate = float(np.clip(prr * step / span, *preset.scan_rate_hz))
+    lo, hi = preset.scan_rate_hz
+    if pulse_rate:
+        prr = float(pulse_rate)
+    else:   # the fastest selectable rate whose lines can be swept at that step
+        fits = [r for r in preset.pulse_rates_hz if r * step / span <= hi]
+        prr = float(max(fits) if fits else min(preset.pulse_rates_hz))
+    rate = float(np.clip(prr * step / span, lo, hi))
     pan = min(rate * step, preset.head_rate_deg_s or rate * step)
     legs, t = [], float(gps_start)
     for k, p in enumerate(pos):

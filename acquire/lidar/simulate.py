@@ -39,6 +39,7 @@ CHUNK_FIELDS = ("x", "y", "z", "gps_time", "energy", "snr", "return_number",
                 "column")
 _GROUND = PARTS.index("ground")
 _VEG = [PARTS.index(p) for p in VEGETATION_PARTS]
+_GLASS = PARTS.index("glass")
 _VISIBLE_NM = (465.0, 532.0, 620.0)     # blue, green, red of a material's albedo
 
 
@@ -124,6 +125,7 @@ class LidarWorld:
         self.face_part = np.concatenate([
             o.part_labels if o.part_labels is not None else np.zeros(c, np.uint8)
             for o, c in zip(objs, counts, strict=True)]).astype(np.uint8)
+        self.has_glass = bool(np.any(self.face_part == _GLASS))
         self.ground = None
         vs, fs, nv = [], [], 0
         for (vw, f, _), off in zip(parts, self.face_offset[:-1], strict=True):
@@ -158,6 +160,29 @@ class LidarWorld:
                                 rays, weights, self.lut, self.face_offset, self.reflectance,
                                 float(min_range), R, E, obj, face)
         return (R, E), obj, face
+
+    def through_glass(self, rays, weights, R, E, obj, face, min_range):
+        """Sub-rays that hit glass go on through it: the glass returns its own (weak)
+        echo and passes ``1 - rho`` of the light each way, so what lies behind returns
+        ``(1 - rho)^2`` of its energy. Returns the hits as ``layers`` stacked copies of
+        ``(n*s,)`` arrays (1 layer without glass, 2 with) and ``layers``."""
+        g = np.flatnonzero(self.face_part[face] == _GLASS) if self.has_glass else []
+        g = g[np.isfinite(R[g])] if len(g) else g
+        if not len(g):
+            return R, E, obj, face, 1
+        sub = rays[g].copy()
+        sub[:, :3] += sub[:, 3:] * (R[g, None] + 1e-4).astype(np.float32)
+        (R2, E2), obj2, face2 = self.cast_energy(sub, weights, 0.0)
+        rho_g = self.reflectance[obj[g]]
+        Rt = np.where(np.isfinite(R2), R[g] + 1e-4 + R2, np.inf)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            E2 = np.where(np.isfinite(Rt), E2 * (R2 / Rt) ** 2 * (1 - rho_g) ** 2, 0.0)
+        Rb, Eb = np.full(len(R), np.inf), np.zeros(len(R))
+        ob, fb = np.full(len(R), -1, np.int64), np.zeros(len(R), np.int64)
+        Rb[g], Eb[g], ob[g], fb[g] = Rt, E2, obj2, face2
+        Rb[Rb < min_range] = np.inf
+        return (np.concatenate([R, Rb]), np.concatenate([E, Eb]), np.concatenate([obj, ob]),
+                np.concatenate([face, fb]), 2)
 
     def ground_z(self, xy: np.ndarray) -> np.ndarray:
         """Height of the ground (the whole scene when it has no ground part) below
@@ -237,12 +262,17 @@ def fire(world: LidarWorld, scanner: Scanner, origins: np.ndarray, directions: n
     s = len(weights)
     rays = pack_rays(pos, d, scanner.divergence_rad, offsets)
     (R, E), obj, face = world.cast_energy(rays, weights, scanner.min_range_m)
-    ech = detect_echoes(R.reshape(-1, s), E.reshape(-1, s), scanner.receiver)
-    p, j = ech["pulse"], ech["pulse"] * s + ech["subray"]
+    R, E, obj, face, layers = world.through_glass(rays, weights, R, E, obj, face,
+                                                  scanner.min_range_m)
+    # per pulse: its s sub-rays' first hits, then (glass) what they met behind the glass
+    ech = detect_echoes(_per_pulse(R, s, layers), _per_pulse(E, s, layers), scanner.receiver)
+    p = ech["pulse"]
+    q = p * s + ech["subray"] % s                    # the ray
+    j = (ech["subray"] // s) * len(rays) + q         # its hit, in the layered arrays
     snr = ech["energy"] / scanner.receiver.noise_energy
     r_meas = ech["range"] + scanner.receiver.range_sigma(snr) * rng.standard_normal(len(p))
     xyz = pos[p] + d[p] * r_meas[:, None]
-    true = pos[p] + rays[j, 3:].astype(np.float64) * R[j, None]
+    true = pos[p] + rays[q, 3:].astype(np.float64) * R[j, None]
     part = world.face_part[face[j]]
     veg = np.isin(part, _VEG)
     hag = world.ground_height(true[veg]) if veg.any() else None
@@ -256,6 +286,14 @@ def fire(world: LidarWorld, scanner: Scanner, origins: np.ndarray, directions: n
             "object_id": world.object_ids[np.maximum(obj[j], 0)], "part": part,
             "true_x": true[:, 0], "true_y": true[:, 1], "true_z": true[:, 2],
             "classification": asprs_class(part, hag)}
+
+
+def _per_pulse(a: np.ndarray, s: int, layers: int) -> np.ndarray:
+    """``(layers * n * s,)`` layer-major hits -> ``(n, layers * s)`` per pulse."""
+    if layers == 1:
+        return a.reshape(-1, s)
+    return np.ascontiguousarray(a.reshape(layers, -1, s).transpose(1, 0, 2).reshape(
+        -1, layers * s))
 
 
 def _scan_block(world, scanner, leg, k, rng, line0):

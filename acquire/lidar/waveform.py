@@ -217,12 +217,18 @@ def _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, echo_r):
     r0 = cr[0] - (K + 1) * dr
     nb_ = min(int((cr[nc - 1] - r0) / dr) + K + 3, _MAX_BINS)
     buf = np.zeros(nb_)
+    c = np.exp(-1.0 / (sig_b * sig_b))
     for i in range(nc):
         u = (cr[i] - r0) / dr
         j0 = int(u)
-        for j in range(max(j0 - K, 0), min(j0 + K + 2, nb_)):
-            x = (j - u) / sig_b
-            buf[j] += ce[i] * norm * np.exp(-0.5 * x * x)
+        ja = max(j0 - K, 0)
+        x = (ja - u) / sig_b
+        g = ce[i] * norm * np.exp(-0.5 * x * x)        # the Gaussian at bin ja, then
+        a = np.exp(-x / sig_b - 0.5 / (sig_b * sig_b))  # its ratio bin to bin (3 exps)
+        for j in range(ja, min(j0 + K + 2, nb_)):
+            buf[j] += g
+            g *= a
+            a *= c
     return _peaks(buf, nb_, thr_amp, r0, dr, min_sep, max_ret, echo_r)
 
 

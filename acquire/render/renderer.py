@@ -175,7 +175,7 @@ def _embree_hits(scene: RenderScene, origins: np.ndarray, directions: np.ndarray
     hits, the object, its triangle in the object and in :meth:`RenderScene.flat_arrays`."""
     import open3d as o3d
 
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     rs, _, lut = scene.raycasting()
     face_offset = scene.flat_arrays()[3]
@@ -215,7 +215,7 @@ def centre_hits(scene: RenderScene, camera: Camera, hits: Hits, supersample: int
     of them miss is not in the ground truth either, as it is not in the image. (On an
     analytic shape the hit and normal are the shape's; the triangle and barycentrics are
     those of the pixel's first ray.)"""
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     ss = int(supersample) ** 2
     o, d = camera_rays(camera, 1)
@@ -260,7 +260,7 @@ def _albedo_tables(scene: RenderScene):
     """Per object, what :func:`acquire.render._kernels.albedo_fast` needs: the albedo
     code (constant, 'fbm', or other), the object-from-world transform, the texture's
     scale, contrast, colour and permutation."""
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
     from procgen.noise.perlin import perm_table
 
     k = len(scene.objects)
@@ -284,7 +284,7 @@ def _albedo_tables(scene: RenderScene):
 def albedo(scene: RenderScene, hits: Hits) -> np.ndarray:
     """Material albedo ``(n, 3)`` at the hits (0 on misses)."""
     from acquire.render.materials import FBM_OCTAVES
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     out = np.zeros((len(hits.hit), 3))
     code, Tinv, scale, contrast, base, perms = _albedo_tables(scene)
@@ -419,7 +419,7 @@ def bounce_rays(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.
     structured-light capture): the indirect radiance is ``weight * L``. ``alb``: the
     albedo at the hits ``rows``, when the caller has it already."""
     from acquire.render.brdf import sample_mixture
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else rows
     rows = np.asarray(rows, np.int64)
@@ -480,7 +480,7 @@ def one_bounce(scene: RenderScene, hits: Hits, rows: np.ndarray, view_dirs: np.n
 def _add_one_bounce(out: np.ndarray, out_rows: np.ndarray, scene: RenderScene, hits: Hits,
                     rows: np.ndarray, view_dirs: np.ndarray, *, lights, rng, alb) -> None:
     """:func:`one_bounce`'s radiance at the hits ``rows`` added into ``out[out_rows]``."""
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     lights = scene.lights if lights is None else lights
     b = bounce_rays(scene, hits, rows, view_dirs, rng=rng, alb=alb)
@@ -534,7 +534,7 @@ def _lambert(scene: RenderScene, hits: Hits, lights, ambient: float,
     import open3d as o3d
 
     from acquire.render.lights import FAR, DirectionalLight, PointLight
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     n = len(hits.hit)
     E = np.full((n, 3), ambient)
@@ -749,7 +749,7 @@ def camera_rays(camera: Camera, supersample: int = 1) -> tuple[np.ndarray, np.nd
     """``camera.rays(camera.pixel_grid(supersample=s))``: origins and directions of the
     s x s rays of every pixel (a compiled kernel for an undistorted camera, whose
     origins are one read-only row broadcast to every ray)."""
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     s = int(supersample)
     if np.any(camera.dist) or s < 1:
@@ -780,7 +780,7 @@ def render(scene: RenderScene, camera: Camera, *, supersample: int = 2, lights=N
     seed : int
         Seeds the indirect directions (same seed, same bytes).
     """
-    from acquire.render.renderer import _kernels as rk
+    from acquire.render import _kernels as rk
 
     if bounces not in (0, 1):
         raise ValueError(f"bounces: expected 0 or 1, got {bounces!r}")

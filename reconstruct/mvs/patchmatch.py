@@ -165,7 +165,7 @@ def _stack(views: Sequence[View], idx: Sequence[int], maps=None):
 
 def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
               init: DepthMap | None, maps) -> DepthMap:
-    from reconstruct.mvs.pipeline import _patchmatch_kernels as pk
+    from reconstruct.mvs import _patchmatch_kernels as pk
 
     v = views[i]
     cam = v.camera
