@@ -70,7 +70,7 @@ def stand(bundle) -> Path:
     objs = []
     for k, sp in enumerate(("PIAB", "ABAL", "PISY", "FASY", "BEPE")):
         m = grow_tree(sp, rng=np.random.default_rng(k))
-        v, f, p = place_tree(m, position=(9.0 * k, 0.0, 0.0), height=20.0)
+        v, f, p = place_tree(m, position=(13.0 * k, 0.0, 0.0), height=20.0)
         objs.append(_Obj(v, f, lut[p]))
     pl.add_mesh(_part_mesh(objs), scalars="rgb", rgb=True)
     pl.view_xz()
