@@ -120,7 +120,8 @@ class TreeModel:
     parts : (m,) uint8
         Index into :data:`TREE_PARTS` per triangle.
     crown_radius : float
-        Largest horizontal distance of a leaf from the stem axis (height units).
+        Horizontal distance from the stem axis within which 90 % of the leaf vertices lie
+        (height units): where the foliage ends, as an inventory's crown radius says.
     stem_radius : float
         Stem radius at breast height for a tree 1 unit tall... as built (height units);
         :func:`place_tree` rescales the stem to the diameter asked for.
@@ -246,7 +247,9 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
     top = float(V[:, 2].max())
     V = V / top
     leafy = V[F[P == 2].ravel()] if np.any(P == 2) else V
-    crown = float(np.hypot(leafy[:, 0], leafy[:, 1]).max())
+    # the crown's radius as an inventory measures it (the edge of the foliage, not the
+    # tip of the longest shoot): 90 % of the leaf vertices lie within it
+    crown = float(np.percentile(np.hypot(leafy[:, 0], leafy[:, 1]), 90))
     stem_w = res.widths[res.colors == 0]
     return TreeModel(V, F, P, crown, float(stem_w.max()) / 2 / top, sp.form)
 
