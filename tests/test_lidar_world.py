@@ -221,6 +221,9 @@ def test_matching_rule_on_hand_made_cases():
     refs = np.array([[0.0, 0.0, 10.0], [4.4, 0.0, 12.0]])  # limits 3.5 m and 3.78 m
     det = np.array([[2.1, 0.0, 11.0]])  # 2.326 m (index 0.6646) and 2.508 m (0.6635)
     assert match_trees(refs, det).tolist() == [[1, 0]]
+    # nothing found: every tree omitted, F = 0 (not an error)
+    none = tree_scores(refs, np.empty((0, 3)))
+    assert (none["matched"], none["omission"], none["f"]) == (0, 1.0, 0.0)
 
 
 def _write_survey(path, pts, cls, *, wkt=None):

@@ -167,7 +167,7 @@ def evaluate_lidar(result_dir, truth_dir) -> dict:
     from core.trees_io import read_tree_table
 
     result_dir, truth_dir = Path(result_dir), Path(truth_dir)
-    det = read_tree_table(result_dir / "trees.csv")
+    det = read_tree_table(result_dir / "trees.csv", allow_empty=True)
     ref = read_tree_table(truth_dir / "trees.csv")
     dtm = read_raster(result_dir / "dtm.tif")
     truth_dtm = read_raster(truth_dir / "dtm.tif")
