@@ -75,18 +75,18 @@ class Species:
 
 
 SPECIES = {s.code: s for s in (
-    Species("PIAB", "Picea abies", "conifer", 0.75, 0.16, 80, 0.25, 5),
-    Species("ABAL", "Abies alba", "conifer", 0.65, 0.15, 85, 0.10, 5),
-    Species("PISY", "Pinus sylvestris", "conifer", 0.35, 0.18, 60, 0.05, 4),
-    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.16, 75, 0.15, 5),
-    Species("LADE", "Larix decidua", "conifer", 0.55, 0.15, 70, 0.15, 5),
-    Species("PIPO", "Pinus ponderosa", "conifer", 0.45, 0.17, 65, 0.05, 4),
-    Species("FASY", "Fagus sylvatica", "broadleaf", 0.60, 0.30, 35, 0.0, 6),
-    Species("QURO", "Quercus robur", "broadleaf", 0.55, 0.35, 45, 0.0, 6),
-    Species("BEPE", "Betula pendula", "broadleaf", 0.60, 0.22, 30, 0.1, 6),
-    Species("ACPS", "Acer pseudoplatanus", "broadleaf", 0.55, 0.30, 40, 0.0, 6),
-    Species("GENB", "generic broadleaf", "broadleaf", 0.55, 0.28, 40, 0.0, 6),
-    Species("GENC", "generic conifer", "conifer", 0.60, 0.16, 75, 0.10, 5),
+    Species("PIAB", "Picea abies", "conifer", 0.75, 0.12, 80, 0.25, 5),
+    Species("ABAL", "Abies alba", "conifer", 0.65, 0.12, 85, 0.10, 5),
+    Species("PISY", "Pinus sylvestris", "conifer", 0.35, 0.14, 60, 0.05, 4),
+    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.13, 75, 0.15, 5),
+    Species("LADE", "Larix decidua", "conifer", 0.55, 0.12, 70, 0.15, 5),
+    Species("PIPO", "Pinus ponderosa", "conifer", 0.45, 0.14, 65, 0.05, 4),
+    Species("FASY", "Fagus sylvatica", "broadleaf", 0.60, 0.20, 35, 0.0, 6),
+    Species("QURO", "Quercus robur", "broadleaf", 0.55, 0.24, 45, 0.0, 6),
+    Species("BEPE", "Betula pendula", "broadleaf", 0.60, 0.16, 30, 0.1, 6),
+    Species("ACPS", "Acer pseudoplatanus", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
+    Species("GENB", "generic broadleaf", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
+    Species("GENC", "generic conifer", "conifer", 0.60, 0.13, 75, 0.10, 5),
 )}
 """The species known by code; :func:`species_for` also takes the Latin names."""
 
