@@ -52,7 +52,8 @@ def _number(text: str, *, path, column: str, row: int) -> float:
 
 def read_tree_table(path: str | os.PathLike, *,
                     required: Sequence[str] = ("x", "y", "height"),
-                    optional: Sequence[str] = ()) -> dict[str, np.ndarray]:
+                    optional: Sequence[str] = (), allow_empty: bool = False
+                    ) -> dict[str, np.ndarray]:
     """Read a tree table: ``dict column -> (n,) array`` (float64, text columns as str).
 
     Parameters
@@ -62,6 +63,9 @@ def read_tree_table(path: str | os.PathLike, *,
         Columns that must be present (matched without regard to case and spaces).
     optional : sequence of str
         Columns read when present; every other column is read too.
+    allow_empty : bool
+        A header without rows is a table of no trees (a detection that found none), not
+        an error.
 
     Raises
     ------
@@ -85,7 +89,7 @@ def read_tree_table(path: str | os.PathLike, *,
         if col not in header:
             raise InputError(f"missing column; the file has {', '.join(header)}", path=path,
                              field=col)
-    if len(rows) == 1:
+    if len(rows) == 1 and not allow_empty:
         raise InputError("no trees: the file has only its header", path=path, field="rows")
     out: dict[str, list] = {h: [] for h in header}
     for k, r in enumerate(rows[1:], start=2):

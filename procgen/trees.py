@@ -75,18 +75,18 @@ class Species:
 
 
 SPECIES = {s.code: s for s in (
-    Species("PIAB", "Picea abies", "conifer", 0.75, 0.16, 80, 0.25, 5),
-    Species("ABAL", "Abies alba", "conifer", 0.65, 0.15, 85, 0.10, 5),
-    Species("PISY", "Pinus sylvestris", "conifer", 0.35, 0.18, 60, 0.05, 4),
-    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.16, 75, 0.15, 5),
-    Species("LADE", "Larix decidua", "conifer", 0.55, 0.15, 70, 0.15, 5),
-    Species("PIPO", "Pinus ponderosa", "conifer", 0.45, 0.17, 65, 0.05, 4),
-    Species("FASY", "Fagus sylvatica", "broadleaf", 0.60, 0.30, 35, 0.0, 6),
-    Species("QURO", "Quercus robur", "broadleaf", 0.55, 0.35, 45, 0.0, 6),
-    Species("BEPE", "Betula pendula", "broadleaf", 0.60, 0.22, 30, 0.1, 6),
-    Species("ACPS", "Acer pseudoplatanus", "broadleaf", 0.55, 0.30, 40, 0.0, 6),
-    Species("GENB", "generic broadleaf", "broadleaf", 0.55, 0.28, 40, 0.0, 6),
-    Species("GENC", "generic conifer", "conifer", 0.60, 0.16, 75, 0.10, 5),
+    Species("PIAB", "Picea abies", "conifer", 0.75, 0.12, 80, 0.25, 5),
+    Species("ABAL", "Abies alba", "conifer", 0.65, 0.12, 85, 0.10, 5),
+    Species("PISY", "Pinus sylvestris", "conifer", 0.35, 0.14, 60, 0.05, 4),
+    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.13, 75, 0.15, 5),
+    Species("LADE", "Larix decidua", "conifer", 0.55, 0.12, 70, 0.15, 5),
+    Species("PIPO", "Pinus ponderosa", "conifer", 0.45, 0.14, 65, 0.05, 4),
+    Species("FASY", "Fagus sylvatica", "broadleaf", 0.60, 0.20, 35, 0.0, 6),
+    Species("QURO", "Quercus robur", "broadleaf", 0.55, 0.24, 45, 0.0, 6),
+    Species("BEPE", "Betula pendula", "broadleaf", 0.60, 0.16, 30, 0.1, 6),
+    Species("ACPS", "Acer pseudoplatanus", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
+    Species("GENB", "generic broadleaf", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
+    Species("GENC", "generic conifer", "conifer", 0.60, 0.13, 75, 0.10, 5),
 )}
 """The species known by code; :func:`species_for` also takes the Latin names."""
 
@@ -120,7 +120,8 @@ class TreeModel:
     parts : (m,) uint8
         Index into :data:`TREE_PARTS` per triangle.
     crown_radius : float
-        Largest horizontal distance of a leaf from the stem axis (height units).
+        Horizontal distance from the stem axis within which 90 % of the leaf vertices lie
+        (height units): where the foliage ends, as an inventory's crown radius says.
     stem_radius : float
         Stem radius at breast height for a tree 1 unit tall... as built (height units);
         :func:`place_tree` rescales the stem to the diameter asked for.
@@ -150,15 +151,17 @@ def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int) -> str:
                     for _ in range(k))
     # the crown is the last `years` whorls; the bole below it has shed its branches
     bole = years * internode * (1.0 - sp.crown_ratio) / sp.crown_ratio
-    s = 0.22
+    # needle clusters: two pairs on the sides of each year's shoot and one ahead, large
+    # enough that a crown is as opaque to a laser as a real one (several layers deep)
+    s = 0.5
     needle = _NEEDLE.format(s=s)
     return "\n".join([
         f"n: {years}",
         f"tropism: 0, 0, -1, {0.3 * sp.droop:.3f}",
         f"axiom: '(0)!(0.3)F({bole:.3f})A(0.25)",
         f"A(w) -> !(w)F({internode})[{whorl}]/(137.5)A(w * 0.85)",
-        f"B(l) -> !(0.04)F(l)[-(55)$!(0.02){needle}]"
-        f"[+(55)$!(0.02){needle}]{needle}B(l * {gr})",
+        f"B(l) -> !(0.04)F(l)[-(55)${needle}][+(55)${needle}]/(90)[-(40)${needle}]"
+        f"[+(40)${needle}]{needle}B(l * {gr})",
     ])
 
 
@@ -166,8 +169,8 @@ def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
     depth = sp.whorl
     a = sp.branch_angle + rng.uniform(-5, 5)
     bole = (1.0 - sp.crown_ratio) * 12.0
-    leaf = _LEAF.format(s=0.35)
-    cluster = f"{leaf}/(120){leaf}/(120){leaf}"
+    leaf = _LEAF.format(s=1.2)
+    cluster = "/(72)".join([leaf] * 5)
     fork2 = (f"[&({a:.1f})!(w * 0.7)F(l)X(l * 0.82, w * 0.7, d + 1)]/(180)"
              f"[&({a * 0.8:.1f})!(w * 0.7)F(l * 0.9)X(l * 0.8, w * 0.7, d + 1)]")
     fork3 = (f"[&({a:.1f})!(w * 0.65)F(l)X(l * 0.82, w * 0.65, d + 1)]/(120)"
@@ -177,11 +180,11 @@ def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
         f"n: {depth + 1}",
         f"tropism: 0, 0, 1, {0.12 - sp.droop:.3f}",
         f"axiom: '(0)!(0.4)F({bole:.3f})'(1)X(3.2, 0.3, 0)",
-        f"X(l, w, d) : d < {depth - 3} -(0.55)-> /(137.5){fork2}",
-        f"X(l, w, d) : d < {depth - 3} -(0.45)-> /(137.5){fork3}",
+        f"X(l, w, d) : d < 1 -(0.55)-> /(137.5){fork2}",
+        f"X(l, w, d) : d < 1 -(0.45)-> /(137.5){fork3}",
         # the outer forks carry leaves along them too, not only at their tips
-        f"X(l, w, d) : d >= {depth - 3} && d < {depth - 1} -(0.55)-> /(137.5){leaf}{fork2}",
-        f"X(l, w, d) : d >= {depth - 3} && d < {depth - 1} -(0.45)-> /(137.5){leaf}{fork3}",
+        f"X(l, w, d) : d >= 1 && d < {depth - 1} -(0.55)-> /(137.5){cluster}{fork2}",
+        f"X(l, w, d) : d >= 1 && d < {depth - 1} -(0.45)-> /(137.5){cluster}{fork3}",
         f"X(l, w, d) : d >= {depth - 1} -> {cluster}F(l * 0.5){cluster}",
     ])
 
@@ -244,7 +247,9 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
     top = float(V[:, 2].max())
     V = V / top
     leafy = V[F[P == 2].ravel()] if np.any(P == 2) else V
-    crown = float(np.hypot(leafy[:, 0], leafy[:, 1]).max())
+    # the crown's radius as an inventory measures it (the edge of the foliage, not the
+    # tip of the longest shoot): 90 % of the leaf vertices lie within it
+    crown = float(np.percentile(np.hypot(leafy[:, 0], leafy[:, 1]), 90))
     stem_w = res.widths[res.colors == 0]
     return TreeModel(V, F, P, crown, float(stem_w.max()) / 2 / top, sp.form)
 

@@ -18,15 +18,19 @@ OUTPUT = "file"
 OUTPUT_DEST = "json"
 CONFIG = EvaluateConfig
 HELP = ("score a reconstruction (mesh or point cloud) against a ground-truth surface: "
-        "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff")
+        "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff; or a "
+        "'reconstruct lidar' folder against a forest scene's truth: tree detection, heights, "
+        "DTM")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recon", type=Path, metavar="RECON",
                         help="reconstructed mesh or point cloud (.ply .obj .stl .off .glb "
-                             ".pcd .xyz ...); a file without faces is a point cloud")
+                             ".pcd .xyz ...); a file without faces is a point cloud; or a "
+                             "'reconstruct lidar' folder (trees.csv, dtm.tif)")
     parser.add_argument("--reference", type=Path, default=None, metavar="GT",
-                        help="ground-truth mesh (or point cloud); required unless "
+                        help="ground-truth mesh (or point cloud); for a LiDAR result, the forest "
+                             "scene folder (its trees.csv and dtm.tif); required unless "
                              "--poses-reference is given")
     parser.add_argument("--poses-reference", type=Path, default=None, metavar="FILE",
                         help="reference scan poses (.conf or poses.json): compare the poses "
@@ -51,6 +55,8 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     if args.reference is None:
         raise InputError("expected --reference GT (or --poses-reference FILE)",
                          field="--reference")
+    if args.recon.is_dir() and (args.recon / "trees.csv").is_file():
+        return _run_lidar(args)
     recon = read_geometry(args.recon)
     reference = read_geometry(args.reference)
     align = config.align
@@ -131,4 +137,17 @@ def _run_poses(args: argparse.Namespace) -> int:
         write_json(args.json, {"recon": str(args.recon),
                                "poses_reference": str(args.poses_reference),
                                **errors.to_dict()})
+    return 0
+
+
+def _run_lidar(args: argparse.Namespace) -> int:
+    """A LiDAR result against a forest scene: lidaRtRee's tree matching and the DTM."""
+    from core.files import write_json
+    from reconstruct.lidar.evaluation import evaluate_lidar, lidar_table
+
+    scores = evaluate_lidar(args.recon, args.reference)
+    sys.stdout.write(f"{args.recon} vs {args.reference}\n{lidar_table(scores)}\n")
+    if args.json is not None:
+        write_json(args.json, {"recon": str(args.recon), "reference": str(args.reference),
+                               **scores})
     return 0

@@ -403,6 +403,45 @@ def _run_amplified(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
     return report
 
 
+# -- LiDAR surveys of a forest (scanamp capture lidar -> reconstruct lidar -> evaluate) ------
+def _load_lidar(path: Path):
+    from acquire.lidar.capture import LidarCaptureConfig
+    from core.config import load_config
+
+    return load_config(LidarCaptureConfig, path)
+
+
+def _lidar_recon():
+    from reconstruct.lidar.pipeline import LidarReconConfig
+
+    return LidarReconConfig()
+
+
+def _run_lidar(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
+               material: dict | None = None) -> dict:
+    """Build the forest (its truth: trees.csv, dtm.tif), fly it, reconstruct, score."""
+    import json
+
+    from data_synth.scenes import build_scene, write_scene
+    from reconstruct.lidar.evaluation import evaluate_lidar
+    from reconstruct.lidar.pipeline import run as run_lidar
+    from scanamp.lidar_run import run_lidar_capture
+
+    if material:
+        raise InputError("a LiDAR study takes no material overrides", field="material")
+    bundle = build_scene(scene)
+    if not getattr(bundle, "trees", None):
+        raise InputError("a LiDAR study needs a forest scene (its truth: trees and terrain)",
+                         field="study.scene")
+    scene_dir = write_scene(bundle, work / "scene")
+    capture = run_lidar_capture(str(scene_dir), dataclasses.replace(cap_cfg, seed=seed),
+                                work / "capture")
+    recon = run_lidar(rec_cfg, work / "capture" / "points.laz", work / "reconstruction")
+    report = json.loads((Path(recon) / "report.json").read_text())
+    return {"capture": capture, "reconstruction": report,
+            "evaluation": evaluate_lidar(recon, scene_dir)}
+
+
 @dataclass
 class _TestConfig:
     """Test-only kind: ``y = x**2``; ``sleep`` seconds; ``fail_above``: raise when x >
@@ -466,5 +505,7 @@ KINDS: dict[str, Kind] = {
     "peak-detector": Kind("peak-detector", _load("laser"), _recon("laser"), _run_peaks,
                           ("peak_error.rms_px", "peak_error.detection_rate",
                            "peak_error.outlier_rate")),
+    "lidar": Kind("lidar", _load_lidar, _lidar_recon, _run_lidar,
+                  ("evaluation.trees.f", "evaluation.dtm.rmse", "evaluation.trees.height_rmse")),
     "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",)),
 }

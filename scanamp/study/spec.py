@@ -5,7 +5,7 @@ Format (``scanamp/studies/*.toml`` are the shipped examples)::
     [study]
     name = "laser-angle"
     kind = "laser"            # laser | stereo | structured-light | sfm | peak-detector |
-                              # amplified-laser
+                              # amplified-laser | lidar
     scene = "object"          # built-in scene name, scene folder or .toml (relative to this file)
     seed = 0                  # every run uses it (common random numbers) unless "seed" is swept
     mode = "grid"             # grid (Cartesian product) or random

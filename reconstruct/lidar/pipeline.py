@@ -1,0 +1,188 @@
+"""``scanamp reconstruct lidar POINTS.laz --out DIR``: terrain, canopy and trees of a survey.
+
+For simulated and real surveys alike: read the LAS/LAZ file; classify the ground with the
+cloth simulation filter when the file has no ground class (ASPRS 2) or with
+``reclassify``; interpolate the DTM from the ground, the CHM from every point's height
+above it; find the trees (tops and crowns). Writes, in the file's coordinates and CRS:
+
+- ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.raster_io`);
+- ``trees.csv`` -- ``tree_id, x, y, height, crown_area``;
+- ``classified.laz`` -- the points with their ground class (2), others keep theirs
+  (a point the file called ground that the filter did not is 1, unclassified);
+- ``report.json`` -- counts, shares, timings.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.config import Config, option
+from core.files import atomic_dir, write_json
+from core.las_io import LasWriter, read_las
+from core.raster_io import write_raster
+from core.trees_io import write_tree_table
+from core.validate import InputError
+from reconstruct.lidar.ground import GroundOptions, classify_ground
+from reconstruct.lidar.rasters import canopy_height, dtm_from_ground
+from reconstruct.lidar.trees import TreeOptions, detect_trees
+
+__all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
+
+log = logging.getLogger(__name__)
+
+GROUND_CLASS = 2
+NOISE_CLASSES = (7, 18)  # low and high noise: never ground, never canopy
+
+
+@dataclass
+class LidarReconConfig(Config):
+    """Options of ``scanamp reconstruct lidar``."""
+
+    reclassify: bool = option(False, help="classify the ground even when the file has a "
+                                          "ground class")
+    resolution: float = option(0.5, unit="m", range="(0, 50]", help="DTM and CHM cell size")
+    ground: GroundOptions = option(default_factory=GroundOptions,
+                                   help="the cloth simulation filter")
+    trees: TreeOptions = option(default_factory=TreeOptions, help="the tree detection")
+
+
+@dataclass
+class LidarResult:
+    """What :func:`reconstruct_points` found (rasters and trees in the points' coordinates)."""
+
+    ground: np.ndarray  # (n,) bool
+    reclassified: bool
+    dtm: object  # Raster
+    chm: object  # Raster
+    trees: dict  # x, y, height, crown_area (k,), crowns (rows, cols)
+    timings: dict
+
+
+def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
+                       crs_wkt: str | None = None, path=None) -> LidarResult:
+    """Ground, DTM, CHM and trees of a point cloud given as LAS dimensions.
+
+    Parameters
+    ----------
+    points : dict of (n,) arrays
+        ``x, y, z`` (float64), and when present ``classification``, ``return_number``,
+        ``number_of_returns``.
+    config : LidarReconConfig, optional
+    crs_wkt : str, optional
+        Carried to the rasters.
+    path : optional
+        The file named in errors.
+    """
+    c = config or LidarReconConfig()
+    xyz = np.column_stack([points["x"], points["y"], points["z"]])
+    n = len(xyz)
+    if n == 0:
+        raise InputError("the file has no points", path=path, field="points")
+    cls = points.get("classification")
+    noise = np.isin(cls, NOISE_CLASSES) if cls is not None else np.zeros(n, bool)
+    t = {}
+    t0 = time.perf_counter()
+    has_ground = cls is not None and np.any(cls == GROUND_CLASS)
+    reclassified = bool(c.reclassify or not has_ground)
+    if reclassified:
+        last = None
+        if "return_number" in points and "number_of_returns" in points:
+            last = points["return_number"] >= points["number_of_returns"]
+        keep = np.flatnonzero(~noise)
+        ground = np.zeros(n, bool)
+        if len(keep):
+            ground[keep] = classify_ground(xyz[keep], options=c.ground,
+                                           last=None if last is None else last[keep])
+    else:
+        ground = cls == GROUND_CLASS
+    t["ground_s"] = time.perf_counter() - t0
+    if ground.sum() < 3:
+        raise InputError(f"no ground: {int(ground.sum())} ground points, a terrain needs at "
+                         "least 3", path=path, field="classification")
+    t0 = time.perf_counter()
+    lo, hi = xyz[:, :2].min(axis=0), xyz[:, :2].max(axis=0)
+    try:
+        dtm = dtm_from_ground(xyz[ground], bounds=(*lo, *hi), res=c.resolution,
+                              crs_wkt=crs_wkt)
+    except ValueError as e:
+        raise InputError(str(e), path=path, field="classification") from None
+    chm = canopy_height(xyz[~noise], dtm)
+    t["rasters_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    trees = detect_trees(chm, options=c.trees)
+    t["trees_s"] = time.perf_counter() - t0
+    return LidarResult(ground, reclassified, dtm, chm, trees, t)
+
+
+def _classified(points: dict, ground: np.ndarray) -> np.ndarray:
+    cls = points.get("classification")
+    out = (np.ones(len(ground), np.uint8) if cls is None else np.asarray(cls, np.uint8).copy())
+    out[(out == GROUND_CLASS) & ~ground] = 1
+    out[ground] = GROUND_CLASS
+    return out
+
+
+def run(config: LidarReconConfig, points_path, out_dir) -> Path:
+    """Reconstruct terrain, canopy and trees of a LAS/LAZ file into ``out_dir``."""
+    points_path = Path(points_path)
+    t0 = time.perf_counter()
+    points, info = read_las(points_path)
+    t_read = time.perf_counter() - t0
+    res = reconstruct_points(points, config=config, crs_wkt=info.crs_wkt, path=points_path)
+    tr = res.trees
+    n = info.point_count
+    cls = _classified(points, res.ground)
+    veg_h = _heights(points, res)
+    report = {
+        "input": str(points_path), "points": n, "crs": info.crs_wkt,
+        "ground": {"reclassified": res.reclassified, "points": int(res.ground.sum()),
+                   "share": float(res.ground.mean())},
+        "rasters": {"resolution_m": config.resolution, "shape": list(res.dtm.values.shape)},
+        "trees": {"count": int(len(tr["x"])),
+                  "height_p50_m": float(np.median(tr["height"])) if len(tr["x"]) else None},
+        "vegetation_height": veg_h,
+        "timings": {"read_s": t_read, **res.timings},
+    }
+    t0 = time.perf_counter()
+    with atomic_dir(out_dir) as tmp:
+        write_raster(tmp / "dtm.tif", res.dtm)
+        write_raster(tmp / "chm.tif", res.chm)
+        write_tree_table(tmp / "trees.csv", {"tree_id": np.arange(1, len(tr["x"]) + 1),
+                                             "x": tr["x"], "y": tr["y"],
+                                             "height": tr["height"],
+                                             "crown_area": tr["crown_area"]})
+        _write_classified(tmp / "classified.laz", points, info, cls)
+        report["timings"]["write_s"] = time.perf_counter() - t0
+        write_json(tmp / "report.json", report)
+    return Path(out_dir)
+
+
+def _heights(points: dict, res: LidarResult) -> dict:
+    from reconstruct.lidar.rasters import height_above
+
+    xyz = np.column_stack([points["x"], points["y"], points["z"]])
+    h = height_above(res.dtm, xyz)
+    veg = h[(~res.ground) & (h > 2.0)]
+    return {"p50_m": float(np.percentile(veg, 50)) if len(veg) else None,
+            "p95_m": float(np.percentile(veg, 95)) if len(veg) else None,
+            "above_2m_share": float(len(veg) / len(h))}
+
+
+def _write_classified(path: Path, points: dict, info, cls: np.ndarray) -> None:
+    extra = {k: np.asarray(points[k]).dtype for k in info.extra_dims}
+    out = {k: v for k, v in points.items()}
+    out["classification"] = cls
+    for name in ("return_number", "number_of_returns"):  # some surveys write 0 for unknown
+        if name in out:
+            out[name] = np.clip(out[name], 1, 15)
+    origin = np.floor(np.array([points["x"].min(), points["y"].min(), points["z"].min()]))
+    scale = float(min(info.scales.min(), 0.001)) if len(info.scales) else 0.001
+    with LasWriter(path, origin=origin, scale=scale, extra=extra, crs_wkt=info.crs_wkt) as w:
+        step = 1_000_000
+        for a in range(0, len(cls), step):
+            w.write({k: v[a:a + step] for k, v in out.items()})
