@@ -22,9 +22,9 @@ def test_notebook_runs_top_to_bottom(path, tmp_path):
 
 
 
-def test_the_five_walkthroughs_are_shipped_with_their_outputs():
+def test_the_seven_walkthroughs_are_shipped_with_their_outputs():
     paths = _execute.notebooks()
-    assert [p.stem[:2] for p in paths] == ["01", "02", "03", "04", "05"], paths
+    assert [p.stem[:2] for p in paths] == ["01", "02", "03", "04", "05", "06", "07"], paths
     import nbformat
 
     for path in paths:  # stored executed, so a reader sees the plots without running them
