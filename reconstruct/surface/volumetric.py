@@ -508,7 +508,8 @@ def _grid(scans, model_from_scans, h: float, opt: MergeOptions) -> _Grid:
 _CHUNK = 8   # voxels per edge of the chunks that narrow-band culling decides on
 
 
-def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float) -> np.ndarray:
+def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float,
+                 fill: bool) -> np.ndarray:
     """(cx, cy, cz) bool: chunks of ``_CHUNK``^3 voxels within the band (plus the longest
     triangle edge) of some sample: the only ones where a scan can observe a voxel."""
     from scipy.ndimage import binary_dilation
@@ -519,8 +520,11 @@ def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float) -> np.nd
         p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
         c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // _CHUNK
         near[c[:, 0], c[:, 1], c[:, 2]] = True
-    # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's
-    r = int(np.ceil((grid.band + max_edge + grid.h) / (_CHUNK * grid.h)))
+    # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's;
+    # with fill_holes one more ring, integrated voxel by voxel: far chunks only sample
+    # the carving at their corners, which misses thin carved lines of sight (measured on
+    # the dragon: 430 instead of 178 cm^2 of closing surface without it)
+    r = int(np.ceil((grid.band + max_edge + grid.h) / (_CHUNK * grid.h))) + int(fill)
     return binary_dilation(near, np.ones((2 * r + 1,) * 3, bool))
 
 
@@ -696,7 +700,8 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     corners = grid.corners()
     views = [_virtual_view(s, T, h, opt, n, corners, float(np.median(d)))
              for s, T, n, d in zip(scans, Ts, names, lengths, strict=True)]
-    near = _near_chunks(scans, Ts, grid, float(np.percentile(np.concatenate(lengths), 99)))
+    near = _near_chunks(scans, Ts, grid, float(np.percentile(np.concatenate(lengths), 99)),
+                        opt.fill_holes)
     samples = None
     if not opt.fill_holes and opt.edge_fill_voxels > 0:
         from scipy.spatial import cKDTree
