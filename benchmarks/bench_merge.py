@@ -8,7 +8,7 @@ against Open3D's screened Poisson of the same posed scans, in the same run.
    house's 2 % density trim). Target: ours at least as high as the best Poisson.
 2. The same on 12 finer pinhole range scans rendered here (320 x 240, 0.1 mm noise).
 3. Real: the Stanford dragon's 15 Cyberware range images on their published poses
-   (``../shared/data/real/dragon_stand``, or ``$SCANAMP_REAL/dragon_stand``): time
+   (``../shared/data/real/dragon_stand``, or ``$SCANAMP_REAL_DATA/dragon_stand``): time
    against Poisson (depth 10) in the same process; peak memory of the merge in a
    process of its own (VmHWM of the whole process: interpreter, numpy, Open3D and VTK
    included; target < 2 GB); watertight with ``fill_holes``; distance of the scan
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# the real data beside the repository (``../shared/data/real``), or where SCANAMP_REAL says
-REAL = Path(os.environ.get("SCANAMP_REAL", Path(__file__).resolve().parents[2] / "shared" / "data"
+# the real data beside the repository (``../shared/data/real``), or where SCANAMP_REAL_DATA says
+REAL = Path(os.environ.get("SCANAMP_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"
                            / "real")) / "dragon_stand"
 sys.path.insert(0, str(ROOT))
 
