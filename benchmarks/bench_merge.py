@@ -29,8 +29,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 # the real data beside the repository (``../shared/data/real``), or where SCANAMP_REAL_DATA says
-REAL = Path(os.environ.get("SCANAMP_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"
-                           / "real")) / "dragon_stand"
+REAL = Path(os.environ.get("SCANAMP_REAL_DATA",
+                          ROOT.parent / "shared" / "data" / "real")) / "dragon_stand"
 sys.path.insert(0, str(ROOT))
 
 TAU = 0.5e-3

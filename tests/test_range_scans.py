@@ -12,10 +12,10 @@ from reconstruct.scans import (
     RangeScan,
     check_scans,
     load_scans,
-    sample_spacing,
     scan_from_grid,
     scan_from_points,
 )
+from reconstruct.surface import sample_spacing
 
 STEP = 1e-3     # grid spacing of the synthetic range images (m)
 
@@ -105,7 +105,7 @@ def test_transformed_moves_every_vector():
     np.testing.assert_allclose(np.einsum("ij,ij->i", m.normals, m.sight),
                                np.einsum("ij,ij->i", s.normals, s.sight))
     np.testing.assert_allclose(m.origin, T[:3, 3])
-    assert sample_spacing(s) == pytest.approx(STEP, rel=0.01)
+    assert sample_spacing([s]) == pytest.approx(STEP, rel=0.01)
 
 
 def test_load_scans_from_files_folders_e57_and_conf(tmp_path):

@@ -17,7 +17,6 @@ _EXPORTS = {
     "scan_from_grid": "scan",
     "scan_from_points": "scan",
     "grid_sight": "scan",
-    "sample_spacing": "scan",
     "load_scans": "load",
     "check_scans": "load",
     "scan_files": "load",

@@ -37,7 +37,7 @@ from core.meshes import face_normals, vertex_normals
 from core.range_io import RangeGrid
 from core.validate import InputError, check_array, check_range
 
-__all__ = ["RangeScan", "scan_from_grid", "scan_from_points", "grid_sight", "sample_spacing"]
+__all__ = ["RangeScan", "scan_from_grid", "scan_from_points", "grid_sight"]
 
 
 @dataclasses.dataclass
@@ -92,30 +92,6 @@ class RangeScan:
         return dataclasses.replace(self, points=self.points @ R.T + t,
                                    normals=self.normals @ R.T, sight=self.sight @ R.T,
                                    origin=R @ self.origin + t)
-
-
-def sample_spacing(scan: RangeScan) -> float:
-    """The scan's typical sample spacing (metres): for a range image the geometric mean of
-    the median distances between measured neighbours along its rows and along its columns
-    (the side of the square one sample covers); the median edge of a mesh's triangles; or
-    the median nearest-neighbour distance of a point cloud."""
-    if scan.grid is not None:
-        g, v = scan.grid, scan.points
-        axes = []
-        for a, b in ((g[:, :-1], g[:, 1:]), (g[:-1, :], g[1:, :])):
-            ok = (a >= 0) & (b >= 0)
-            if ok.any():
-                axes.append(np.median(np.linalg.norm(v[a[ok]] - v[b[ok]], axis=1)))
-        if axes:
-            return float(np.sqrt(np.prod(axes)) if len(axes) == 2 else axes[0])
-    if len(scan.triangles):
-        f = scan.triangles
-        v = scan.points
-        return float(np.median(np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)))
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(scan.points).query(scan.points, k=2)
-    return float(np.median(d[:, 1]))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
