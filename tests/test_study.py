@@ -220,7 +220,7 @@ def _cli_error(capsys, *argv):
     ("[study]\nkind='laser'\n[sweep]\n'reconstruct.detector' = ['gaussian', 'sobel']\n",
      "sweep.reconstruct.detector"),
     ("[study]\nkind='sfm'\n[base]\nviewz = 3\n[sweep]\nviews = [6, 12]\n", "base.viewz"),
-    ("[study]\nkind='lidar'\n[sweep]\nx = [1]\n", "study.kind"),
+    ("[study]\nkind='sonar'\n[sweep]\nx = [1]\n", "study.kind"),
     ("[study]\nkind='_test'\nmode='random'\nn=3\n[sweep]\nx = [1, 2]\n", "sweep.x"),
     ("[study]\nkind='laser'\n[sweep]\n'material.preset' = ['matte', 'velvet']\n",
      "sweep.material.preset"),
