@@ -277,7 +277,8 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     out = DepthMap(depth, normal, conf, [views[j].name for j in sources],
                    D.astype(np.float32), N.astype(np.float32))
     if want_mask:
-        out.source_mask = _source_mask(pk.source_costs(D, N, *args[:6], *args[7:13]), opt.source_margin)
+        costs = pk.source_costs(D, N, *args[:6], *args[7:13])
+        out.source_mask = _source_mask(costs, opt.source_margin)
     return out
 
 

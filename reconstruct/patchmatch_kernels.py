@@ -42,6 +42,21 @@ def _uniform(seed, a, b, c):
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
+@nb.njit(cache=True, inline="always")
+def _row(k, h):
+    """The k-th row a parallel loop visits: rows 0, 16, 32, ..., then 1, 17, ..., so that
+    each thread's contiguous share of the loop spans the whole image (the work per row
+    is uneven: textureless rows are cheap) and every core stays busy. Rows are
+    independent, so the order changes no result."""
+    r = k
+    for j in range(16):
+        n = (h - j + 15) // 16
+        if r < n:
+            return j + 16 * r
+        r -= n
+    return k
+
+
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def bilateral_weights(ref, radius, step, sigma_color, sigma_space):
     """Per-pixel window weights (H, W, n) and the weighted sums of the reference
@@ -118,6 +133,11 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
     for r in range(3):
         for c in range(3):
             H[r, c] = B[r, 0] * kinv[0, c] + B[r, 1] * kinv[1, c] + B[r, 2] * kinv[2, c]
+    s0 = stats[y, x, 0]
+    ma = stats[y, x, 1] / s0
+    va = stats[y, x, 2] / s0 - ma * ma
+    if va < min_var:  # a textureless window matches nothing: no need to warp it
+        return _BAD
     hs = sizes[s, 1]
     ws = sizes[s, 0]
     h, w = ref.shape
@@ -143,12 +163,9 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
             sbb += wt * b * b
             sab += wt * ref[yy, xx] * b
             k += 1
-    s0 = stats[y, x, 0]
-    ma = stats[y, x, 1] / s0
     mb = sb / s0
-    va = stats[y, x, 2] / s0 - ma * ma
     vb = sbb / s0 - mb * mb
-    if va < min_var or vb < min_var:
+    if vb < min_var:
         return _BAD
     ncc = (sab / s0 - ma * mb) / np.sqrt(va * vb)
     return 1.0 - max(-1.0, min(1.0, ncc))
@@ -278,7 +295,8 @@ def final_costs(D, N, C, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radi
     """The cost of every pixel's current plane (after initialisation, or to re-score)."""
     h, w = D.shape
     ns = ks.shape[0]
-    for y in nb.prange(h):
+    for k in nb.prange(h):
+        y = _row(k, h)
         scratch = np.empty(max(ns, 1))
         hb = np.empty((3, 3, 3))
         for x in range(w):
@@ -293,7 +311,8 @@ def source_costs(D, N, ref, wts, stats, src, sizes, kinv, ks, rs, ts, radius, st
     h, w = D.shape
     ns = ks.shape[0]
     out = np.empty((h, w, ns), np.float32)
-    for y in nb.prange(h):
+    for k in nb.prange(h):
+        y = _row(k, h)
         hb = np.empty((3, 3, 3))
         for x in range(w):
             for s in range(ns):
@@ -316,7 +335,8 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
     ns = ks.shape[0]
     idmin = 1.0 / dmin
     idmax = 1.0 / dmax
-    for y in nb.prange(h):
+    for k in nb.prange(h):
+        y = _row(k, h)
         scratch = np.empty(max(ns, 1))
         hb = np.empty((3, 3, 3))
         nrm = np.empty(3)
