@@ -36,8 +36,8 @@ class _Board:
     def scene_object(self, name: str, world_from_target: np.ndarray, *, object_id: int = 0,
                      px_per_square: int = 40):
         """A thin textured plane (with margin) to place in a render scene."""
-        from acquire.materials import Material
-        from acquire.scene import SceneObject
+        from acquire.render.materials import Material
+        from acquire.render.scene import SceneObject
         from core.meshes import make_mesh
 
         tex = self.texture(px_per_square)

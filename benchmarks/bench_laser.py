@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of, report
 
-from acquire.capture_laser import _hires, capture
-from acquire.laser import camera_directions
-from acquire.laser_rig import LaserCaptureConfig, LaserRig
+from acquire.laser.capture import _hires, capture
+from acquire.laser.rig import LaserCaptureConfig, LaserRig
+from acquire.laser.sheet import camera_directions
 from data_synth.scenes import build_scene
-from reconstruct.laser import LaserReconConfig, run
-from reconstruct.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks
+from reconstruct.laser.pipeline import LaserReconConfig, run
+from reconstruct.laser.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks
 
 
 def _bare_casting(scene, rig) -> float:
@@ -153,7 +153,7 @@ def detectors_and_extraction(cap):
 
 def camera_noise_free(scene, tmp):
     from acquire.sensor import Sensor
-    from reconstruct.calibrate_camera import calibrate_camera
+    from reconstruct.calibration.camera import calibrate_camera
 
     cfg = LaserCaptureConfig(rig=LaserRig(steps=1), sensor=Sensor.ideal())
     capture(scene.render_scene, cfg, tmp / "cap_ideal", np.random.default_rng(1))

@@ -23,10 +23,10 @@ from pathlib import Path
 import numpy as np
 from _timing import report
 
-from acquire.capture_laser import capture
-from acquire.laser_rig import LaserCaptureConfig, LaserRig
+from acquire.laser.capture import capture
+from acquire.laser.rig import LaserCaptureConfig, LaserRig
 from data_synth.scenes import build_scene
-from reconstruct.laser import LaserReconConfig, run
+from reconstruct.laser.pipeline import LaserReconConfig, run
 
 
 def main(k: int = 8):

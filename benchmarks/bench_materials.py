@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _frame(material, inc, view):
-    from acquire.laser import LaserRenderer
+    from acquire.laser.sheet import LaserRenderer
     from data_synth.plates import laser_plate
 
     lp = laser_plate(material, incidence_deg=inc, view_deg=view)
@@ -24,8 +24,8 @@ def _frame(material, inc, view):
 
 
 def main():
-    from acquire.materials import Material
-    from reconstruct.stripe import DETECTORS, StripeOptions, detect_peaks
+    from acquire.render.materials import Material
+    from reconstruct.laser.stripe import DETECTORS, StripeOptions, detect_peaks
 
     white = np.array([0.9, 0.9, 0.9])
     dets = [d for d in DETECTORS if d != "argmax"]
@@ -125,13 +125,13 @@ class _Ideal:
 def _groove() -> dict:
     """Structured light (the SL rig's Gray code) on a concave groove with one bounce:
     where the decoding errs and which patterns err (Gupta and Nayar)."""
-    from acquire.capture_sl import _render_patterns
-    from acquire.materials import Material
-    from acquire.patterns import gray_code_bits, gray_code_patterns
-    from acquire.projector import PatternProjector
-    from acquire.stereo_rig import RigConfig
+    from acquire.render.materials import Material
+    from acquire.render.projector import PatternProjector
+    from acquire.stereo.capture_sl import _render_patterns
+    from acquire.stereo.patterns import gray_code_bits, gray_code_patterns
+    from acquire.stereo.rig import RigConfig
     from data_synth.plates import v_groove
-    from reconstruct.structured_light import decode_gray_code, gray_bit_errors
+    from reconstruct.stereo.structured_light import decode_gray_code, gray_bit_errors
 
     cam, pcam = RigConfig().sl_devices()
     nc, _ = gray_code_bits(pcam.width, pcam.height)

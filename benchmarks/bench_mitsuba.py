@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main():
-    from acquire.mitsuba_reference import (
+    from acquire.render.mitsuba_reference import (
         REFERENCE_MATERIALS,
         agreement,
         corner_scene,
@@ -24,7 +24,7 @@ def main():
         render_reference,
         tone_map,
     )
-    from acquire.render import render
+    from acquire.render.renderer import render
 
     if not mitsuba_available():
         print("   Mitsuba 3 is not installed (pip install -e .[dev]); skipped")
@@ -87,8 +87,8 @@ def _one_bounce(panels):
     pixel, one indirect direction each, four seeds averaged (256 indirect samples per
     pixel); Mitsuba 1024 spp. Our Monte Carlo noise is measured as the difference between
     two halves of our samples (seeds 0-1 against 2-3), divided by sqrt 2 for the whole."""
-    from acquire.mitsuba_reference import agreement, corner_scene, render_reference
-    from acquire.render import render
+    from acquire.render.mitsuba_reference import agreement, corner_scene, render_reference
+    from acquire.render.renderer import render
 
     print("   one bounce: ours 8x8 rays x 4 seeds, Mitsuba max_depth 3 at 1024 spp")
     print("   | light | sphere | vs Mitsuba: tone-mapped, linear | our noise (tone-mapped) | "
@@ -124,8 +124,8 @@ def _subsurface(panels):
     to show what the single-scattering term brings."""
     import dataclasses
 
-    from acquire.mitsuba_reference import agreement, corner_scene, render_reference
-    from acquire.render import render
+    from acquire.render.mitsuba_reference import agreement, corner_scene, render_reference
+    from acquire.render.renderer import render
 
     print("   subsurface: the dipole and single scattering against the volumetric transport "
           "they approximate (Mitsuba volpath, 2 x 1024 spp)")

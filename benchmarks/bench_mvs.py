@@ -45,7 +45,7 @@ def _check(name, value, bound, higher=True, fmt="{:.3f}"):
 
 
 def _run(config, inp, out):
-    from reconstruct.sfm import run
+    from reconstruct.sfm.pipeline import run
 
     t = time.perf_counter()
     res = run(config, inp, out)
@@ -55,9 +55,9 @@ def _run(config, inp, out):
 
 
 def _config(method, **kw):
-    from reconstruct.mvs import MvsOptions
-    from reconstruct.patchmatch import PatchMatchOptions
-    from reconstruct.sfm import SfmConfig
+    from reconstruct.mvs.patchmatch import PatchMatchOptions
+    from reconstruct.mvs.pipeline import MvsOptions
+    from reconstruct.sfm.pipeline import SfmConfig
 
     if method == "full-res":  # the earlier path: every iteration at full resolution
         return SfmConfig(mvs=MvsOptions(patchmatch=PatchMatchOptions(coarse_to_fine=False)),
@@ -118,7 +118,7 @@ def renders(root: Path):
 
 
 def _columns_capture(root: Path) -> Path:
-    from acquire.capture_sfm import PathConfig, capture
+    from acquire.sfm.capture import PathConfig, capture
     from data_synth.scenes import build_scene
 
     bundle = build_scene("columns")

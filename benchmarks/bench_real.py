@@ -27,7 +27,7 @@ def _calibration():
     import cv2
 
     from acquire.targets import target_from_spec
-    from reconstruct.calibrate_images import calibrate_stereo_images, sorted_images
+    from reconstruct.calibration.images import calibrate_stereo_images, sorted_images
 
     left = sorted_images(str(DATA / "left[01]*.jpg"))
     right = sorted_images(str(DATA / "right[01]*.jpg"))
@@ -63,10 +63,11 @@ def _bare_sgbm(left, right, num):
 
 def _aloe():
     from core.image_io import read_image
-    from reconstruct.calib_io import write_stereo_yaml
-    from reconstruct.disparity_metrics import disparity_metrics
-    from reconstruct.stereo import StereoCalibration
-    from reconstruct.stereo_recon import StereoOptions, read_disparity, run_pair
+    from reconstruct.calibration.io import write_stereo_yaml
+    from reconstruct.calibration.rectify import StereoCalibration
+    from reconstruct.evaluation.disparity import disparity_metrics
+    from reconstruct.stereo.options import StereoOptions
+    from reconstruct.stereo.pair import read_disparity, run_pair
 
     L, R = DATA / "aloeL.jpg", DATA / "aloeR.jpg"
     gt = read_disparity(DATA / "aloeGT.png")

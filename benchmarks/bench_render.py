@@ -8,7 +8,7 @@ import numpy as np
 from _timing import best_of_interleaved, report
 
 from acquire.camera import Camera
-from acquire.render import render
+from acquire.render.renderer import render
 from data_synth.scenes import build_scene
 
 

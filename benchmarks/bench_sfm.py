@@ -27,7 +27,7 @@ from _timing import report  # noqa: E402
 
 
 def _capture(root: Path) -> Path:
-    from acquire.capture_sfm import PathConfig, capture
+    from acquire.sfm.capture import PathConfig, capture
     from data_synth.scenes import build_scene
 
     out = root / "orbit24"
@@ -43,7 +43,8 @@ def _bare(cap: Path, work: Path, mapper: str) -> tuple[float, dict]:
 
     from acquire.camera import Camera
     from acquire.capture_io import load_capture
-    from reconstruct.colmap_runner import ColmapOptions, colmap_params_from_camera, run_colmap
+    from reconstruct.camera_files import colmap_params_from_camera
+    from reconstruct.sfm.colmap import ColmapOptions, run_colmap
 
     c = load_capture(cap)
     nom = c.cameras["cam0"]
@@ -61,7 +62,7 @@ def _bare(cap: Path, work: Path, mapper: str) -> tuple[float, dict]:
 def _ours(cap: Path, out: Path, mapper: str, dense: bool):
     import shutil
 
-    from reconstruct.sfm import SfmConfig, run
+    from reconstruct.sfm.pipeline import SfmConfig, run
 
     shutil.rmtree(out, ignore_errors=True)
     res = run(SfmConfig(mapper=mapper, dense=dense), cap, out)

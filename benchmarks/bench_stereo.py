@@ -37,9 +37,9 @@ def _scene(kind):
 
 
 def _capture(tmp, kind, sl=False):
-    from acquire.capture_sl import capture as capture_sl
-    from acquire.capture_stereo import capture
-    from acquire.stereo_rig import RigConfig
+    from acquire.stereo.capture import capture
+    from acquire.stereo.capture_sl import capture as capture_sl
+    from acquire.stereo.rig import RigConfig
     from core.config import with_options
 
     bundle = _scene(kind)
@@ -55,16 +55,12 @@ def _capture(tmp, kind, sl=False):
 def _speed(cap_dir):
     from acquire.capture_io import load_capture
     from core.image_io import read_image
-    from reconstruct.stereo import (
-        _sgbm,
-        disparity_range,
-        disparity_to_depth,
-        match,
-        rectify,
-        rectify_pair,
-    )
-    from reconstruct.stereo_recon import StereoOptions, calibrate_capture, to_gray
-    from reconstruct.tsdf import TSDFVolume
+    from reconstruct.calibration.camera import to_gray
+    from reconstruct.calibration.rectify import rectify, rectify_pair
+    from reconstruct.stereo.matching import _sgbm, disparity_range, disparity_to_depth, match
+    from reconstruct.stereo.options import StereoOptions
+    from reconstruct.stereo.pipeline import calibrate_capture
+    from reconstruct.surface.tsdf import TSDFVolume
 
     cap = load_capture(cap_dir)
     calib, tfl, _ = calibrate_capture(cap)
@@ -129,7 +125,8 @@ def _ev_line(ev):
 
 
 def main():
-    from reconstruct.stereo_recon import StereoOptions, run_capture
+    from reconstruct.stereo.options import StereoOptions
+    from reconstruct.stereo.pipeline import run_capture
 
     with tempfile.TemporaryDirectory() as tmp:
         tex = _capture(tmp, "textured")
@@ -159,7 +156,7 @@ def main():
                   f"{_ev_line(res['evaluation'])}")
         report("textureless active F-score at 1%", r["results"]["active"]["evaluation"]["fscore"],
                1.0, 0.85, unit="")
-        from reconstruct.sl_recon import run_capture as run_sl
+        from reconstruct.stereo.sl_pipeline import run_capture as run_sl
 
         sl = _capture(tmp, "default", sl=True)
         run_sl(sl, Path(tmp) / "r_sl")

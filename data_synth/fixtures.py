@@ -25,7 +25,7 @@ def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: in
     ~350 features, 15-30 inliers between the rings and none within the low ring: the
     rotations came out 0.3-0.7 degrees off whatever the thread count.)
     """
-    from acquire.capture_sfm import PathConfig, capture
+    from acquire.sfm.capture import PathConfig, capture
     from data_synth.scenes import build_scene
 
     elev = "-".join(f"{e:g}" for e in elevations_deg)

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from acquire.lights import PointLight
-from acquire.materials import Material
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import PointLight
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
 from core.meshes import make_mesh, merge_meshes
 
 __all__ = ["textured_scene", "textureless_scene", "scene_mesh"]

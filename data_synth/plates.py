@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.laser import LaserSheet
-from acquire.materials import Material
-from acquire.scene import RenderScene, SceneObject
+from acquire.laser.sheet import LaserSheet
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
 from core.meshes import make_mesh
 from core.validate import check_range
 

@@ -36,9 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from acquire.lights import DirectionalLight, PointLight
-from acquire.materials import Material
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import DirectionalLight, PointLight
+from acquire.render.materials import Material
+from acquire.render.scene import RenderScene, SceneObject
 from acquire.targets import target_from_dict
 from core.files import atomic_dir, read_toml, require, write_json, write_toml
 from core.frames import euler_xyz_deg

@@ -1,7 +1,7 @@
 """Every material preset under the laser sheet and under the projector: a sphere of each
-reflectance (acquire.materials.MATERIAL_PRESETS) on a matte floor, seen by one camera,
-lit by a vertical laser sheet (the laser scanner's renderer, acquire.laser) and by a
-projector casting 8-pixel stripes (acquire.render with one bounce; on the translucent
+reflectance (acquire.render.materials.MATERIAL_PRESETS) on a matte floor, seen by one camera,
+lit by a vertical laser sheet (the laser scanner's renderer, acquire.laser.sheet) and by a
+projector casting 8-pixel stripes (acquire.render.renderer with one bounce; on the translucent
 presets the stripes spread under the surface). Writes docs/img/material_gallery.png.
 
     python docs/render_materials.py
@@ -20,8 +20,8 @@ OUT = Path(__file__).resolve().parent / "img" / "material_gallery.png"
 def _scene(material):
     import open3d as o3d
 
-    from acquire.materials import Material
-    from acquire.scene import RenderScene, SceneObject
+    from acquire.render.materials import Material
+    from acquire.render.scene import RenderScene, SceneObject
 
     ball = o3d.geometry.TriangleMesh.create_sphere(0.05, 60)
     ball.translate([0.0, 0.0, 0.05])
@@ -42,10 +42,10 @@ def main():
     import matplotlib.pyplot as plt
 
     from acquire.camera import Camera
-    from acquire.laser import LaserRenderer, LaserSheet
-    from acquire.materials import MATERIAL_PRESETS, Material
-    from acquire.projector import PatternProjector
-    from acquire.render import render
+    from acquire.laser.sheet import LaserRenderer, LaserSheet
+    from acquire.render.materials import MATERIAL_PRESETS, Material
+    from acquire.render.projector import PatternProjector
+    from acquire.render.renderer import render
 
     cam = Camera.look_at([0.0, -0.28, 0.16], [0, 0, 0.045], width=320, height=240,
                          fov_deg=28)

@@ -55,7 +55,7 @@ def figure(rec: Path, images: Path, names, out: Path, h=360):
 
     from core.image_io import read_image, write_image
     from core.mesh_io import read_mesh
-    from reconstruct.colmap_runner import camera_from_colmap, image_cam_from_world
+    from reconstruct.camera_files import camera_from_colmap, image_cam_from_world
 
     mesh = read_mesh(rec / "mesh.ply")
     model = pycolmap.Reconstruction(str(rec / "sparse" / "0"))

@@ -10,9 +10,9 @@ Formats
 COLMAP model
     A folder with ``cameras.bin``/``images.bin`` (binary) or ``cameras.txt``/
     ``images.txt`` (text), or one of those files. Models: those of
-    :data:`reconstruct.colmap_runner.CAMERA_MODELS`.
+    :data:`CAMERA_MODELS`.
 nerfstudio ``transforms.json``
-    Read by :func:`acquire.nerfstudio.read_transforms` (OpenGL camera axes).
+    Read by :func:`acquire.sfm.nerfstudio.read_transforms` (OpenGL camera axes).
 Middlebury ``*_par.txt``
     A count, then one line per image: ``name k11..k33 r11..r33 t1 t2 t3`` with the
     projection ``K [R | t]`` (``x_cam = R X + t``), pixel centres at integers.
@@ -35,9 +35,19 @@ from pathlib import Path
 import numpy as np
 
 from acquire.camera import Camera
-from core.validate import InputError
+from core.validate import InputError, check_choice
 
-__all__ = ["read_cameras", "CAMERA_FILE_FORMATS"]
+__all__ = ["read_cameras", "CAMERA_FILE_FORMATS", "CAMERA_MODELS", "colmap_params_from_camera",
+           "camera_from_colmap", "image_cam_from_world"]
+
+# models we can convert to an OpenCV camera for the dense stage; parameter names in order
+CAMERA_MODELS = {
+    "SIMPLE_PINHOLE": ("f", "cx", "cy"),
+    "PINHOLE": ("fx", "fy", "cx", "cy"),
+    "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
+    "RADIAL": ("f", "cx", "cy", "k1", "k2"),
+    "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
+}
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +78,7 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
                                       "images.bin"):
         cams = _read_colmap(path if path.is_dir() else path.parent)
     elif path.suffix.lower() == ".json":
-        from acquire.nerfstudio import read_transforms
+        from acquire.sfm.nerfstudio import read_transforms
 
         cameras, files = read_transforms(path)
         cams = {Path(f).name: c for c, f in zip(cameras, files, strict=True)}
@@ -90,8 +100,6 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
 def _read_colmap(folder: Path) -> dict[str, Camera]:
     import cv2  # noqa: F401  (before pycolmap)
     import pycolmap
-
-    from reconstruct.colmap_runner import camera_from_colmap, image_cam_from_world
 
     if not any((folder / f).is_file() for f in ("cameras.bin", "cameras.txt")):
         raise InputError("expected a COLMAP model (cameras.bin or cameras.txt)", path=folder)
@@ -143,3 +151,51 @@ def _read_middlebury(path: Path, sizes: Mapping[str, tuple[int, int]]) -> dict[s
         except ValueError as e:
             raise InputError(str(e), path=path, field=f"line {i + 1}") from None
     return out
+
+
+# -- camera conversions ---------------------------------------------------------------
+
+def colmap_params_from_camera(camera: Camera, model: str | None = None) -> tuple[str, str]:
+    """COLMAP ``(model, params string)`` for an OpenCV-convention camera.
+
+    The principal point moves by +0.5 px (COLMAP puts pixel centres at half integers).
+    Without ``model``: ``SIMPLE_RADIAL`` when fx = fy and the distortion is at most a
+    k1, ``PINHOLE`` for fx != fy without distortion, else ``OPENCV``.
+    """
+    k1, k2, p1, p2, k3 = camera.dist
+    cx, cy = camera.cx + 0.5, camera.cy + 0.5
+    if model is None:
+        if camera.fx == camera.fy and k2 == p1 == p2 == k3 == 0:
+            model = "SIMPLE_RADIAL"
+        elif not np.any(camera.dist):
+            model = "PINHOLE"
+        else:
+            model = "OPENCV"
+    check_choice(model, "model", CAMERA_MODELS)
+    f = 0.5 * (camera.fx + camera.fy)
+    values = {"SIMPLE_PINHOLE": (f, cx, cy), "PINHOLE": (camera.fx, camera.fy, cx, cy),
+              "SIMPLE_RADIAL": (f, cx, cy, k1), "RADIAL": (f, cx, cy, k1, k2),
+              "OPENCV": (camera.fx, camera.fy, cx, cy, k1, k2, p1, p2)}[model]
+    return model, ", ".join(repr(float(v)) for v in values)
+
+
+def camera_from_colmap(cam, cam_from_world: np.ndarray | None = None) -> Camera:
+    """An OpenCV-convention :class:`~acquire.camera.Camera` from a ``pycolmap.Camera``."""
+    name = cam.model_name if hasattr(cam, "model_name") else cam.model.name
+    if name not in CAMERA_MODELS:
+        raise ValueError(f"camera model: expected one of {', '.join(CAMERA_MODELS)}, "
+                         f"got {name}")
+    p = dict(zip(CAMERA_MODELS[name], np.asarray(cam.params, float), strict=False))
+    fx = p.get("fx", p.get("f"))
+    fy = p.get("fy", p.get("f"))
+    dist = np.array([p.get("k1", p.get("k", 0.0)), p.get("k2", 0.0), p.get("p1", 0.0),
+                     p.get("p2", 0.0), 0.0])
+    return Camera(int(cam.width), int(cam.height), fx, fy, p["cx"] - 0.5, p["cy"] - 0.5, dist,
+                  np.eye(4) if cam_from_world is None else cam_from_world)
+
+
+def image_cam_from_world(image) -> np.ndarray:
+    """``cam_from_world`` (4, 4) of a registered ``pycolmap.Image``."""
+    T = np.eye(4)
+    T[:3, :4] = image.cam_from_world().matrix()
+    return T

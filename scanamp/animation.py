@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acquire.splats import render_splats
+from acquire.render.splats import render_splats
 from core.files import atomic_file
 from core.progress import track
 
@@ -33,7 +33,7 @@ __all__ = ["render_animation", "write_frames", "draw_splats", "mesh_background"]
 def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0.12),
                     light_dir=(0.4, -0.5, 1.0), ambient: float = 0.25,
                     supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """``mesh`` seen by ``camera``, rendered by :func:`acquire.render.render`.
+    """``mesh`` seen by ``camera``, rendered by :func:`acquire.render.renderer.render`.
 
     One constant grey material, a directional light shining from ``light_dir`` (towards
     the light) with cast shadows, and an ambient term: the backdrop the particles and
@@ -47,10 +47,10 @@ def mesh_background(mesh, camera, *, color=(0.62, 0.6, 0.56), sky=(0.08, 0.09, 0
     """
     import open3d as o3d
 
-    from acquire.lights import DirectionalLight
-    from acquire.materials import Material
-    from acquire.render import render
-    from acquire.scene import RenderScene, SceneObject
+    from acquire.render.lights import DirectionalLight
+    from acquire.render.materials import Material
+    from acquire.render.renderer import render
+    from acquire.render.scene import RenderScene, SceneObject
 
     to_light = np.asarray(light_dir, float)
     obj = SceneObject("mesh", o3d.geometry.TriangleMesh(mesh),  # a copy: normals added

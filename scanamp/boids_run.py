@@ -145,7 +145,7 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
     """Render ``frames`` (a list of ``(positions (n, 3), headings (n, 3))``) as oriented
     glyphs over the shaded mesh, to MP4 or GIF."""
     from acquire.camera import frame_camera
-    from acquire.glyphs import render_glyphs
+    from acquire.render.glyphs import render_glyphs
     from core.meshes import mesh_arrays
     from scanamp.animation import mesh_background, render_animation
 

@@ -3,14 +3,15 @@
 1. **Scene** — the built-in ``demo`` scene (``data_synth/scene_specs/demo.toml``): a
    fractal terrain patch with an L-system tree, a seashell and a scanned-object blob.
 2. **Capture and reconstruct** it three ways, each with the project's own entry points:
-   the laser turntable scanner (:func:`acquire.capture_laser.capture`,
-   :func:`reconstruct.laser.run`), the active stereo rig
-   (:func:`acquire.capture_stereo.capture`, :func:`reconstruct.stereo_recon.run_capture`)
-   and structure from motion on an orbit (:func:`acquire.capture_sfm.capture`,
-   :func:`reconstruct.sfm.run`).
-3. **Evaluate** every mesh against the ground truth with :func:`reconstruct.evaluate.evaluate`
-   in the world frame, at one ``tau`` for all methods, on the reference surface a camera
-   above the table can see (:func:`visible_from_above`): one table.
+   the laser turntable scanner (:func:`acquire.laser.capture.capture`,
+   :func:`reconstruct.laser.pipeline.run`), the active stereo rig
+   (:func:`acquire.stereo.capture.capture`, :func:`reconstruct.stereo.pipeline.run_capture`)
+   and structure from motion on an orbit (:func:`acquire.sfm.capture.capture`,
+   :func:`reconstruct.sfm.pipeline.run`).
+3. **Evaluate** every mesh against the ground truth with
+   :func:`reconstruct.evaluation.evaluate.evaluate` in the world frame, at one ``tau`` for
+   all methods, on the reference surface a camera above the table can see
+   (:func:`visible_from_above`): one table.
 4. **Amplify** the best reconstruction (highest F-score) with :func:`scanamp.amplify.run`,
    then let snow settle on it (:func:`scanamp.simulation_run.run_simulation`) and a flock
    fly around it (:func:`scanamp.boids_run.run_boids`).
@@ -78,7 +79,7 @@ class DemoSettings:
     sfm_size : (2,) int
     sfm_supersample : int
     sfm_threads : int                pycolmap threads (1: reproducible to the bit)
-    eval_max_samples : int           cap of :func:`reconstruct.evaluate.evaluate` samples
+    eval_max_samples : int           cap of :func:`reconstruct.evaluation.evaluate.evaluate` samples
     curve_samples : int              samples per side for the F-score curves / histograms
     render_size : (2,) int           comparison renders
     amplify_recipe : str or None     :func:`scanamp.amplify.run` recipe (name or TOML path;
@@ -135,8 +136,8 @@ SCALES: dict[str, DemoSettings] = {
 # ----------------------------------------------------------------------------- evaluation
 def visible_from_above(mesh, *, elevations_deg=(20.0, 45.0, 70.0), azimuths: int = 12,
                        offset: float = 2e-4):
-    """A ``reference_mask`` for :func:`reconstruct.evaluate.evaluate`: the surface a camera
-    above the table could see.
+    """A ``reference_mask`` for :func:`reconstruct.evaluation.evaluate.evaluate`: the surface
+    a camera above the table could see.
 
     A point counts when at least one ray from it toward ``azimuths x len(elevations_deg)``
     directions of the upper hemisphere leaves the scene unoccluded (the ray starts
@@ -207,7 +208,7 @@ def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
     """Evaluate ``recon`` against ``reference`` (both world-frame meshes).
 
     The reconstruction is first scored as it is, then rigidly aligned to the reference
-    by ICP (:func:`reconstruct.evaluate.evaluate` with ``icp=True``, as Tanks and Temples
+    by ICP (:func:`reconstruct.evaluation.evaluate.evaluate` with ``icp=True``, as Tanks and Temples
     aligns submissions) and scored again: the aligned figures are the table's, because
     each rig calibrates its own frame (a fraction of a degree and a few millimetres off
     the true one) and the table compares shapes. Both use the generator
@@ -216,8 +217,9 @@ def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
     Returns
     -------
     metrics : dict
-        The aligned :meth:`reconstruct.evaluate.EvaluationResult.to_dict` at ``tau``, plus
-        ``fscore_unaligned``, ``accuracy_mean_unaligned``, ``completeness_mean_unaligned``.
+        The aligned :meth:`reconstruct.evaluation.evaluate.EvaluationResult.to_dict` at
+        ``tau``, plus ``fscore_unaligned``, ``accuracy_mean_unaligned``,
+        ``completeness_mean_unaligned``.
     distances : dict
         ``{"accuracy": (n,), "completeness": (m,)}`` float64 from an independent sampling
         (``curve_samples`` a side) of the aligned reconstruction: its samples to the
@@ -228,7 +230,7 @@ def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,
     """
     from core.meshes import mesh_arrays, transform_mesh
     from core.sampling import sample_surface
-    from reconstruct.evaluate import evaluate
+    from reconstruct.evaluation.evaluate import evaluate
 
     recon = canonical_mesh(recon)
     raw = evaluate(recon, reference, tau=tau, reference_mask=mask,
@@ -265,11 +267,11 @@ class _Method:
 
 
 def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.laser_rig import LaserCaptureConfig, LaserRig
+    from acquire.laser.rig import LaserCaptureConfig, LaserRig
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
-    from reconstruct.laser import LaserReconConfig
-    from reconstruct.meshing import MeshingOptions
+    from reconstruct.laser.pipeline import LaserReconConfig
+    from reconstruct.surface.meshing import MeshingOptions
 
     m = _Method("laser", "laser triangulation (turntable)", root / "captures" / "laser",
                 root / "recon" / "laser")
@@ -303,7 +305,7 @@ def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 
 def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.stereo_rig import RigConfig
+    from acquire.stereo.rig import RigConfig
     from core.config import with_options
     from core.mesh_io import read_mesh
     from core.meshes import transform_mesh
@@ -341,9 +343,9 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
 
 
 def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
-    from acquire.capture_sfm import PathConfig
+    from acquire.sfm.capture import PathConfig
     from core.mesh_io import read_mesh
-    from reconstruct.sfm import SfmConfig
+    from reconstruct.sfm.pipeline import SfmConfig
 
     m = _Method("sfm", "structure from motion (orbit, pycolmap + PatchMatch MVS)",
                 root / "captures" / "sfm", root / "recon" / "sfm")
@@ -504,7 +506,7 @@ def run(out_dir: str | os.PathLike, *, seed: int = 0, scale: str = "default",
 def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> dict:
     from core.mesh_io import write_mesh
     from data_synth.scenes import build_scene, write_scene
-    from reconstruct.evaluate import default_tau
+    from reconstruct.evaluation.evaluate import default_tau
     from scanamp import demo_report
 
     t_all = time.perf_counter()

@@ -1,6 +1,6 @@
 """The demo's figures and ``report.html`` (I/O of :mod:`scanamp.demo`).
 
-Renders use :func:`acquire.render.render` (the project's ray caster): the ground truth and
+Renders use :func:`acquire.render.renderer.render` (the project's ray caster): the ground truth and
 every reconstruction from one camera, each reconstruction's error map (distance to the
 ground truth per pixel), and a close-up of the best reconstruction before and after
 amplification. Plots use matplotlib (Agg). Every file the HTML references is relative to
@@ -38,9 +38,9 @@ def comparison_camera(width: int, height: int, *, distance: float = 0.36,
 
 
 def _render(mesh, camera, lights, ambient, albedo):
-    from acquire.materials import Material
-    from acquire.render import render
-    from acquire.scene import RenderScene, SceneObject
+    from acquire.render.materials import Material
+    from acquire.render.renderer import render
+    from acquire.render.scene import RenderScene, SceneObject
     from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(mesh)
@@ -127,7 +127,7 @@ def _plots(fig: Path, dists: dict, tau: float) -> tuple[dict, dict]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from reconstruct.evaluate import fscore_at
+    from reconstruct.evaluation.evaluate import fscore_at
 
     taus = tau * np.geomspace(0.1, 10.0, 25)
     curves = {}
@@ -283,7 +283,7 @@ scores it in the frame its calibration gave. Time: capture plus reconstruction.<
 <th>F unaligned</th></tr>
 {''.join(rows)}</table>
 <ul>{notes}</ul>
-<h3>Renders (acquire.render, one camera)</h3>
+<h3>Renders (acquire.render.renderer, one camera)</h3>
 <div>{renders}</div>
 <h3>Error maps</h3>
 <div>{errors}</div>

@@ -97,21 +97,21 @@ def _report(out_dir) -> dict:
 
 # -- laser ---------------------------------------------------------------------------------
 def _laser_load(path):
-    from acquire.laser_rig import LaserCaptureConfig
+    from acquire.laser.rig import LaserCaptureConfig
     from core.config import load_config
 
     return load_config(LaserCaptureConfig, path)
 
 
 def _laser_config():
-    from reconstruct.laser import LaserReconConfig
+    from reconstruct.laser.pipeline import LaserReconConfig
 
     return LaserReconConfig()
 
 
 def _laser_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
                    scene_path=None) -> Path:
-    from acquire.capture_laser import capture
+    from acquire.laser.capture import capture
 
     return capture(scene.render_scene, config, out_dir, rng,
                    scene_info=_scene_info(scene, scene_path), seed=seed,
@@ -119,7 +119,7 @@ def _laser_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: in
 
 
 def _laser_run(config, capture_dir, out_dir) -> Result:
-    from reconstruct.laser import run
+    from reconstruct.laser.pipeline import run
 
     out = run(config, capture_dir, out_dir)
     return Result(Path(out), _report(out))
@@ -127,21 +127,21 @@ def _laser_run(config, capture_dir, out_dir) -> Result:
 
 # -- stereo, active stereo, structured light -------------------------------------------------
 def _stereo_load(path):
-    from acquire.stereo_rig import StereoCaptureConfig
+    from acquire.stereo.rig import StereoCaptureConfig
     from core.config import load_config
 
     return load_config(StereoCaptureConfig, path)
 
 
 def _sl_load(path):
-    from acquire.stereo_rig import SLCaptureConfig
+    from acquire.stereo.rig import SLCaptureConfig
     from core.config import load_config
 
     return load_config(SLCaptureConfig, path)
 
 
 def _stereo_config():
-    from reconstruct.stereo_recon import StereoOptions
+    from reconstruct.stereo.options import StereoOptions
 
     return StereoOptions()
 
@@ -152,7 +152,7 @@ def _active_stereo_config():
 
 def _stereo_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
                     scene_path=None) -> Path:
-    from acquire.capture_stereo import capture
+    from acquire.stereo.capture import capture
 
     info = {**_scene_info(scene, scene_path),
             "textureless": bool(getattr(config, "textureless", False))}
@@ -161,21 +161,21 @@ def _stereo_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: i
 
 
 def _stereo_run(config, capture_dir, out_dir) -> Result:
-    from reconstruct.stereo_recon import run_capture
+    from reconstruct.stereo.pipeline import run_capture
 
     out = run_capture(capture_dir, out_dir, config)
     return Result(Path(out), _report(out))
 
 
 def _sl_config():
-    from reconstruct.sl_recon import SLOptions
+    from reconstruct.stereo.sl_pipeline import SLOptions
 
     return SLOptions()
 
 
 def _sl_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
                 scene_path=None) -> Path:
-    from acquire.capture_sl import capture
+    from acquire.stereo.capture_sl import capture
 
     return capture(scene.render_scene, config, out_dir, rng,
                    scene_info=_scene_info(scene, scene_path), seed=seed,
@@ -183,7 +183,7 @@ def _sl_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int =
 
 
 def _sl_run(config, capture_dir, out_dir) -> Result:
-    from reconstruct.sl_recon import run_capture
+    from reconstruct.stereo.sl_pipeline import run_capture
 
     out = run_capture(capture_dir, out_dir, config)
     return Result(Path(out), _report(out))
@@ -191,21 +191,21 @@ def _sl_run(config, capture_dir, out_dir) -> Result:
 
 # -- structure from motion -------------------------------------------------------------------
 def _sfm_load(path):
-    from acquire.capture_sfm import SfmCaptureConfig
+    from acquire.sfm.capture import SfmCaptureConfig
     from core.config import load_config
 
     return load_config(SfmCaptureConfig, path)
 
 
 def _sfm_config():
-    from reconstruct.sfm import SfmConfig
+    from reconstruct.sfm.pipeline import SfmConfig
 
     return SfmConfig()
 
 
 def _sfm_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int = 0,
                  scene_path=None) -> Path:
-    from acquire.capture_sfm import capture
+    from acquire.sfm.capture import capture
 
     ref = {"name": scene.name, "seed": scene.seed,
            "path": None if scene_path is None else str(scene_path)}
@@ -214,7 +214,7 @@ def _sfm_capture(scene, config, out_dir, *, rng: np.random.Generator, seed: int 
 
 
 def _sfm_run(config, capture_dir, out_dir) -> Result:
-    from reconstruct.sfm import run
+    from reconstruct.sfm.pipeline import run
 
     res = run(config, capture_dir, out_dir)
     return Result(Path(res.out_dir), res.report, res.ok, res.message)

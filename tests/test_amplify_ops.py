@@ -253,7 +253,7 @@ def test_vines_walk_on_the_surface():
 
 
 def test_hypertexture_with_zero_amplitude_reproduces_the_surface():
-    from reconstruct.evaluate import evaluate
+    from reconstruct.evaluation.evaluate import evaluate
 
     ball = _ball(20)
     res = hypertexture_mesh(ball, rng=_rng(), amplitude=0.0, resolution=32)
@@ -272,7 +272,7 @@ def test_hypertexture_gives_an_open_mesh_a_shell_instead_of_refusing():
     """An open hemisphere: the result is closed, hugs the input within the shell's
     half-width (plus a voxel of marching cubes), and covers all of it."""
     from procgen.amplify.hyper import SHELL_VOXELS
-    from reconstruct.evaluate import evaluate
+    from reconstruct.evaluation.evaluate import evaluate
 
     ball = _ball(24)
     v, f = mesh_arrays(ball)

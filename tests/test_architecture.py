@@ -1,11 +1,17 @@
-"""The house's rules, checked on the source (issue 14): imports only go down the layers,
-no package reaches into another's private names, and no function in reconstruct/ or
-acquire/ is over 80 lines."""
+"""The house's rules, checked on the source (issues 14 and 29): imports only go down the
+layers, no package reaches into another's private names, no function in reconstruct/ or
+acquire/ is over 80 lines; and inside acquire/ and reconstruct/, a room per method above
+the shared rooms: no circles between rooms, no upward or sideways import, no private name
+across rooms, and each room's public names resolve."""
 
 from __future__ import annotations
 
 import ast
+import importlib
+from collections import defaultdict
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("core", "procgen", "simulate", "acquire", "data_synth", "reconstruct", "scanamp")
@@ -105,3 +111,118 @@ def _long_functions() -> dict[str, int]:
 def test_no_long_functions_in_reconstruct_and_acquire():
     found = _long_functions()
     assert not found, f"functions over {LONG_FUNCTION_LIMIT} lines (split them): {found}"
+
+
+# -- rooms inside acquire/ and reconstruct/ (issue 29) ------------------------------------
+
+ROOMED = ("acquire", "reconstruct")
+# one room per acquisition method; everything else in the package is shared by them
+METHOD_ROOMS = {"laser", "stereo", "sfm", "scans", "lidar"}
+MAX_TOP_LEVEL_MODULES = 8
+
+
+def _room(pkg: str, path: Path) -> str:
+    """The room of a source file: its sub-package, or its module when at the top level."""
+    rel = path.relative_to(ROOT / pkg)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def _room_of_module(pkg: str, module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] != pkg or len(parts) < 2:
+        return None
+    return parts[1]
+
+
+def _room_imports():
+    """{(pkg, room): {room it imports: [where]}} over every import, lazy ones included."""
+    edges = defaultdict(lambda: defaultdict(list))
+    for pkg, path, tree in SOURCES:
+        if pkg not in ROOMED or path.name == "__init__.py" and path.parent == ROOT / pkg:
+            continue
+        here = _room(pkg, path)
+        for node in ast.walk(tree):
+            mods = []
+            if isinstance(node, ast.Import):
+                mods = [(a.name, []) for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                mods = [(node.module, [a.name for a in node.names])]
+            for module, names in mods:
+                there = _room_of_module(pkg, module)
+                if there is None and module == pkg:       # from acquire import render
+                    for n in names:
+                        edges[(pkg, here)][n].append((path, module, [n]))
+                elif there is not None and there != here:
+                    edges[(pkg, here)][there].append((path, module, names))
+    return edges
+
+
+ROOM_EDGES = _room_imports()
+
+
+def test_shared_rooms_never_import_method_rooms_and_methods_never_each_other():
+    bad = []
+    for (_pkg, here), targets in ROOM_EDGES.items():
+        for there, where in targets.items():
+            if there in METHOD_ROOMS:
+                kind = "method room" if here in METHOD_ROOMS else "shared room"
+                for path, module, _ in where:
+                    bad.append(f"{path.relative_to(ROOT)} ({kind} {here}) imports {module}")
+    assert not bad, "\n".join(bad)
+
+
+def test_rooms_form_no_circle():
+    cycles = []
+    for pkg in ROOMED:
+        graph = {here: set(t) for (p, here), t in ROOM_EDGES.items() if p == pkg}
+        state = {}
+
+        def visit(node, stack, graph=graph, state=state, pkg=pkg):
+            state[node] = "open"
+            for nxt in sorted(graph.get(node, ())):
+                if state.get(nxt) == "open":
+                    cycles.append(f"{pkg}: " + " -> ".join(stack[stack.index(nxt):] + [nxt]))
+                elif nxt not in state:
+                    visit(nxt, stack + [nxt])
+            state[node] = "done"
+
+        for node in sorted(graph):
+            if node not in state:
+                visit(node, [node])
+    assert not cycles, "\n".join(cycles)
+
+
+def test_no_private_name_across_rooms():
+    private = []
+    for (_pkg, here), targets in ROOM_EDGES.items():
+        for there, where in targets.items():
+            for path, module, names in where:
+                parts = module.split(".")[1:] + names
+                if there.startswith("_") or any(p.startswith("_") for p in parts):
+                    private.append(f"{path.relative_to(ROOT)} ({here}): {module} {names}")
+    assert not private, "\n".join(private)
+
+
+@pytest.mark.parametrize("pkg", ROOMED)
+def test_only_shared_modules_at_a_packages_top_level(pkg):
+    top = sorted(p.stem for p in (ROOT / pkg).glob("*.py") if p.name != "__init__.py")
+    assert len(top) <= MAX_TOP_LEVEL_MODULES, f"{pkg}/ has {len(top)} top-level modules: {top}"
+    assert not set(top) & METHOD_ROOMS, f"a method's module at {pkg}/'s top level: {top}"
+    for room in (p.parent for p in (ROOT / pkg).glob("*/__init__.py")):
+        assert (room / "__init__.py").read_text().lstrip().startswith('"""'), \
+            f"{room.relative_to(ROOT)}/__init__.py: no docstring naming the room's contents"
+
+
+def _rooms():
+    for pkg in ROOMED:
+        for init in sorted((ROOT / pkg).glob("*/__init__.py")):
+            yield f"{pkg}.{init.parent.name}"
+
+
+@pytest.mark.parametrize("room", list(_rooms()))
+def test_each_rooms_public_names_resolve(room):
+    mod = importlib.import_module(room)
+    names = getattr(mod, "__all__", None)
+    assert names, f"{room}: no __all__ naming its public API"
+    missing = [n for n in names if getattr(mod, n, None) is None]
+    assert not missing, f"{room}: __all__ names that do not resolve: {missing}"

@@ -97,7 +97,7 @@ def test_bad_recipe_and_mesh_exit_2(tmp_path, capsys):
 
 def test_glyphs_point_along_heading_and_hide_behind_the_scan():
     from acquire.camera import Camera
-    from acquire.glyphs import render_glyphs
+    from acquire.render.glyphs import render_glyphs
 
     cam = Camera.look_at([0, -10, 0], [0, 0, 0], width=120, height=80, fov_deg=30)
     cols = []

@@ -4,8 +4,8 @@ a closed-form albedo, and a glossy render whose highlight sits at the mirror poi
 import numpy as np
 import pytest
 
-from acquire.brdf import dielectric_f0, ggx, ggx_d, lambert, smith_g
-from acquire.materials import Material
+from acquire.render.brdf import dielectric_f0, ggx, ggx_d, lambert, smith_g
+from acquire.render.materials import Material
 
 
 def _dirs(theta_deg, phi=0.0):
@@ -85,9 +85,9 @@ def test_a_glossy_plane_shows_its_highlight_at_the_mirror_point():
     the light's mirror image is seen (half-vector = normal); the same floor matte is
     brightest under the light instead."""
     from acquire.camera import Camera
-    from acquire.lights import PointLight
-    from acquire.render import render
-    from acquire.scene import RenderScene, SceneObject
+    from acquire.render.lights import PointLight
+    from acquire.render.renderer import render
+    from acquire.render.scene import RenderScene, SceneObject
     from core.meshes import make_mesh
 
     floor = make_mesh(np.array([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0.0]]),

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera, look_at_cam_from_world
-from acquire.lights import DirectionalLight
-from acquire.render import render
-from acquire.scene import RenderScene
+from acquire.render.lights import DirectionalLight
+from acquire.render.renderer import render
+from acquire.render.scene import RenderScene
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, ChessboardTarget, target_from_spec
 from core.image_io import write_image
@@ -81,8 +81,8 @@ def _intr(cam):
 
 
 def test_calibrate_camera_recovers_the_camera_and_feeds_sfm(photos, tmp_path):
-    from reconstruct.calib_io import read_camera_yaml
-    from reconstruct.sfm import parse_camera
+    from reconstruct.calibration.io import read_camera_yaml
+    from reconstruct.sfm.pipeline import parse_camera
 
     root, left0, _, _ = photos
     out = tmp_path / "camera.yaml"
@@ -106,7 +106,7 @@ def test_calibrate_camera_recovers_the_camera_and_feeds_sfm(photos, tmp_path):
 
 
 def test_calibrate_stereo_recovers_the_rig_and_rectifies_rows(photos, tmp_path):
-    from reconstruct.calib_io import read_stereo_yaml
+    from reconstruct.calibration.io import read_stereo_yaml
 
     root, left0, right0, right_from_left = photos
     out = tmp_path / "stereo.yaml"
@@ -129,9 +129,13 @@ def test_calibrate_stereo_recovers_the_rig_and_rectifies_rows(photos, tmp_path):
 
 
 def test_epipolar_error_grows_with_a_wrong_calibration(photos):
-    from reconstruct.calibrate_images import calibrate_stereo_images, epipolar_errors, sorted_images
-    from reconstruct.stereo import rectify
-    from reconstruct.stereo_calib import detect_pair_views
+    from reconstruct.calibration.images import (
+        calibrate_stereo_images,
+        epipolar_errors,
+        sorted_images,
+    )
+    from reconstruct.calibration.rectify import rectify
+    from reconstruct.calibration.stereo import detect_pair_views
 
     root = photos[0]
     L, R = sorted_images(root / "left"), sorted_images(root / "right")

@@ -9,7 +9,7 @@ import pytest
 from core.mesh_io import read_geometry, write_mesh, write_points
 from core.sampling import sample_surface
 from reconstruct import EvaluationResult, evaluate
-from reconstruct.evaluate import TAU_FRACTION, fscore_at
+from reconstruct.evaluation.evaluate import TAU_FRACTION, fscore_at
 from scanamp.cli import main
 
 N = 30_000  # samples per side: enough for the tolerances below, fast on 2 cores

@@ -7,13 +7,13 @@ pattern's indirect light is the same under the pattern and its inverse)."""
 import numpy as np
 import pytest
 
-from acquire.capture_sl import _render_patterns
-from acquire.materials import Material
-from acquire.patterns import gray_code_bits, gray_code_patterns
-from acquire.projector import PatternProjector
-from acquire.stereo_rig import RigConfig
+from acquire.render.materials import Material
+from acquire.render.projector import PatternProjector
+from acquire.stereo.capture_sl import _render_patterns
+from acquire.stereo.patterns import gray_code_bits, gray_code_patterns
+from acquire.stereo.rig import RigConfig
 from data_synth.plates import v_groove
-from reconstruct.structured_light import decode_gray_code, gray_bit_errors
+from reconstruct.stereo.structured_light import decode_gray_code, gray_bit_errors
 
 
 class _Ideal:

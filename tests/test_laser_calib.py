@@ -5,17 +5,17 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.laser_rig import LaserCaptureConfig, LaserRig
+from acquire.laser.rig import LaserCaptureConfig, LaserRig
 from core.config import load_config
 from core.frames import rotation_about
-from reconstruct.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
-from reconstruct.laser_calib import (
+from reconstruct.laser.calibration import (
     calibrate_stage,
     calibrate_turntable_axis,
     fit_plane,
     intersect_rays_plane,
     pixel_rays,
 )
+from reconstruct.laser.error_model import closed_form_sigma_z, depth_sigma, estimate_peak_sigma
 
 CAM = Camera(640, 480, 880.0, 881.0, 321.0, 238.0, np.array([-0.04, 0.02, 0, 0, 0]))
 
@@ -157,9 +157,9 @@ class _Indexed(_Synthetic):
 
 def test_bootstrap_cameras_spread_matches_opencv_std():
     from acquire.camera import look_at_cam_from_world
-    from acquire.capture_laser import board_poses_camera
+    from acquire.laser.capture import board_poses_camera
     from acquire.targets import ChArUcoTarget
-    from reconstruct.calibrate_camera import bootstrap_cameras, calibrate_camera
+    from reconstruct.calibration.camera import bootstrap_cameras, calibrate_camera
 
     rng = np.random.default_rng(3)
     cam = CAM.with_pose(look_at_cam_from_world([0.4, 0.0, 0.1], [0.0, 0.0, 0.075]))
@@ -181,7 +181,7 @@ def test_bootstrap_cameras_spread_matches_opencv_std():
 
 
 def test_refit_laser_plane_round_trip_and_sensitivity():
-    from reconstruct.laser_calib import LaserPlaneCalibration, refit_laser_plane
+    from reconstruct.laser.calibration import LaserPlaneCalibration, refit_laser_plane
 
     n = np.array([-0.6, 0.1, 0.79])
     n /= np.linalg.norm(n)
@@ -219,11 +219,11 @@ def test_rendered_board_corners_are_unbiased(s):
     ChArUco corners of a noise-free render sit on the true projections (a half-pixel slip
     in the ray grid, the high-res camera or the downsampling would show as a ~0.5/s px
     mean offset; measured |mean| 0.03 px at s = 1, under 0.01 px at s = 2)."""
-    from acquire.capture_laser import _CALIB_AMBIENT, _calib_image, _facing, _hires
-    from acquire.laser import camera_directions
+    from acquire.laser.capture import _CALIB_AMBIENT, _calib_image, _facing, _hires
+    from acquire.laser.sheet import camera_directions
     from acquire.sensor import Sensor
     from acquire.targets import ChArUcoTarget
-    from reconstruct.calibrate_camera import detect_board
+    from reconstruct.calibration.camera import detect_board
 
     rig = LaserRig(width=320, height=240)
     cam = rig.camera()

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from acquire.speckle import intensity_covariance, speckle_field
-from reconstruct.error_model import (
+from acquire.render.speckle import intensity_covariance, speckle_field
+from reconstruct.laser.error_model import (
     log_albedo_gradient,
     peak_sigma_model,
     pixel_variance,
 )
-from reconstruct.laser import _check_calibration
-from reconstruct.stripe import StripeOptions, detect_peaks
+from reconstruct.laser.pipeline import _check_calibration
+from reconstruct.laser.stripe import StripeOptions, detect_peaks
 
 SENSOR = {"gain": 1.0, "full_well": 20000.0, "read_noise": 2.0, "bit_depth": 8,
           "shot_noise": True}

@@ -4,8 +4,8 @@ elsewhere), where a matte plate looks the same from every side."""
 
 import numpy as np
 
-from acquire.laser import LaserRenderer
-from acquire.materials import Material
+from acquire.laser.sheet import LaserRenderer
+from acquire.render.materials import Material
 from data_synth.plates import laser_plate
 
 
@@ -34,7 +34,7 @@ def test_a_shiny_groove_shows_a_ghost_stripe_with_the_bounce():
     brighter than the direct one and as extra peaks in the rows (the outliers a scanner
     must reject). Same seed, same bytes."""
     from acquire.camera import Camera
-    from acquire.laser import LaserSheet
+    from acquire.laser.sheet import LaserSheet
     from data_synth.plates import v_groove
 
     scene = v_groove(Material(albedo=np.full(3, 0.9), brdf="conductor", roughness=0.08),

@@ -6,11 +6,11 @@ import shutil
 import numpy as np
 import pytest
 
-from acquire.capture_laser import capture
-from acquire.laser_rig import LaserCaptureConfig, LaserRig
+from acquire.laser.capture import capture
+from acquire.laser.rig import LaserCaptureConfig, LaserRig
 from acquire.targets import ChArUcoTarget
 from data_synth.scenes import build_scene
-from reconstruct.laser import LaserReconConfig, run
+from reconstruct.laser.pipeline import LaserReconConfig, run
 from scanamp.cli import main as cli
 
 SMALL = dict(width=320, height=240, steps=24, camera_views=10, laser_views=4,

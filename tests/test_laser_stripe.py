@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from reconstruct.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks
+from reconstruct.laser.stripe import DETECTORS, StripeOptions, argmax_peaks, detect_peaks
 
 
 def _profiles(rng, sigma, n=200, w=120, amp=200.0, base=10.0):

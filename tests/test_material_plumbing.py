@@ -6,7 +6,7 @@ def test_sfm_texture_boost_keeps_the_reflectance_model():
     """The SfM capture's texture boost made every object Lambertian (it rebuilt the
     material from its colour and texture alone): a metal stayed matte in every SfM
     capture, and a material study of SfM measured nothing."""
-    from acquire.capture_sfm import _boost_textures
+    from acquire.sfm.capture import _boost_textures
     from scanamp.study.kinds import _scene
 
     bundle, _ = _scene("object", {"brdf": "conductor", "roughness": 0.15})

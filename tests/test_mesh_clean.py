@@ -32,7 +32,7 @@ def _noisy_scan(scale=1.0, seed=0):
 
 @pytest.mark.parametrize("scale", [0.01, 1.0, 100.0])
 def test_clean_removes_floaters_closes_the_hole_and_stays_on_the_surface(scale):
-    from reconstruct.mesh_clean import clean_mesh, component_areas
+    from reconstruct.surface.clean import clean_mesh, component_areas
 
     mesh, (V_in, F_in) = _noisy_scan(scale)
     out, rep = clean_mesh(mesh)
@@ -92,7 +92,7 @@ def test_clean_is_a_recipe_step(tmp_path):
                       'smooth_steps = 0\n')
     mesh, _ = _noisy_scan()
     state, reports = amplify(mesh, recipe)
-    from reconstruct.mesh_clean import component_areas
+    from reconstruct.surface.clean import component_areas
 
     _, areas = component_areas(state.surface)
     rep = reports[0]
@@ -104,7 +104,7 @@ def test_clean_is_a_recipe_step(tmp_path):
 def test_a_dense_scan_is_decimated_before_remeshing_and_stays_on_its_surface():
     """Far more triangles than the remeshing edge needs (a 200k-triangle scan): the fast
     path decimates first, and the result still lies on the input surface."""
-    from reconstruct.mesh_clean import CleanOptions, clean_mesh
+    from reconstruct.surface.clean import CleanOptions, clean_mesh
 
     s = o3d.geometry.TriangleMesh.create_sphere(0.5, resolution=160)   # 102k triangles
     F = np.asarray(s.triangles)
@@ -118,7 +118,7 @@ def test_a_dense_scan_is_decimated_before_remeshing_and_stays_on_its_surface():
 def test_the_same_scan_at_any_scale_and_place_is_cleaned_alike():
     """Scale and offset the noisy scan: the cleaned triangles are the same, the vertices
     the same up to that scale and offset (so the steps after it see the same mesh)."""
-    from reconstruct.mesh_clean import clean_mesh
+    from reconstruct.surface.clean import clean_mesh
 
     a, _ = _noisy_scan(0.01)
     b, _ = _noisy_scan(100.0)

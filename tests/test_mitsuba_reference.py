@@ -1,5 +1,5 @@
 """Our renderer against Mitsuba 3 (issue 17): the reference scenes of
-acquire.mitsuba_reference rendered by both at matched settings agree, direct light only;
+acquire.render.mitsuba_reference rendered by both at matched settings agree, direct light only;
 and the description itself is checked (a wrong frame or unit would not agree)."""
 
 import dataclasses
@@ -7,14 +7,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from acquire.mitsuba_reference import (
+from acquire.render.mitsuba_reference import (
     REFERENCE_MATERIALS,
     agreement,
     corner_scene,
     mitsuba_available,
     render_reference,
 )
-from acquire.render import render
+from acquire.render.renderer import render
 
 pytestmark = pytest.mark.skipif(not mitsuba_available(),
                                 reason="Mitsuba 3 is in the dev extra (pip install -e .[dev])")
@@ -50,8 +50,8 @@ def test_the_comparison_sees_a_wrong_description():
 
 
 def test_descriptions_and_what_is_refused(tmp_path):
-    from acquire.materials import Material
-    from acquire.mitsuba_reference import scene_dict
+    from acquire.render.materials import Material
+    from acquire.render.mitsuba_reference import scene_dict
 
     kinds = {}
     for m in REFERENCE_MATERIALS:
@@ -98,7 +98,7 @@ def test_h_function_and_the_medium_albedo():
     """Chandrasekhar's H-function meets its zeroth-moment identity
     ``int_0^1 H = 2 (1 - sqrt(1 - w)) / w``, and the medium albedo inverts the
     bihemispherical reflectance: more reflective materials need less absorption."""
-    from acquire.mitsuba_reference import _h_function, medium_albedo
+    from acquire.render.mitsuba_reference import _h_function, medium_albedo
 
     for w in (0.3, 0.9, 0.999):
         _, wt, h = _h_function(w)

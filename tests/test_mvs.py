@@ -69,7 +69,7 @@ def test_truncated_jpeg_and_sixteen_bit_images(tmp_path):
 
 def test_camera_groups_by_size_and_focal_length():
     from core.image_io import PhotoInfo
-    from reconstruct.photo_set import camera_groups
+    from reconstruct.sfm.photo_set import camera_groups
 
     infos = {"a": PhotoInfo(40, 30, 1, 50.0), "b": PhotoInfo(30, 40, 6, 50.0),
              "c": PhotoInfo(40, 30, 1, 50.0), "d": PhotoInfo(40, 30, 1, 70.0)}
@@ -93,9 +93,8 @@ def _num(v) -> str:
 
 
 def test_middlebury_transforms_and_colmap_files_give_the_same_cameras(tmp_path):
-    from acquire.nerfstudio import write_transforms
-    from reconstruct.camera_files import read_cameras
-    from reconstruct.colmap_runner import colmap_params_from_camera
+    from acquire.sfm.nerfstudio import write_transforms
+    from reconstruct.camera_files import colmap_params_from_camera, read_cameras
 
     cams = _ring()
     names = [f"v{i}.png" for i in range(len(cams))]
@@ -135,7 +134,7 @@ def test_bad_camera_files_are_named(tmp_path):
     par.write_text("1\nv0.png 70 0 32 0 70 24 0 0 1 1 0 0 0 1 0 0 0 1 0 0 2\n")
     with pytest.raises(InputError, match="x_par.txt: line 2: image v0.png is not in"):
         read_cameras(par, sizes={"other.png": (64, 48)})
-    from acquire.nerfstudio import write_transforms
+    from acquire.sfm.nerfstudio import write_transforms
 
     write_transforms(tmp_path / "transforms.json", _ring(1), ["v0.png"])
     with pytest.raises(InputError, match="transforms.json: v0.png: camera of v0.png is 64x48, "
@@ -175,7 +174,7 @@ def _true_depth(cam: Camera) -> np.ndarray:
 
 
 def test_patchmatch_recovers_the_depth_and_normal_of_a_plane():
-    from reconstruct.patchmatch import PatchMatchOptions, depth_range, patchmatch, prepare_views
+    from reconstruct.mvs.patchmatch import PatchMatchOptions, depth_range, patchmatch, prepare_views
 
     cams, imgs = _plane_views()
     pts = np.column_stack([np.random.default_rng(2).uniform(-0.8, 0.8, (60, 2)), np.zeros(60)])
@@ -203,7 +202,7 @@ def test_patchmatch_recovers_the_depth_and_normal_of_a_plane():
 
 
 def test_fusion_keeps_what_views_agree_on():
-    from reconstruct.fusion import FusionOptions, fuse_points
+    from reconstruct.mvs.fusion import FusionOptions, fuse_points
 
     cams, _ = _plane_views(n=4)
     depths = [_true_depth(c).astype(np.float32) for c in cams]
@@ -272,8 +271,8 @@ def test_phone_folder_with_exif_rotations_and_mixed_sizes(capture, tmp_path, cap
 
 
 def test_known_cameras_are_kept_and_the_dense_stage_runs_on_them(capture, tmp_path, capsys):
-    from acquire.nerfstudio import write_transforms
-    from reconstruct.colmap_runner import camera_from_colmap, image_cam_from_world
+    from acquire.sfm.nerfstudio import write_transforms
+    from reconstruct.camera_files import camera_from_colmap, image_cam_from_world
 
     data = json.loads((capture / "capture.json").read_text())
     true = {n: Camera.from_dict(c) for n, c in data["ground_truth"]["cameras"].items()}
@@ -310,7 +309,7 @@ def test_known_cameras_are_kept_and_the_dense_stage_runs_on_them(capture, tmp_pa
 
 
 def test_camera_file_disagreeing_with_the_folder_is_one_line(capture, tmp_path, capsys):
-    from acquire.nerfstudio import write_transforms
+    from acquire.sfm.nerfstudio import write_transforms
 
     data = json.loads((capture / "capture.json").read_text())
     true = [Camera.from_dict(c) for c in data["ground_truth"]["cameras"].values()]
@@ -332,8 +331,8 @@ def test_camera_file_disagreeing_with_the_folder_is_one_line(capture, tmp_path, 
 def test_a_view_without_sources_is_skipped_with_a_warning(tmp_path, caplog):
     """Four views of a textured plane and one camera that looks away: its depth map is
     empty, the log names it, the others make the surface."""
-    from reconstruct.mvs import MvsOptions, dense_surface
-    from reconstruct.patchmatch import PatchMatchOptions
+    from reconstruct.mvs.patchmatch import PatchMatchOptions
+    from reconstruct.mvs.pipeline import MvsOptions, dense_surface
 
     cams, imgs = _plane_views(n=4)
     away = Camera(128, 96, 110.0, 110.0, 63.5, 47.5, np.zeros(5),

@@ -19,7 +19,7 @@ def _pair(baseline, f=500.0, w=200, h=150):
 
 
 def test_depth_per_pixel_is_the_closed_form_of_a_rectified_pair():
-    from reconstruct.fusion import depth_per_pixel
+    from reconstruct.mvs.fusion import depth_per_pixel
 
     f, b = 500.0, 0.2
     ref, other = _pair(b, f)
@@ -47,7 +47,7 @@ def _fronto(cams, z0):
 def test_fusion_agreement_scales_with_the_pairs_disparity(baseline):
     """The same relative depth error agrees for a narrow pair and not for a wide one:
     what decides is the error in pixels of disparity, z^2 / (f b) per pixel."""
-    from reconstruct.fusion import FusionOptions, fuse_points
+    from reconstruct.mvs.fusion import FusionOptions, fuse_points
 
     f, z0 = 500.0, 2.0
     cams = _pair(baseline, f)
@@ -68,7 +68,7 @@ def test_fusion_agreement_scales_with_the_pairs_disparity(baseline):
 
 
 def test_erosion_only_at_depth_steps_not_around_small_holes():
-    from reconstruct.fusion import FusionOptions, depth_edges, fuse_points
+    from reconstruct.mvs.fusion import FusionOptions, depth_edges, fuse_points
 
     cams = _pair(0.05)
     depths, normals, colors = _fronto(cams, 2.0)
@@ -108,7 +108,7 @@ def small_render(tmp_path_factory):
 
 
 def _run(small_render, **kw):
-    from reconstruct.patchmatch import PatchMatchOptions, patchmatch, prepare_views
+    from reconstruct.mvs.patchmatch import PatchMatchOptions, patchmatch, prepare_views
 
     names, imgs, cams, depth = small_render
     opt = PatchMatchOptions(max_image_size=240, **kw)

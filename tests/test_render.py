@@ -5,10 +5,10 @@ import open3d as o3d
 import pytest
 
 from acquire.camera import Camera
-from acquire.lights import DirectionalLight, PointLight
-from acquire.materials import Material
-from acquire.render import render
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import DirectionalLight, PointLight
+from acquire.render.materials import Material
+from acquire.render.renderer import render
+from acquire.render.scene import RenderScene, SceneObject
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, ChessboardTarget
 

@@ -7,10 +7,10 @@ import open3d as o3d
 import pytest
 
 from acquire.camera import Camera
-from acquire.lights import DirectionalLight, PointLight
-from acquire.materials import Material
-from acquire.render import albedo, camera_rays, cast, render
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import DirectionalLight, PointLight
+from acquire.render.materials import Material
+from acquire.render.renderer import albedo, camera_rays, cast, render
+from acquire.render.scene import RenderScene, SceneObject
 
 
 class _Protocol:
@@ -95,7 +95,7 @@ def test_direct_light_matches_the_light_protocol(scene, camera):
 
 @pytest.mark.parametrize("n", [0, 1, 2047, 2048, 2049, 100_003])
 def test_scattered_blocks_visit_every_row_once(n):
-    from acquire._render_kernels import BLOCK, block_rows, n_blocks
+    from acquire.render._kernels import BLOCK, block_rows, n_blocks
 
     m = n_blocks(n)
     seen = np.zeros(n, np.int64)
@@ -110,7 +110,7 @@ def test_scattered_blocks_visit_every_row_once(n):
 
 
 def test_centre_rays_from_the_sub_rays_are_the_cast_centre_rays(scene, camera, monkeypatch):
-    import acquire.render as R
+    import acquire.render.renderer as R
 
     ball = o3d.geometry.TriangleMesh.create_sphere(0.06, 12)   # coarse: faces differ
     ball.translate([-0.15, -0.15, 0.06])

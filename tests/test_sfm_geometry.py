@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera, look_at_cam_from_world
-from acquire.nerfstudio import GL_FROM_CV, read_transforms, write_transforms
-from acquire.paths import (
+from acquire.sfm.nerfstudio import GL_FROM_CV, read_transforms, write_transforms
+from acquire.sfm.paths import (
     handheld_walk,
     hemisphere,
     interpolate_pose,
@@ -16,7 +16,7 @@ from acquire.paths import (
     subframe_poses,
 )
 from core.frames import rotation_angle_deg
-from reconstruct.sim3 import Sim3, align_cameras, umeyama
+from reconstruct.evaluation.sim3 import Sim3, align_cameras, umeyama
 
 
 def _random_rotation(rng):
@@ -130,7 +130,7 @@ def test_colmap_camera_conversion_round_trip():
     import cv2  # noqa: F401
     import pycolmap
 
-    from reconstruct.colmap_runner import camera_from_colmap, colmap_params_from_camera
+    from reconstruct.camera_files import camera_from_colmap, colmap_params_from_camera
 
     cam = Camera(320, 240, 300.0, 300.0, 159.5, 119.5, [0.02, 0, 0, 0, 0])
     model, params = colmap_params_from_camera(cam)
@@ -149,7 +149,7 @@ def test_colmap_camera_conversion_round_trip():
 
 
 def test_matcher_choice_follows_image_count_and_capture_kind():
-    from reconstruct.sfm import SfmConfig, _choose_matcher, _Input
+    from reconstruct.sfm.pipeline import SfmConfig, _choose_matcher, _Input
 
     def pick(n, order="unknown", matcher="auto"):
         return _choose_matcher(SfmConfig(matcher=matcher), _Input(None, [f"{i}.png" for i in

@@ -21,7 +21,7 @@ def small_capture(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def small_recon(small_capture, tmp_path_factory):
-    from reconstruct.sfm import SfmConfig, run
+    from reconstruct.sfm.pipeline import SfmConfig, run
 
     out = tmp_path_factory.mktemp("sfm_recon") / "rec"
     res = run(SfmConfig(seed=0, num_threads=1), small_capture, out)
@@ -74,7 +74,7 @@ def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
 
 
 def test_sparse_stage_is_deterministic(small_capture, small_recon, tmp_path):
-    from reconstruct.sfm import SfmConfig, run
+    from reconstruct.sfm.pipeline import SfmConfig, run
 
     res = run(SfmConfig(seed=0, num_threads=1, dense=False), small_capture, tmp_path / "again")
     for f in ("images.bin", "points3D.bin", "cameras.bin"):
@@ -233,9 +233,9 @@ def test_a_camera_that_does_not_move_is_diagnosed(tmp_path, capsys):
 def test_named_stages_rerun_only_what_changed(small_capture, small_recon, tmp_path):
     """A new trim of the surface re-runs mesh and evaluate, not SIFT or PatchMatch; the
     files of the reused stages come along; --from forces a stage and the later ones."""
-    from reconstruct.fusion import FusionOptions
-    from reconstruct.mvs import MvsOptions
-    from reconstruct.sfm import SfmConfig, run
+    from reconstruct.mvs.fusion import FusionOptions
+    from reconstruct.mvs.pipeline import MvsOptions
+    from reconstruct.sfm.pipeline import SfmConfig, run
 
     out = tmp_path / "rec"
     shutil.copytree(small_recon.out_dir, out)

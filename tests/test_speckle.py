@@ -6,11 +6,11 @@ Airy-disc size, seeded; and on a scan, the stripe jitters more as the grain grow
 import numpy as np
 import pytest
 
-from acquire.laser import LaserRenderer
-from acquire.materials import Material
-from acquire.speckle import grain_px, speckle_field
+from acquire.laser.sheet import LaserRenderer
+from acquire.render.materials import Material
+from acquire.render.speckle import grain_px, speckle_field
 from data_synth.plates import laser_plate
-from reconstruct.stripe import StripeOptions, detect_peaks
+from reconstruct.laser.stripe import StripeOptions, detect_peaks
 
 
 def _corr(img, lag):

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.splats import composite_splats, render_splats
+from acquire.render.splats import composite_splats, render_splats
 
 
 def test_over_blending_is_porter_duff_and_depth_sorted():

@@ -5,9 +5,9 @@ import pytest
 
 from acquire.camera import Camera
 from acquire.targets import ChArUcoTarget
-from reconstruct.calibrate_camera import calibrate_camera_points
-from reconstruct.stereo import StereoCalibration
-from reconstruct.stereo_calib import (
+from reconstruct.calibration.camera import calibrate_camera_points
+from reconstruct.calibration.rectify import StereoCalibration
+from reconstruct.calibration.stereo import (
     calibrate_pair,
     calibrate_turntable_mount,
     world_from_cam_at,

@@ -4,18 +4,16 @@ import numpy as np
 import pytest
 
 from core.validate import InputError
-from reconstruct.calib_io import read_stereo_yaml, write_stereo_yaml
-from reconstruct.disparity_metrics import disparity_metrics, nonoccluded_mask
-from reconstruct.stereo import (
+from reconstruct.calibration.io import read_stereo_yaml, write_stereo_yaml
+from reconstruct.calibration.rectify import StereoCalibration, rectify, rectify_pair
+from reconstruct.evaluation.disparity import disparity_metrics, nonoccluded_mask
+from reconstruct.stereo.matching import (
     MatchOptions,
-    StereoCalibration,
     depth_to_points,
     disparity_range,
     disparity_to_depth,
     lr_consistency,
     match,
-    rectify,
-    rectify_pair,
 )
 
 
@@ -131,7 +129,7 @@ def test_yaml_reads_opencv_sample_names_m1_m2(tmp_path):
 
 def test_camera_yaml_round_trip_and_bad_key(tmp_path):
     from acquire.camera import Camera
-    from reconstruct.calib_io import read_camera_yaml, write_camera_yaml
+    from reconstruct.calibration.io import read_camera_yaml, write_camera_yaml
 
     cam = Camera(320, 240, 301.5, 300.25, 160.5, 119.0, np.array([-0.1, 0.02, 1e-3, -2e-3, 0]))
     p = write_camera_yaml(tmp_path / "camera.yaml", cam, rms=0.12)
@@ -153,7 +151,7 @@ def test_png_ground_truth_disparity_scales_and_zero_is_unknown(tmp_path, dtype, 
                                                                want):
     import cv2
 
-    from reconstruct.stereo_recon import read_disparity
+    from reconstruct.stereo.pair import read_disparity
 
     img = np.full((4, 5), stored, dtype)
     img[0, 0] = 0
@@ -239,7 +237,7 @@ def test_depth_error_follows_the_triangulation_law():
     """sigma_z = z^2 / (f b) * sigma_d to first order, and zero for a perfect match."""
     from types import SimpleNamespace
 
-    from reconstruct.stereo_scoring import depth_errors as _depth_errors
+    from reconstruct.stereo.scoring import depth_errors as _depth_errors
 
     rect = SimpleNamespace(focal=500.0, baseline=0.08)
     z = 0.4

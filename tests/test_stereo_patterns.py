@@ -4,9 +4,14 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.patterns import gray_code_bits, gray_code_patterns, phase_shift_patterns, random_dots
-from acquire.projector import PatternProjector, sample_bilinear
-from reconstruct.structured_light import (
+from acquire.render.projector import PatternProjector, sample_bilinear
+from acquire.stereo.patterns import (
+    gray_code_bits,
+    gray_code_patterns,
+    phase_shift_patterns,
+    random_dots,
+)
+from reconstruct.stereo.structured_light import (
     decode_gray_code,
     decode_phase,
     triangulate_columns,

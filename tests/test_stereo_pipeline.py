@@ -13,8 +13,8 @@ from core.image_io import read_image, write_image
 
 @pytest.fixture(scope="session")
 def stereo_capture(tmp_path_factory):
-    from acquire.capture_stereo import capture
-    from acquire.stereo_rig import RigConfig
+    from acquire.stereo.capture import capture
+    from acquire.stereo.rig import RigConfig
     from core.config import with_options
     from data_synth.fixtures_stereo import textured_scene
 
@@ -28,7 +28,8 @@ def stereo_capture(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def stereo_recon(stereo_capture, tmp_path_factory):
-    from reconstruct.stereo_recon import StereoOptions, run_capture
+    from reconstruct.stereo.options import StereoOptions
+    from reconstruct.stereo.pipeline import run_capture
 
     out = tmp_path_factory.mktemp("stereo") / "rec"
     run_capture(stereo_capture, out, StereoOptions(compare=True))
@@ -49,8 +50,8 @@ def test_capture_folder_is_valid(stereo_capture):
 
 def test_calibration_recovers_true_rig(stereo_capture):
     from acquire.capture_io import load_capture
-    from reconstruct.stereo import StereoCalibration
-    from reconstruct.stereo_recon import calibrate_capture
+    from reconstruct.calibration.rectify import StereoCalibration
+    from reconstruct.stereo.pipeline import calibrate_capture
 
     cap = load_capture(stereo_capture)
     calib, table_from_left, rep = calibrate_capture(cap)
@@ -83,8 +84,8 @@ def test_gt_disparity_is_the_true_correspondence(stereo_capture, perturb):
     import cv2
 
     from acquire.capture_io import load_capture
-    from reconstruct.stereo import StereoCalibration, rectify
-    from reconstruct.stereo_recon import gt_disparity
+    from reconstruct.calibration.rectify import StereoCalibration, rectify
+    from reconstruct.stereo.scoring import gt_disparity
 
     cap = load_capture(stereo_capture)
     gt = cap.ground_truth
@@ -118,8 +119,8 @@ def test_gt_disparity_is_the_true_correspondence(stereo_capture, perturb):
 
 def _pair(stereo_capture, tmp_path):
     from acquire.capture_io import load_capture
-    from reconstruct.calib_io import write_stereo_yaml
-    from reconstruct.stereo import StereoCalibration
+    from reconstruct.calibration.io import write_stereo_yaml
+    from reconstruct.calibration.rectify import StereoCalibration
 
     cap = load_capture(stereo_capture)
     gt = cap.ground_truth

@@ -10,8 +10,8 @@ from acquire.camera import Camera
 
 @pytest.fixture(scope="session")
 def sl_capture(tmp_path_factory):
-    from acquire.capture_sl import capture
-    from acquire.stereo_rig import RigConfig
+    from acquire.stereo.capture_sl import capture
+    from acquire.stereo.rig import RigConfig
     from core.config import with_options
     from data_synth.fixtures_stereo import textured_scene
 
@@ -30,7 +30,7 @@ def test_decoded_projector_coordinates_match_truth(sl_capture):
     """Decoded sub-pixel projector (col, row) = true projection of the true surface point."""
     from acquire.capture_io import load_capture
     from core.image_io import read_image
-    from reconstruct.sl_recon import SLOptions, decode_stack
+    from reconstruct.stereo.sl_pipeline import SLOptions, decode_stack
 
     cap = load_capture(sl_capture)
     gt = cap.ground_truth
@@ -50,7 +50,7 @@ def test_decoded_projector_coordinates_match_truth(sl_capture):
 
 
 def test_structured_light_reconstruction(sl_capture, tmp_path):
-    from reconstruct.sl_recon import run_capture
+    from reconstruct.stereo.sl_pipeline import run_capture
 
     out = run_capture(sl_capture, tmp_path / "rec")
     r = json.loads((out / "report.json").read_text())

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from reconstruct.tsdf import fuse_depth_maps
+from reconstruct.surface.tsdf import fuse_depth_maps
 
 
 def _sphere_depth(cam: Camera, radius: float) -> np.ndarray:

@@ -6,9 +6,9 @@ and the incidence (Godin et al. 2001 on marble)."""
 import numpy as np
 import pytest
 
-from acquire.laser import LaserRenderer
-from acquire.materials import Material
-from acquire.subsurface import (
+from acquire.laser.sheet import LaserRenderer
+from acquire.render.materials import Material
+from acquire.render.subsurface import (
     Dipole,
     line_profile,
     single_scattering,
@@ -16,7 +16,7 @@ from acquire.subsurface import (
     stripe_radiance,
 )
 from data_synth.plates import laser_plate
-from reconstruct.stripe import StripeOptions, detect_peaks
+from reconstruct.laser.stripe import StripeOptions, detect_peaks
 
 
 @pytest.mark.parametrize("albedo, mfp, g", [(0.9, 1e-3, 0.8), (0.5, 3e-4, 0.0),

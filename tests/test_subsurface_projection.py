@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from scipy.special import j0
 
-from acquire.materials import Material
-from acquire.patterns import gray_code_bits, gray_code_patterns, phase_shift_patterns
-from acquire.projector import PatternProjector
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.materials import Material
+from acquire.render.projector import PatternProjector
+from acquire.render.scene import RenderScene, SceneObject
+from acquire.render.subsurface import Dipole, gaussian_mixture, spread_irradiance
 from acquire.sensor import Sensor
-from acquire.stereo_rig import RigConfig
-from acquire.subsurface import Dipole, gaussian_mixture, spread_irradiance
+from acquire.stereo.patterns import gray_code_bits, gray_code_patterns, phase_shift_patterns
+from acquire.stereo.rig import RigConfig
 from core.meshes import make_mesh
-from reconstruct.structured_light import decode_phase, gray_bit_errors
+from reconstruct.stereo.structured_light import decode_phase, gray_bit_errors
 
 
 def _mtf_exact(d: Dipole, f: float) -> float:
@@ -75,7 +75,7 @@ class _Ideal:
 
 
 def _render(material, patterns, sensor, cam, pcam, seed=0):
-    from acquire.capture_sl import _render_patterns
+    from acquire.stereo.capture_sl import _render_patterns
 
     proj = PatternProjector(pcam, patterns[0], 0.12)
     imgs, depth = _render_patterns(_facing_plate(material, cam), cam, proj, patterns, sensor,

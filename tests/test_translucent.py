@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from acquire.lights import DirectionalLight
-from acquire.materials import Material
-from acquire.render import render
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import DirectionalLight
+from acquire.render.materials import Material
+from acquire.render.renderer import render
+from acquire.render.scene import RenderScene, SceneObject
 from core.meshes import make_mesh
 
 ALBEDO = np.array([0.35, 0.8, 0.25])
@@ -69,7 +69,7 @@ def test_a_laser_behind_a_sheet_shows_its_stripe_through_it(t):
     """The laser plate's sheet mirrored to the far side of a thin translucent plate meets
     it on the same line: the camera sees the stripe in the same place, with the light
     let through, ``t / (1 - t)`` of the stripe the sheet reflects from the front."""
-    from acquire.laser import LaserRenderer, LaserSheet
+    from acquire.laser.sheet import LaserRenderer, LaserSheet
     from data_synth.plates import laser_plate
 
     lp = laser_plate(Material(albedo=ALBEDO, brdf="translucent", transmission=t))

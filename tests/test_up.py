@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from acquire.camera import look_at_cam_from_world
 from core.meshes import mesh_arrays
 from data_synth.scenes import build_scene
-from reconstruct.up import estimate_up, find_camera_model, up_from_cameras, up_from_mesh
+from reconstruct.surface.up import estimate_up, find_camera_model, up_from_cameras, up_from_mesh
 
 
 def _angle(a, b) -> float:
@@ -53,7 +53,7 @@ def _ring(R: np.ndarray, rng, n=12, roll_deg=4.0):
 
 def test_up_from_cameras_beside_the_mesh(tmp_path):
     from acquire.camera import Camera
-    from acquire.nerfstudio import write_transforms
+    from acquire.sfm.nerfstudio import write_transforms
 
     rng = np.random.default_rng(0)
     R = Rotation.random(random_state=5).as_matrix()
@@ -85,7 +85,7 @@ def test_bad_up_names_itself():
 def test_ground_and_objects_of_the_demo_scene():
     """The morphological ground filter against the scene's own parts: the terrain is
     ground, the tree, shell and object stand on it (only their feet count as ground)."""
-    from reconstruct.ground import ground_mask
+    from reconstruct.surface.ground import ground_mask
 
     bundle = build_scene("demo")
     terrain = np.concatenate([np.full(len(o.mesh.vertices), o.name == "terrain")

@@ -86,7 +86,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
         Seeds every step (each step draws from its own spawned generator). ``None``: the
         recipe's ``seed`` field, else 0. Same seed, same mesh bytes.
     up : (3,) float, optional
-        Up in the mesh's frame. None: estimated (:func:`reconstruct.up.estimate_up`) from
+        Up in the mesh's frame. None: estimated (:func:`reconstruct.surface.up.estimate_up`) from
         a camera model beside the mesh, else from the mesh. The steps run with up along
         +z (plants stand along up, snow falls against it, terrain is a heightfield over
         it) and the results are written back in the mesh's own frame; ``report.json``
@@ -116,7 +116,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     v, f = mesh_arrays(mesh)
     from core.frames import rigid, rotation_between
     from core.meshes import make_mesh, transform_mesh
-    from reconstruct.up import estimate_up, find_camera_model
+    from reconstruct.surface.up import estimate_up, find_camera_model
 
     cameras = find_camera_model(mesh_path) if up is None else None
     up_est = estimate_up(v, f, up=up, cameras=cameras)

@@ -1,7 +1,7 @@
 """Part labels and colours of an amplified mesh.
 
 Every output vertex carries a part label and a colour: the surface is split into ground
-and objects (:func:`reconstruct.ground.ground_mask`, up along +z), and each part a step
+and objects (:func:`reconstruct.surface.ground.ground_mask`, up along +z), and each part a step
 added keeps its kind (plants, vines, snow). ``mesh.ply`` stores them as ``red green
 blue`` and an integer ``label`` vertex property, ``labels.json`` maps each label to its
 name; the labels become ground-truth ids when the result is captured again.
@@ -29,7 +29,7 @@ COLORS = {"ground": (0.55, 0.5, 0.38), "object": (0.74, 0.7, 0.64),
           "surface": (0.72, 0.68, 0.6)}
 
 
-# how each kind of part reflects (acquire.materials.Material fields besides its colour):
+# how each kind of part reflects (acquire.render.materials.Material fields besides its colour):
 # leaves that let light through, vines and painted walls under a clear coat, snow that a
 # laser stripe spreads in (subsurface),
 # metal drones; the rest Lambertian
@@ -56,7 +56,7 @@ def surface_parts(surface) -> tuple[np.ndarray, list]:
     """Per-vertex labels of the surface (ground or object), and the surface as coloured
     render parts ``[(mesh, rgb), ...]``: the ground's triangles and the objects'."""
     from core.meshes import make_mesh
-    from reconstruct.ground import ground_mask
+    from reconstruct.surface.ground import ground_mask
 
     v, f = mesh_arrays(surface)
     ground = ground_mask(v, f)

@@ -18,7 +18,7 @@ from core.files import read_toml, require
 from core.validate import InputError
 from procgen.amplify.plants import scatter_plants
 from procgen.city import CityConfig
-from reconstruct.mesh_clean import CleanOptions
+from reconstruct.surface.clean import CleanOptions
 
 __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_names",
            "RECIPE_DIR"]

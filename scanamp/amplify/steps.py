@@ -67,7 +67,7 @@ class State:
 
 
 def _clean(state: State, step, rng, **_):
-    from reconstruct.mesh_clean import CleanOptions, clean_mesh
+    from reconstruct.surface.clean import CleanOptions, clean_mesh
 
     state.surface, report = clean_mesh(state.surface, CleanOptions(**step.params))
     return report
@@ -97,7 +97,7 @@ def _displace(state: State, step, rng, **_):
 def _refine_terrain(state: State, step, rng, **_):
     from core.meshes import merge_meshes
     from procgen.amplify import refine_terrain
-    from reconstruct.ground import ground_mask
+    from reconstruct.surface.ground import ground_mask
 
     p = step.params
     v, f = mesh_arrays(state.surface)
@@ -190,7 +190,7 @@ def _hypertexture(state: State, step, rng, **_):
 def _city(state: State, step, rng, **_):
     from procgen.amplify.city_layout import lay_city
     from procgen.city import CityConfig
-    from reconstruct.ground import ground_mask
+    from reconstruct.surface.ground import ground_mask
 
     p = step.params
     v, f = mesh_arrays(state.surface)

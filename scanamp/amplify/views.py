@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from acquire.camera import Camera, frame_camera
-from acquire.lights import DirectionalLight
-from acquire.materials import Material
-from acquire.render import render
-from acquire.scene import RenderScene, SceneObject
+from acquire.render.lights import DirectionalLight
+from acquire.render.materials import Material
+from acquire.render.renderer import render
+from acquire.render.scene import RenderScene, SceneObject
 from core.meshes import make_mesh, mesh_arrays
 
 __all__ = ["render_parts", "tight_camera"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from reconstruct.calibrate_images import CameraCalibrationOptions
+from reconstruct.calibration.images import CameraCalibrationOptions
 from scanamp.commands._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
@@ -31,9 +31,9 @@ def run(args: argparse.Namespace, config: CameraCalibrationOptions) -> int:
 
     from acquire.targets import target_from_spec
     from core.files import write_json
-    from reconstruct.calib_io import write_camera_yaml
-    from reconstruct.calibrate_images import calibrate_camera_images, sorted_images
-    from reconstruct.colmap_runner import colmap_params_from_camera
+    from reconstruct.calibration.images import calibrate_camera_images, sorted_images
+    from reconstruct.calibration.io import write_camera_yaml
+    from reconstruct.camera_files import colmap_params_from_camera
 
     log = logging.getLogger("scanamp")
     target = target_from_spec(args.board)

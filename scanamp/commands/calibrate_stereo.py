@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from reconstruct.calibrate_images import StereoCalibrationOptions
+from reconstruct.calibration.images import StereoCalibrationOptions
 from scanamp.commands._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
@@ -32,8 +32,8 @@ def run(args: argparse.Namespace, config: StereoCalibrationOptions) -> int:
 
     from acquire.targets import target_from_spec
     from core.files import write_json
-    from reconstruct.calib_io import write_stereo_yaml
-    from reconstruct.calibrate_images import calibrate_stereo_images, sorted_images
+    from reconstruct.calibration.images import calibrate_stereo_images, sorted_images
+    from reconstruct.calibration.io import write_stereo_yaml
 
     log = logging.getLogger("scanamp")
     target = target_from_spec(args.board)

@@ -1,5 +1,5 @@
 """``scanamp capture laser SCENE --out DIR``: a sheet-of-light scan with its calibration
-captures. Options are :class:`acquire.laser_rig.LaserCaptureConfig` (``--rig.steps 90``,
+captures. Options are :class:`acquire.laser.rig.LaserCaptureConfig` (``--rig.steps 90``,
 ``--sensor.read-noise 4``, or ``--config rig.toml`` with ``[rig]``, ``[sensor]``,
 ``[target]`` tables)."""
 
@@ -7,7 +7,7 @@ import logging
 
 import numpy as np
 
-from acquire.laser_rig import LaserCaptureConfig
+from acquire.laser.rig import LaserCaptureConfig
 
 GROUP = "capture"
 NAME = "laser"

@@ -1,6 +1,6 @@
 """``scanamp capture sfm SCENE --out DIR``: a camera moved around a scene (orbit rings,
 hemisphere or hand-held walk), for structure from motion. Options are
-:class:`acquire.capture_sfm.SfmCaptureConfig` (``--kind walk --views 40``, or ``--config
+:class:`acquire.sfm.capture.SfmCaptureConfig` (``--kind walk --views 40``, or ``--config
 sfm.toml`` with the same keys and a ``[sensor]`` table)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acquire.capture_sfm import SfmCaptureConfig
+from acquire.sfm.capture import SfmCaptureConfig
 
 GROUP = "capture"
 NAME = "sfm"

@@ -1,6 +1,6 @@
 """``scanamp capture stereo SCENE --out DIR``: a stereo rig (optionally with a random-dot
 projector) scanning a scene on a turntable, with ChArUco calibration captures. Options
-are :class:`acquire.stereo_rig.StereoCaptureConfig` (``--rig.baseline 0.12``, or
+are :class:`acquire.stereo.rig.StereoCaptureConfig` (``--rig.baseline 0.12``, or
 ``--config rig.toml`` with its tables, docs/stereo.md)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from acquire.stereo_rig import StereoCaptureConfig
+from acquire.stereo.rig import StereoCaptureConfig
 
 GROUP = "capture"
 NAME = "stereo"

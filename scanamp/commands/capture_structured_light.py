@@ -1,6 +1,6 @@
 """``scanamp capture structured-light SCENE --out DIR``: a camera and a Gray-code +
 phase-shift projector scanning a scene on a turntable, with calibration captures. Options
-are :class:`acquire.stereo_rig.SLCaptureConfig` (the stereo rig's tables; the right camera
+are :class:`acquire.stereo.rig.SLCaptureConfig` (the stereo rig's tables; the right camera
 is the projector)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from acquire.stereo_rig import SLCaptureConfig
+from acquire.stereo.rig import SLCaptureConfig
 
 GROUP = "capture"
 NAME = "structured-light"

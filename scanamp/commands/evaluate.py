@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from reconstruct.evaluate import EvaluateConfig
+from reconstruct.evaluation.evaluate import EvaluateConfig
 
 NAME = "evaluate"
 OUTPUT = "file"
@@ -33,8 +33,8 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     from core.files import write_json
     from core.mesh_io import read_geometry
     from core.validate import InputError
-    from reconstruct.evaluate import evaluate
-    from reconstruct.registration import LOW_FITNESS
+    from reconstruct.evaluation.evaluate import evaluate
+    from reconstruct.registration.rigid import LOW_FITNESS
 
     recon = read_geometry(args.recon)
     reference = read_geometry(args.reference)

@@ -1,5 +1,5 @@
 """``scanamp mesh clean MESH --out CLEAN.ply``: floaters off, holes closed, remeshed,
-denoised and oriented (:func:`reconstruct.mesh_clean.clean_mesh`); ``CLEAN.report.json``
+denoised and oriented (:func:`reconstruct.surface.clean.clean_mesh`); ``CLEAN.report.json``
 says what was removed and filled."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from reconstruct.mesh_clean import CleanOptions
+from reconstruct.surface.clean import CleanOptions
 
 GROUP = "mesh"
 NAME = "clean"
@@ -36,7 +36,7 @@ def run(args, config: CleanOptions) -> int:
     from core.files import write_json
     from core.mesh_io import MESH_SUFFIXES, read_mesh, write_mesh
     from core.validate import InputError
-    from reconstruct.mesh_clean import clean_mesh
+    from reconstruct.surface.clean import clean_mesh
 
     if args.out.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"--out: expected a suffix in {', '.join(MESH_SUFFIXES)}, "

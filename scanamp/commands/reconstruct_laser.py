@@ -7,8 +7,8 @@ import json
 import logging
 from pathlib import Path
 
-from reconstruct.laser import STAGES, LaserReconConfig
-from reconstruct.laser import run as run_laser
+from reconstruct.laser.pipeline import STAGES, LaserReconConfig
+from reconstruct.laser.pipeline import run as run_laser
 
 GROUP = "reconstruct"
 NAME = "laser"

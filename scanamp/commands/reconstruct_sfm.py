@@ -1,18 +1,18 @@
 """``scanamp reconstruct sfm CAPTURE_OR_IMAGE_FOLDER --out DIR``: pycolmap on the CPU (or
 known cameras, ``--cameras``), then PatchMatch multi-view stereo, fusion and a trimmed
-Poisson surface (:mod:`reconstruct.mvs`). The work is named stages (features -> matches ->
+Poisson surface (:mod:`reconstruct.mvs.pipeline`). The work is named stages (features -> matches ->
 sparse -> dense -> fuse -> mesh -> evaluate): run again into the same folder with
 ``--overwrite``, only the stages whose options or inputs changed are recomputed;
 ``--from STAGE`` forces that stage and the later ones.
 
-Options are :class:`reconstruct.sfm.SfmConfig`'s (flags, or ``--config FILE.toml``)."""
+Options are :class:`reconstruct.sfm.pipeline.SfmConfig`'s (flags, or ``--config FILE.toml``)."""
 
 from __future__ import annotations
 
 import logging
 from pathlib import Path
 
-from reconstruct.sfm import STAGES, SfmConfig
+from reconstruct.sfm.pipeline import STAGES, SfmConfig
 
 GROUP = "reconstruct"
 NAME = "sfm"
@@ -34,7 +34,7 @@ def add_arguments(p):
 
 
 def run(args, config: SfmConfig) -> int:
-    from reconstruct.sfm import run
+    from reconstruct.sfm.pipeline import run
 
     res = run(config, args.input, args.out, from_stage=args.from_stage)
     if not res.ok:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from reconstruct.stereo_recon import StereoOptions
+from reconstruct.stereo.options import StereoOptions
 
 GROUP = "reconstruct"
 NAME = "stereo"
@@ -34,7 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace, opts) -> int:
     import logging
 
-    from reconstruct.stereo_recon import run_capture, run_pair
+    from reconstruct.stereo.pair import run_pair
+    from reconstruct.stereo.pipeline import run_capture
 
     pair = [args.left, args.right, args.calibration]
     if args.capture is None:

@@ -1,5 +1,5 @@
 """``scanamp reconstruct structured-light CAPTURE --out DIR``; options are
-:class:`reconstruct.sl_recon.SLOptions`'s (flags, or ``--config FILE.toml``)."""
+:class:`reconstruct.stereo.sl_pipeline.SLOptions`'s (flags, or ``--config FILE.toml``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from reconstruct.sl_recon import SLOptions
+from reconstruct.stereo.sl_pipeline import SLOptions
 
 GROUP = "reconstruct"
 NAME = "structured-light"
@@ -22,7 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, config: SLOptions) -> int:
-    from reconstruct.sl_recon import run_capture
+    from reconstruct.stereo.sl_pipeline import run_capture
 
     out = run_capture(args.capture, args.out, config)
     logging.getLogger("scanamp").info("wrote %s", out)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from acquire.render import render
+from acquire.render.renderer import render
 from acquire.sensor import Sensor
 from core.config import Config, option
 from core.files import atomic_dir

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acquire.laser_rig import LaserCaptureConfig
+from acquire.laser.rig import LaserCaptureConfig
 from core.config import Config, option
 
 __all__ = ["AmplifyStudyOptions", "AmplifiedLaserConfig", "run_amplified"]

@@ -9,7 +9,7 @@ the ``report.json`` the reconstruction writes.
 
 ``peak-detector`` is cheaper: it renders the laser frames of the scan (the same rig,
 renderer, speckle and sensor model as ``capture laser``, no calibration captures),
-runs one stripe detector of :mod:`reconstruct.stripe` with the laser reconstruction's
+runs one stripe detector of :mod:`reconstruct.laser.stripe` with the laser reconstruction's
 own acceptance options, and scores the detected columns against the renderer's true
 stripe centre per row. That isolates the detector from calibration and meshing, which
 is what a scanner engineer compares detectors on (Fisher & Naidu 1996 did the same
@@ -41,7 +41,7 @@ __all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", 
 # ``material.*`` overrides change the scanned object's material in the scene (any kind
 # that captures a scene): its reflectance model and parameters, the rest of it (colour,
 # texture) kept. ``material.preset`` names a set of them
-# (:data:`acquire.materials.MATERIAL_PRESETS`); ``material.object`` names the object
+# (:data:`acquire.render.materials.MATERIAL_PRESETS`); ``material.object`` names the object
 # (default: ``object``).
 MATERIAL_KEYS = ("object", "preset", "brdf", "roughness", "ior", "mfp", "anisotropy", "albedo")
 
@@ -156,8 +156,8 @@ def build_configs(kind: Kind, overrides: dict, toml_path: Path) -> tuple[Any, An
 
 def material_overrides(overrides: dict) -> dict:
     """The ``material.*`` overrides of a run as ``{field: value}`` (checked: known
-    fields of :class:`acquire.materials.Material` and values it accepts)."""
-    from acquire.materials import MATERIAL_PRESETS, Material
+    fields of :class:`acquire.render.materials.Material` and values it accepts)."""
+    from acquire.render.materials import MATERIAL_PRESETS, Material
 
     out = {}
     for key, value in overrides.items():
@@ -308,9 +308,9 @@ class RunFailed(RuntimeError):
 def _run_peaks(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
                material: dict | None = None) -> dict:
     """Render the scan's laser frames, detect the stripe, score against the true centre."""
-    from acquire.laser import LaserRenderer
+    from acquire.laser.sheet import LaserRenderer
     from core.progress import track
-    from reconstruct.laser import extract_frames
+    from reconstruct.laser.pipeline import extract_frames
 
     bundle, _ = _scene(scene, material)
     rng = np.random.default_rng(seed)

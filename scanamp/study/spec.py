@@ -23,7 +23,7 @@ Format (``scanamp/studies/*.toml`` are the shipped examples)::
 A dotted key names a field of the capture config (the TOML file that
 ``scanamp capture KIND --config`` reads: ``rig.steps``, ``sensor.read_noise``; flat
 keys such as ``views`` for SfM), a reconstruction option (``reconstruct.detector``,
-``reconstruct.meshing.depth``: fields of the kind's reconstruction config dataclass), or
+``reconstruct.surface.meshing.depth``: fields of the kind's reconstruction config dataclass), or
 ``seed``. Every run's config is built and validated when the study is loaded, by the
 same loaders the capture and reconstruct commands use, so a bad key or value fails
 before anything runs, with an error naming the study file and the field.

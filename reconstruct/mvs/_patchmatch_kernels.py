@@ -1,0 +1,430 @@
+"""Compiled kernels of PatchMatch multi-view stereo (numba, parallel over image rows).
+
+One call of :func:`sweep` updates the pixels of one colour of the red-black
+checkerboard of a reference view: each pixel tries the planes of its neighbours of the
+other colour (which this sweep does not write, so rows run in parallel without races),
+then random perturbations of its own plane, and keeps the cheapest. The caller
+(:mod:`reconstruct.mvs.patchmatch`) alternates colours and iterations.
+
+Planes are per pixel: a depth ``D`` (z in the reference camera) and a unit normal ``N``
+(reference camera frame, facing the camera). The photometric cost of a plane against
+one source view is ``1 - NCC`` of a bilateral-weighted window sampled every ``step``
+pixels, the source sampled through the plane's homography; it is 2 where the window
+has no texture or leaves the source image. The multi-view cost is the mean of the
+``top_k`` cheapest source views. With source depth maps (``geom`` > 0), each view's cost
+adds ``geom * min(e, max_reproj)``, ``e`` the forward-backward reprojection error (px)
+through that view's depth map (geometric consistency, as in ACMM).
+
+Random numbers come from a counter-based hash of (seed, pixel, iteration, draw), so the
+result does not depend on the number of threads: the same seed gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+__all__ = ["bilateral_weights", "sweep", "initialise", "final_costs", "source_costs"]
+
+_BAD = 2.0
+
+
+@nb.njit(cache=True, inline="always")
+def _uniform(seed, a, b, c):
+    """Uniform in [0, 1) from four integers (splitmix64 finaliser)."""
+    z = np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
+    z ^= np.uint64(a) * np.uint64(0xBF58476D1CE4E5B9)
+    z ^= np.uint64(b) * np.uint64(0x94D049BB133111EB)
+    z ^= np.uint64(c) * np.uint64(0xD6E8FEB86659FD93)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    z = z ^ (z >> np.uint64(31))
+    return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@nb.njit(cache=True, inline="always")
+def _row(k, h):
+    """The k-th row a parallel loop visits: rows 0, 16, 32, ..., then 1, 17, ..., so that
+    each thread's contiguous share of the loop spans the whole image (the work per row
+    is uneven: textureless rows are cheap) and every core stays busy. Rows are
+    independent, so the order changes no result."""
+    r = k
+    for j in range(16):
+        n = (h - j + 15) // 16
+        if r < n:
+            return j + 16 * r
+        r -= n
+    return k
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def bilateral_weights(ref, radius, step, sigma_color, sigma_space):
+    """Per-pixel window weights (H, W, n) and the weighted sums of the reference
+    window: (H, W, 3) = (sum w, sum w a, sum w a^2)."""
+    h, w = ref.shape
+    m = 2 * (radius // step) + 1
+    n = m * m
+    wts = np.zeros((h, w, n), np.float32)
+    stats = np.zeros((h, w, 3), np.float32)
+    for y in nb.prange(h):
+        for x in range(w):
+            c = ref[y, x]
+            k = 0
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            for j in range(-radius, radius + 1, step):
+                for i in range(-radius, radius + 1, step):
+                    yy = min(max(y + j, 0), h - 1)
+                    xx = min(max(x + i, 0), w - 1)
+                    a = ref[yy, xx]
+                    dc = a - c
+                    wt = np.exp(-dc * dc / (2.0 * sigma_color * sigma_color)
+                                - (i * i + j * j) / (2.0 * sigma_space * sigma_space))
+                    wts[y, x, k] = wt
+                    s0 += wt
+                    s1 += wt * a
+                    s2 += wt * a * a
+                    k += 1
+            stats[y, x, 0] = s0
+            stats[y, x, 1] = s1
+            stats[y, x, 2] = s2
+    return wts, stats
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _bilinear(img, hs, ws, u, v):
+    if u < 0.0 or v < 0.0 or u > ws - 1.001 or v > hs - 1.001:
+        return -1.0
+    x0 = int(u)
+    y0 = int(v)
+    fx = u - x0
+    fy = v - y0
+    a = img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx
+    b = img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx
+    return a * (1 - fy) + b * fy
+
+
+@nb.njit(cache=True, fastmath=True)
+def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs, ts,
+               radius, step, min_var, hb):
+    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s."""
+    # the point and the plane offset: n . X = dp for X on the plane
+    rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
+    ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
+    rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+    dp = d * (n0 * rx + n1 * ry + n2 * rz)
+    if abs(dp) < 1e-12:
+        return _BAD
+    # H = K_s (R + t n^T / dp) K_r^-1
+    R = rs[s]
+    t = ts[s]
+    K = ks[s]
+    A = hb[0]
+    for r in range(3):
+        A[r, 0] = R[r, 0] + t[r] * n0 / dp
+        A[r, 1] = R[r, 1] + t[r] * n1 / dp
+        A[r, 2] = R[r, 2] + t[r] * n2 / dp
+    B = hb[1]
+    for r in range(3):
+        for c in range(3):
+            B[r, c] = K[r, 0] * A[0, c] + K[r, 1] * A[1, c] + K[r, 2] * A[2, c]
+    H = hb[2]
+    for r in range(3):
+        for c in range(3):
+            H[r, c] = B[r, 0] * kinv[0, c] + B[r, 1] * kinv[1, c] + B[r, 2] * kinv[2, c]
+    s0 = stats[y, x, 0]
+    ma = stats[y, x, 1] / s0
+    va = stats[y, x, 2] / s0 - ma * ma
+    if va < min_var:  # a textureless window matches nothing: no need to warp it
+        return _BAD
+    hs = sizes[s, 1]
+    ws = sizes[s, 0]
+    h, w = ref.shape
+    img = src[s]
+    sb = 0.0
+    sbb = 0.0
+    sab = 0.0
+    k = 0
+    for j in range(-radius, radius + 1, step):
+        yy = min(max(y + j, 0), h - 1)
+        for i in range(-radius, radius + 1, step):
+            xx = min(max(x + i, 0), w - 1)
+            zz = H[2, 0] * xx + H[2, 1] * yy + H[2, 2]
+            if zz <= 1e-12:
+                return _BAD
+            u = (H[0, 0] * xx + H[0, 1] * yy + H[0, 2]) / zz
+            v = (H[1, 0] * xx + H[1, 1] * yy + H[1, 2]) / zz
+            b = _bilinear(img, hs, ws, u, v)
+            if b < 0.0:
+                return _BAD
+            wt = wts[y, x, k]
+            sb += wt * b
+            sbb += wt * b * b
+            sab += wt * ref[yy, xx] * b
+            k += 1
+    mb = sb / s0
+    vb = sbb / s0 - mb * mb
+    if vb < min_var:
+        return _BAD
+    ncc = (sab / s0 - ma * mb) / np.sqrt(va * vb)
+    return 1.0 - max(-1.0, min(1.0, ncc))
+
+
+@nb.njit(cache=True, fastmath=True)
+def _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes, max_err):
+    """Forward-backward reprojection error (px) of (x, y) at depth d through view s."""
+    X0 = d * (kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2])
+    X1 = d * (kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2])
+    X2 = d * (kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2])
+    R = rs[s]
+    t = ts[s]
+    K = ks[s]
+    Y0 = R[0, 0] * X0 + R[0, 1] * X1 + R[0, 2] * X2 + t[0]
+    Y1 = R[1, 0] * X0 + R[1, 1] * X1 + R[1, 2] * X2 + t[1]
+    Y2 = R[2, 0] * X0 + R[2, 1] * X1 + R[2, 2] * X2 + t[2]
+    if Y2 <= 1e-12:
+        return max_err
+    u = (K[0, 0] * Y0 + K[0, 1] * Y1) / Y2 + K[0, 2]
+    v = K[1, 1] * Y1 / Y2 + K[1, 2]
+    ui = int(u + 0.5)
+    vi = int(v + 0.5)
+    if ui < 0 or vi < 0 or ui >= sizes[s, 0] or vi >= sizes[s, 1]:
+        return max_err
+    ds = sdepth[s, vi, ui]
+    if ds <= 0.0:
+        return max_err
+    # back from the source pixel at its depth, into the reference
+    zx = (ui - K[0, 2] - K[0, 1] * (vi - K[1, 2]) / K[1, 1]) / K[0, 0]
+    zy = (vi - K[1, 2]) / K[1, 1]
+    W0 = ds * zx - t[0]
+    W1 = ds * zy - t[1]
+    W2 = ds - t[2]
+    Z0 = R[0, 0] * W0 + R[1, 0] * W1 + R[2, 0] * W2
+    Z1 = R[0, 1] * W0 + R[1, 1] * W1 + R[2, 1] * W2
+    Z2 = R[0, 2] * W0 + R[1, 2] * W1 + R[2, 2] * W2
+    if Z2 <= 1e-12:
+        return max_err
+    px = (kr[0, 0] * Z0 + kr[0, 1] * Z1) / Z2 + kr[0, 2]
+    py = kr[1, 1] * Z1 / Z2 + kr[1, 2]
+    e = np.sqrt((px - x) ** 2 + (py - y) ** 2)
+    return min(e, max_err)
+
+
+@nb.njit(cache=True, fastmath=True)
+def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
+          radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
+    """Multi-view cost: the mean of the top_k cheapest source views (of those whose bit
+    is set in ``mask``; the others count as unmatched)."""
+    ns = ks.shape[0]
+    for s in range(ns):
+        if not (mask >> s) & 1:
+            scratch[s] = _BAD
+            continue
+        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs,
+                       ts, radius, step, min_var, hb)
+        if geom > 0.0:
+            c += geom * _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes,
+                                      max_reproj)
+        scratch[s] = c
+    k = min(top_k, ns)
+    total = 0.0
+    for j in range(k):  # partial selection sort: the k smallest
+        best = j
+        for i in range(j + 1, ns):
+            if scratch[i] < scratch[best]:
+                best = i
+        tmp = scratch[j]
+        scratch[j] = scratch[best]
+        scratch[best] = tmp
+        total += scratch[j]
+    return total / k
+
+
+@nb.njit(cache=True, inline="always")
+def _keep_better(c, d, m0, m1, m2, best):
+    """Keep (d, m) in ``best`` = (cost, depth, normal) when its cost ``c`` is lower."""
+    if c < best[0]:
+        best[0] = c
+        best[1] = d
+        best[2] = m0
+        best[3] = m1
+        best[4] = m2
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _random_normal(seed, x, y, it, draw, kinv, out):
+    """A random unit normal facing the camera (towards -ray) at (x, y)."""
+    u1 = _uniform(seed, x * 65536 + y, it, draw)
+    u2 = _uniform(seed, x * 65536 + y, it, draw + 1)
+    z = 2.0 * u1 - 1.0
+    r = np.sqrt(max(0.0, 1.0 - z * z))
+    a = 2.0 * np.pi * u2
+    n0 = r * np.cos(a)
+    n1 = r * np.sin(a)
+    n2 = z
+    rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
+    ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
+    rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+    if n0 * rx + n1 * ry + n2 * rz > 0:
+        n0, n1, n2 = -n0, -n1, -n2
+    out[0] = n0
+    out[1] = n1
+    out[2] = n2
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def initialise(D, N, dmin, dmax, kinv, seed):
+    """Random planes: depth uniform in inverse depth over [dmin, dmax], normal random
+    facing the camera."""
+    h, w = D.shape
+    for y in nb.prange(h):
+        nrm = np.empty(3)
+        for x in range(w):
+            u = _uniform(seed, x * 65536 + y, 0, 0)
+            D[y, x] = 1.0 / (1.0 / dmax + u * (1.0 / dmin - 1.0 / dmax))
+            _random_normal(seed, x, y, 0, 1, kinv, nrm)
+            N[y, x, 0] = nrm[0]
+            N[y, x, 1] = nrm[1]
+            N[y, x, 2] = nrm[2]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def final_costs(D, N, C, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
+                min_var, top_k, geom, sdepth, max_reproj, smask):
+    """The cost of every pixel's current plane (after initialisation, or to re-score)."""
+    h, w = D.shape
+    ns = ks.shape[0]
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(max(ns, 1))
+        hb = np.empty((3, 3, 3))
+        for x in range(w):
+            C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, hb,
+                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
+                            min_var, top_k, geom, sdepth, max_reproj, smask[y, x])
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def source_costs(D, N, ref, wts, stats, src, sizes, kinv, ks, rs, ts, radius, step, min_var):
+    """(H, W, n_sources) photometric cost of every pixel's plane against each source."""
+    h, w = D.shape
+    ns = ks.shape[0]
+    out = np.empty((h, w, ns), np.float32)
+    for k in nb.prange(h):
+        y = _row(k, h)
+        hb = np.empty((3, 3, 3))
+        for x in range(w):
+            for s in range(ns):
+                out[y, x, s] = _view_cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2],
+                                          s, ref, wts, stats, src, sizes, kinv, ks, rs, ts,
+                                          radius, step, min_var, hb)
+    return out
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks,
+          rs, ts, radius, step, min_var, top_k, geom, sdepth, max_reproj, perturb, smask,
+          settled):
+    """One red-black half-sweep: propagation from the four directions, then refinement.
+
+    A pixel whose cost is below ``settled`` tries fewer planes: no neighbour's plane that
+    is its own within 0.1 % in depth and 1 degree in normal, and of the refinements only
+    the small perturbation of depth and normal together (``settled`` < 0: all planes)."""
+    h, w = D.shape
+    ns = ks.shape[0]
+    idmin = 1.0 / dmin
+    idmax = 1.0 / dmax
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(max(ns, 1))
+        hb = np.empty((3, 3, 3))
+        nrm = np.empty(3)
+        best = np.empty(5)  # cost, depth, normal of the best plane so far
+        for x in range((y + colour) % 2, w, 2):
+            best[0] = C[y, x]
+            best[1] = D[y, x]
+            best[2] = N[y, x, 0]
+            best[3] = N[y, x, 1]
+            best[4] = N[y, x, 2]
+            rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
+            ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
+            rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+            mask = smask[y, x]
+            calm = best[0] < settled
+            # propagation: in each direction, the cheapest of the neighbours at 1, 3, 5
+            for dirn in range(4):
+                qx = -1
+                qy = -1
+                qc = 1e30
+                for dist in (1, 3, 5):
+                    cx = x + (dist if dirn == 0 else (-dist if dirn == 1 else 0))
+                    cy = y + (dist if dirn == 2 else (-dist if dirn == 3 else 0))
+                    if 0 <= cx < w and 0 <= cy < h and C[cy, cx] < qc:
+                        qc = C[cy, cx]
+                        qx = cx
+                        qy = cy
+                if qx < 0:
+                    continue
+                m0 = N[qy, qx, 0]
+                m1 = N[qy, qx, 1]
+                m2 = N[qy, qx, 2]
+                # the neighbour's plane, carried to this pixel's ray
+                qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
+                qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
+                qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
+                dp = D[qy, qx] * (m0 * qrx + m1 * qry + m2 * qrz)
+                den = m0 * rx + m1 * ry + m2 * rz
+                d = D[qy, qx]
+                if abs(den) > 1e-9:
+                    dd = dp / den
+                    if dd > 0 and abs(dd - d) < 0.1 * d:
+                        d = dd
+                if d < dmin or d > dmax:
+                    continue
+                if calm and (abs(d - best[1]) < 1e-3 * best[1]
+                             and m0 * best[2] + m1 * best[3] + m2 * best[4] > 0.99985):
+                    continue
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
+                                   geom, sdepth, max_reproj, mask), d, m0, m1, m2, best)
+            # refinement: perturbed depth and normal, perturbed normal, a random plane
+            pix = x * 65536 + y
+            for trial in range(1 if calm else 3):
+                bd = best[1]
+                b0 = best[2]
+                b1 = best[3]
+                b2 = best[4]
+                base = 2 + 4 * trial
+                if trial == 2:
+                    u = _uniform(seed, pix, it, base)
+                    d = 1.0 / (idmax + u * (idmin - idmax))
+                    _random_normal(seed, x, y, it, base + 1, kinv, nrm)
+                    m0 = nrm[0]
+                    m1 = nrm[1]
+                    m2 = nrm[2]
+                else:
+                    d = bd
+                    if trial == 0:
+                        u = _uniform(seed, pix, it, base)
+                        d = 1.0 / (1.0 / bd * (1.0 + perturb * (2.0 * u - 1.0)))
+                    _random_normal(seed, x, y, it, base + 1, kinv, nrm)
+                    m0 = b0 + perturb * 2.0 * nrm[0]
+                    m1 = b1 + perturb * 2.0 * nrm[1]
+                    m2 = b2 + perturb * 2.0 * nrm[2]
+                    ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+                    m0 /= ln
+                    m1 /= ln
+                    m2 /= ln
+                    if m0 * rx + m1 * ry + m2 * rz > 0:
+                        continue
+                if d < dmin or d > dmax:
+                    continue
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
+                                   geom, sdepth, max_reproj, mask), d, m0, m1, m2, best)
+            C[y, x] = best[0]
+            D[y, x] = best[1]
+            N[y, x, 0] = best[2]
+            N[y, x, 1] = best[3]
+            N[y, x, 2] = best[4]
