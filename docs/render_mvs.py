@@ -2,9 +2,10 @@
 
     python docs/render_mvs.py BENCH_MVS_DIR
 
-writes ``docs/img/mvs_monstree.png`` and ``docs/img/mvs_dino.png`` (photo | mesh drawn
-from that photo's camera, shaded, in its colours | a second view) and
-``docs/img/mvs_depth.png`` (a photo beside its depth, normal and confidence maps).
+writes ``docs/img/mvs_monstree.png``, ``docs/img/mvs_dino.png`` and
+``docs/img/mvs_columns.png`` (photo | mesh drawn from that photo's camera, shaded, in its
+colours | more views) and ``docs/img/mvs_depth.png`` (a photo beside its depth, normal
+and confidence maps).
 """
 
 import json
@@ -84,7 +85,7 @@ def main(bench: Path):
     img = ROOT / "docs" / "img"
     img.mkdir(exist_ok=True)
     real = ROOT.parent / "shared" / "data" / "real"
-    mt = bench / "monstree_patchmatch"
+    mt = bench / "monstree"
     if (mt / "mesh.ply").is_file():
         views = list(json.loads((mt / "report.json").read_text())["dense"]["views"])
         figure(mt, real / "monstree" / "images", [views[0], views[len(views) // 2]],
@@ -95,6 +96,11 @@ def main(bench: Path):
         figure(dino, real / "dinoSparseRing" / "images", ["dinoSR0001.png", "dinoSR0005.png",
                                                           "dinoSR0011.png"],
                img / "mvs_dino.png")
+    col = bench / "columns"
+    if (col / "mesh.ply").is_file():
+        views = list(json.loads((col / "report.json").read_text())["dense"]["views"])
+        figure(col, bench / "columns24", [views[1], views[7], views[16]],
+               img / "mvs_columns.png")
 
 
 if __name__ == "__main__":

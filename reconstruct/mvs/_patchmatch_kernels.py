@@ -42,19 +42,17 @@ def _uniform(seed, a, b, c):
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _row(k, h):
     """The k-th row a parallel loop visits: rows 0, 16, 32, ..., then 1, 17, ..., so that
     each thread's contiguous share of the loop spans the whole image (the work per row
     is uneven: textureless rows are cheap) and every core stays busy. Rows are
     independent, so the order changes no result."""
-    r = k
-    for j in range(16):
-        n = (h - j + 15) // 16
-        if r < n:
-            return j + 16 * r
-        r -= n
-    return k
+    q = h // 16
+    big = (h % 16) * (q + 1)  # the first h % 16 residues have q + 1 rows, the others q
+    if k < big:
+        return k // (q + 1) + 16 * (k % (q + 1))
+    return h % 16 + (k - big) // q + 16 * ((k - big) % q)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
