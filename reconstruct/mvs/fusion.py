@@ -57,7 +57,7 @@ class FusionOptions(Config):
                                     "not fused (windows straddling an occlusion edge "
                                     "fatten the foreground): a depth step or a gap larger "
                                     "than hole_area, not a small hole")
-    edge_jump: float = option(0.03, range="(0, 1)",
+    edge_jump: float = option(0.1, range="(0, 1)",
                               help="a depth step: neighbouring depths differing by more than "
                                    "this fraction")
     hole_area: int = option(64, unit="px", range="[0, inf)",
