@@ -326,9 +326,9 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
           settled):
     """One red-black half-sweep: propagation from the four directions, then refinement.
 
-    A pixel whose cost is below ``settled`` tries one plane: a small perturbation of its
-    own depth and normal together, not its neighbours' planes nor the larger
-    refinements (``settled`` < 0: every pixel tries all planes)."""
+    A pixel whose cost is below ``settled`` tries fewer planes: no neighbour's plane that
+    is its own within 0.1 % in depth and 1 degree in normal, and of the refinements only
+    the small perturbation of depth and normal together (``settled`` < 0: all planes)."""
     h, w = D.shape
     ns = ks.shape[0]
     idmin = 1.0 / dmin
@@ -351,8 +351,7 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
             mask = smask[y, x]
             calm = best[0] < settled
             # propagation: in each direction, the cheapest of the neighbours at 1, 3, 5
-            # (a settled pixel keeps its plane and only refines it)
-            for dirn in range(0 if calm else 4):
+            for dirn in range(4):
                 qx = -1
                 qy = -1
                 qc = 1e30
@@ -380,6 +379,9 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                     if dd > 0 and abs(dd - d) < 0.1 * d:
                         d = dd
                 if d < dmin or d > dmax:
+                    continue
+                if calm and (abs(d - best[1]) < 1e-3 * best[1]
+                             and m0 * best[2] + m1 * best[3] + m2 * best[4] > 0.99985):
                     continue
                 _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
                                    sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
