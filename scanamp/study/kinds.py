@@ -442,6 +442,63 @@ def _run_lidar(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
             "evaluation": evaluate_lidar(recon, scene_dir)}
 
 
+# -- range scans from free viewpoints (capture scans -> reconstruct scans -> poses + F) ------
+def _load_scans(path: Path):
+    from acquire.scans.capture import ScansCaptureConfig
+    from core.config import load_config
+
+    return load_config(ScansCaptureConfig, path)
+
+
+def _scans_recon():
+    from reconstruct.scans.pipeline import ScansReconConfig
+
+    return ScansReconConfig()
+
+
+SCANS_TAU = 5e-4  # the F-score's distance for range scans (issue 30: F at 0.5 mm)
+
+
+def _run_scans(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
+               material: dict | None = None) -> dict:
+    """Scan the scene from ``views`` free viewpoints, register and merge with no pose
+    given, then score the poses against the capture's true ones (after the robust gauge
+    fit of :func:`reconstruct.evaluation.scan_poses.compare_scan_poses`) and the merged
+    mesh, carried into the world by that gauge, against the ground truth at 0.5 mm."""
+    import json
+
+    from acquire.scans.capture import capture_scans
+    from core.mesh_io import read_mesh
+    from core.range_io import read_poses_json
+    from reconstruct.evaluation.evaluate import evaluate
+    from reconstruct.evaluation.scan_poses import compare_scan_poses
+    from reconstruct.scans.load import load_scans
+    from reconstruct.scans.pipeline import run as run_scans
+
+    bundle, info = _scene(scene, material)
+    cap_cfg = dataclasses.replace(cap_cfg, seed=seed)
+    cap = capture_scans(bundle.render_scene, cap_cfg, work / "capture",
+                        np.random.default_rng(seed), seed=seed, scene_info=info,
+                        gt_mesh=bundle.gt_mesh())
+    rec = Path(run_scans(rec_cfg, [Path(cap) / "scans"], work / "reconstruction"))
+    report = json.loads((rec / "report.json").read_text())
+    name = lambda f: Path(f).name  # noqa: E731
+    est = {name(q.file): (q.model_from_scan if q.registered else None)
+           for q in read_poses_json(rec / "poses.json")}
+    true = {name(q.file): q.model_from_scan for q in read_poses_json(Path(cap) / "poses.json")}
+    points = {s.name: s.points for s in load_scans([Path(cap) / "scans"])}
+    errors = compare_scan_poses(est, true, points)
+    diag = float(np.linalg.norm(np.ptp(np.asarray(bundle.gt_mesh().vertices), axis=0)))
+    mesh = read_mesh(rec / "mesh.ply").transform(errors.gauge)
+    surface = evaluate(mesh, bundle.gt_mesh(), tau=SCANS_TAU)
+    return {"reconstruction": report,
+            "registered_fraction": sum(v is not None for v in est.values()) / len(true),
+            "poses": {**errors.to_dict(),
+                      "displacement_max_fraction_of_scene":
+                          float(errors.displacement_rms.max()) / diag},
+            "mesh": surface.to_dict()}
+
+
 @dataclass
 class _TestConfig:
     """Test-only kind: ``y = x**2``; ``sleep`` seconds; ``fail_above``: raise when x >
@@ -507,5 +564,8 @@ KINDS: dict[str, Kind] = {
                            "peak_error.outlier_rate")),
     "lidar": Kind("lidar", _load_lidar, _lidar_recon, _run_lidar,
                   ("evaluation.trees.f", "evaluation.dtm.rmse", "evaluation.trees.height_rmse")),
+    "scans": Kind("scans", _load_scans, _scans_recon, _run_scans,
+                  ("registered_fraction", "poses.rotation_error_deg.max",
+                   "poses.displacement_max_fraction_of_scene", "mesh.fscore")),
     "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",)),
 }
