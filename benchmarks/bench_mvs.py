@@ -1,21 +1,15 @@
-"""Multi-view stereo: coarse-to-fine PatchMatch (the dense stage) against the earlier
-full-resolution PatchMatch (``coarse_to_fine=False``) and rectified-pair SGBM, side by
-side on the same inputs, in one run (the peers reuse the first run's sparse stages, so
-only their dense stages run; times are compared as ratios, the machine being shared).
+"""Multi-view stereo: PatchMatch (the dense stage) against rectified-pair SGBM (the stage
+it replaced), side by side on the same inputs, in one run.
 
 1. Renders: the SfM capture of the 'object' scene (24 views at 640x480, as in
-   bench_sfm). Targets: dense mesh F at tau = 1 % of the scene >= 0.97; the dense stage
-   <= 80 s and >= 3x faster than the full-resolution path.
-2. Columns: the SfM capture of the 'columns' scene (thin textured columns on steps,
-   24 views at 640x480). Targets: the dense mesh's recall at 1 % of the scene diagonal
-   >= 0.95 and precision >= 0.97.
-3. monstree (../shared/data/real/monstree/images: 23 phone photos, 2016x1512, 19 of them
-   portrait by their EXIF orientation): all 23 registered; the sculpture's views (the
-   median view) fused at >= 0.70; dense stage <= 1.2x the sparse stage; megapixel-
-   views per second on this machine, against the full-resolution path.
-4. dinoSparseRing from its given cameras (--cameras dinoSR_par.txt): silhouettes by a
+   bench_sfm). Target: dense mesh F at tau = 1 % of the scene >= 0.95; F at 0.5 % too.
+2. monstree (../shared/data/real/monstree/images: 23 phone photos, 2016x1512, 19 of them
+   portrait by their EXIF orientation): all 23 registered; >= 60 % of the pixels of every
+   registered view carry a fused depth; dense stage <= 3x the sparse stage; megapixel-
+   views per second on this machine.
+3. dinoSparseRing from its given cameras (--cameras dinoSR_par.txt): silhouettes by a
    threshold on the black background, dilated 2 px. Of the mesh drawn into every view
-   >= 97 % of the pixels fall inside the silhouette, and it covers >= 94.5 % of the
+   >= 97 % of the pixels fall inside the silhouette, and it covers >= 85 % of the
    silhouette pixels.
 
 The real sets are read from ../shared/data/real when it is there; otherwise those parts
@@ -55,30 +49,10 @@ def _run(config, inp, out):
 
 
 def _config(method, **kw):
-    from reconstruct.mvs.patchmatch import PatchMatchOptions
     from reconstruct.mvs.pipeline import MvsOptions
     from reconstruct.sfm.pipeline import SfmConfig
 
-    if method == "full-res":  # the earlier path: every iteration at full resolution
-        return SfmConfig(mvs=MvsOptions(patchmatch=PatchMatchOptions(coarse_to_fine=False)),
-                         **kw)
     return SfmConfig(mvs=MvsOptions(method=method), **kw)
-
-
-def _peers(first: Path, inp, methods, **kw):
-    """The peers' runs, each from a copy of the first run: only the dense stages run."""
-    import shutil
-
-    reps = {}
-    for m in methods:
-        out = first.parent / f"{first.name}_{m}"
-        if not out.is_dir():  # else (MVS_BENCH_DIR) its stages are reused where unchanged
-            shutil.copytree(first, out)
-        try:
-            reps[m] = _run(_config(m, **kw), inp, out)[1]
-        except Exception as exc:  # the peer failing must not hide our figures
-            print(f"   {first.name} {m}: failed: {exc}", flush=True)
-    return reps
 
 
 def _side_by_side(label, reps):
@@ -86,60 +60,20 @@ def _side_by_side(label, reps):
         d = rep.get("dense", {})
         covs = [v["fused_coverage"] for v in d.get("views", {}).values()] or [0.0]
         m = rep.get("metrics", {}).get("mesh", {})
-        f = (f", F@1% {m['fscore']:.3f} (P {m['precision']:.3f}, R {m['recall']:.3f}), "
-             f"F@0.5% {m['fscore_half_tau']:.3f}" if m else "")
-        print(f"   {label} {method:>10}: dense {rep['timings'].get('dense', 0):6.1f} s "
-              f"(depth maps {d.get('timings', {}).get('depth_maps', 0):6.1f} s), fused "
-              f"coverage mean {np.mean(covs):.2f} median {np.median(covs):.2f} min "
-              f"{np.min(covs):.2f}{f}", flush=True)
-
-
-def _speedup(label, reps, bound_s=None):
-    new, old = reps["patchmatch"]["timings"]["dense"], reps["full-res"]["timings"]["dense"]
-    ok = _check(f"{label}: dense stage, full-resolution path / coarse-to-fine (same run)",
-                old / new, 3.0, fmt="{:.2f}")
-    if bound_s:
-        ok &= _check(f"{label}: dense stage seconds (coarse-to-fine; a shared machine)", new,
-                     bound_s, higher=False, fmt="{:.1f}")
-    return ok
+        f = (f", F@1% {m['fscore']:.3f}, F@0.5% {m['fscore_half_tau']:.3f}" if m else "")
+        print(f"   {label} {method:>10}: dense {rep['timings'].get('dense', 0):6.1f} s, sparse "
+              f"{rep['timings'].get('sparse_total', 0):6.1f} s, fused coverage mean "
+              f"{np.mean(covs):.2f} min {np.min(covs):.2f}{f}", flush=True)
 
 
 def renders(root: Path):
     from bench_sfm import _capture
 
-    cap = root / "orbit24"
-    if not (cap / "capture.json").is_file():
-        cap = _capture(root)
-    first = root / "render"
-    reps = {"patchmatch": _run(_config("patchmatch"), cap, first)[1]}
-    reps.update(_peers(first, cap, ("full-res", "sgbm")))
+    cap = _capture(root)
+    reps = {m: _run(_config(m), cap, root / f"render_{m}")[1] for m in ("patchmatch", "sgbm")}
     _side_by_side("renders", reps)
-    ok = _check("renders: PatchMatch mesh F at 1 % of the scene",
-                reps["patchmatch"]["metrics"]["mesh"]["fscore"], 0.97)
-    return ok & _speedup("renders", reps, 80.0)
-
-
-def _columns_capture(root: Path) -> Path:
-    from acquire.sfm.capture import PathConfig, capture
-    from data_synth.scenes import build_scene
-
-    if (root / "columns24" / "capture.json").is_file():
-        return root / "columns24"
-    bundle = build_scene("columns")
-    cfg = PathConfig(kind="orbit", views=24, width=640, height=480)
-    return capture(bundle.render_scene, cfg, root / "columns24", rng=np.random.default_rng(0),
-                   scene_ref={"name": "columns", "seed": bundle.seed, "path": None},
-                   gt_mesh=bundle.gt_mesh(), seed=0)
-
-
-def columns(root: Path):
-    cap = _columns_capture(root)
-    res, rep = _run(_config("patchmatch"), cap, root / "columns")
-    _side_by_side("columns", {"patchmatch": rep})
-    m = rep["metrics"]["mesh"]
-    ok = _check("columns: mesh recall at 1 % of the scene diagonal", m["recall"], 0.95)
-    return ok & _check("columns: mesh precision at 1 % of the scene diagonal",
-                       m["precision"], 0.97)
+    return _check("renders: PatchMatch mesh F at 1 % of the scene",
+                  reps["patchmatch"]["metrics"]["mesh"]["fscore"], 0.95)
 
 
 def monstree(root: Path):
@@ -147,23 +81,24 @@ def monstree(root: Path):
     if not images.is_dir():
         print(f"   monstree: {images} not found, skipped (a fresh clone has no ../shared)")
         return True
-    first = root / "monstree"
-    res, rep = _run(_config("patchmatch"), images, first)
-    print(f"   monstree patchmatch: {res.message}", flush=True)
-    reps = {"patchmatch": rep, **_peers(first, images, ("full-res", "sgbm"))}
+    reps = {}
+    for m in ("patchmatch", "sgbm"):
+        try:
+            res, reps[m] = _run(_config(m), images, root / f"monstree_{m}")
+        except Exception as exc:  # the peer failing must not hide our figures
+            print(f"   monstree {m}: failed: {exc}", flush=True)
+            if m == "patchmatch":
+                return False
+            continue
+        print(f"   monstree {m}: {res.message}", flush=True)
     _side_by_side("monstree", reps)
+    rep = reps["patchmatch"]
     ok = _check("monstree: registered", rep["registered"], 23, fmt="{:.0f}")
-    covs = [v["fused_coverage"] for v in rep["dense"]["views"].values()]
-    ok &= _check("monstree: fused coverage of the median view (the sculpture's)",
-                 float(np.median(covs)), 0.70)
-    print(f"   monstree: worst view fused at {min(covs):.2f} (target retired: far forest)")
-    sparse = rep["timings"]["sparse_total"]
-    for m, r in reps.items():
-        print(f"   monstree {m}: dense / sparse {r['timings']['dense'] / sparse:.2f}")
-    ok &= _check("monstree: dense stage / sparse stage", rep["timings"]["dense"] / sparse, 1.2,
-                 higher=False, fmt="{:.2f}")
-    if "full-res" in reps:
-        ok &= _speedup("monstree", reps)
+    ok &= _check("monstree: fused coverage of the worst view",
+                 rep["dense"]["min_fused_coverage"], 0.60)
+    ratio = rep["timings"]["dense"] / rep["timings"]["sparse_total"]
+    ok &= _check("monstree: dense stage / sparse stage", ratio, 3.0, higher=False,
+                 fmt="{:.2f}")
     print(f"   monstree: {rep['dense']['megapixel_views_per_s']:.3f} megapixel-views/s on "
           f"{os.cpu_count()} cores (working size {max(rep['dense']['working_size'].values())})")
     return ok
@@ -211,18 +146,17 @@ def dino(root: Path):
               f"{rep['timings']['dense']:.1f} s", flush=True)
         if m == "patchmatch":
             ok &= _check("dino: mesh pixels inside the silhouette", inside, 0.97)
-            ok &= _check("dino: silhouette pixels covered by the mesh", covers, 0.945)
+            ok &= _check("dino: silhouette pixels covered by the mesh", covers, 0.85)
     return ok
 
 
 def main():
     root = Path(os.environ.get("MVS_BENCH_DIR") or tempfile.mkdtemp(prefix="bench_mvs_"))
     print(f"   outputs in {root}; real data from {REAL}", flush=True)
-    parts = sys.argv[1:] or ["renders", "columns", "monstree", "dino"]
+    parts = sys.argv[1:] or ["renders", "monstree", "dino"]
     ok = True
     for name in parts:
-        ok &= {"renders": renders, "columns": columns, "monstree": monstree,
-               "dino": dino}[name](root)
+        ok &= {"renders": renders, "monstree": monstree, "dino": dino}[name](root)
     return 0 if ok else 1
 
 

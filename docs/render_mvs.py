@@ -2,10 +2,9 @@
 
     python docs/render_mvs.py BENCH_MVS_DIR
 
-writes ``docs/img/mvs_monstree.png``, ``docs/img/mvs_dino.png`` and
-``docs/img/mvs_columns.png`` (photo | mesh drawn from that photo's camera, shaded, in its
-colours | more views) and ``docs/img/mvs_depth.png`` (a photo beside its depth, normal
-and confidence maps).
+writes ``docs/img/mvs_monstree.png`` and ``docs/img/mvs_dino.png`` (photo | mesh drawn
+from that photo's camera, shaded, in its colours | a second view) and
+``docs/img/mvs_depth.png`` (a photo beside its depth, normal and confidence maps).
 """
 
 import json
@@ -73,21 +72,6 @@ def figure(rec: Path, images: Path, names, out: Path, h=360):
     write_image(out, np.hstack(tiles))
 
 
-def capture_figure(rec: Path, cap: Path, names, out: Path, h=360):
-    """As :func:`figure`, drawn from a capture's true cameras (the mesh of a capture
-    with ground truth is in the scene's frame)."""
-    from acquire.camera import Camera
-    from acquire.capture_io import load_capture
-    from core.image_io import read_image, write_image
-    from core.mesh_io import read_mesh
-
-    mesh = read_mesh(rec / "mesh.ply")
-    cams = load_capture(cap).data["ground_truth"]["cameras"]
-    tiles = [_fit(read_image(cap / names[0])[..., :3], h)]
-    tiles += [_fit(draw(mesh, Camera.from_dict(cams[n])), h) for n in names]
-    write_image(out, np.hstack(tiles))
-
-
 def depth_figure(rec: Path, images: Path, name: str, out: Path, h=360):
     from core.image_io import read_image, write_image
 
@@ -99,25 +83,18 @@ def depth_figure(rec: Path, images: Path, name: str, out: Path, h=360):
 def main(bench: Path):
     img = ROOT / "docs" / "img"
     img.mkdir(exist_ok=True)
-    import os
-
-    real = Path(os.environ.get("SCANAMP_REAL_DATA") or ROOT.parent / "shared" / "data" / "real")
-    mt = bench / "monstree"
+    real = ROOT.parent / "shared" / "data" / "real"
+    mt = bench / "monstree_patchmatch"
     if (mt / "mesh.ply").is_file():
         views = list(json.loads((mt / "report.json").read_text())["dense"]["views"])
         figure(mt, real / "monstree" / "images", [views[0], views[len(views) // 2]],
                img / "mvs_monstree.png")
         depth_figure(mt, real / "monstree" / "images", views[0], img / "mvs_depth.png")
     dino = bench / "dino_patchmatch"
-    if (dino / "mesh.ply").is_file() and (real / "dinoSparseRing").is_dir():
+    if (dino / "mesh.ply").is_file():
         figure(dino, real / "dinoSparseRing" / "images", ["dinoSR0001.png", "dinoSR0005.png",
                                                           "dinoSR0011.png"],
                img / "mvs_dino.png")
-    col = bench / "columns"
-    if (col / "mesh.ply").is_file():
-        views = list(json.loads((col / "report.json").read_text())["dense"]["views"])
-        capture_figure(col, bench / "columns24", [views[1], views[7], views[16]],
-                       img / "mvs_columns.png")
 
 
 if __name__ == "__main__":

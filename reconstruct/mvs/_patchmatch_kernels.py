@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["bilateral_weights", "sweep", "initialise", "final_costs", "source_costs"]
+__all__ = ["bilateral_weights", "sweep", "initialise", "final_costs"]
 
 _BAD = 2.0
 
@@ -40,19 +40,6 @@ def _uniform(seed, a, b, c):
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     z = z ^ (z >> np.uint64(31))
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-@nb.njit(cache=True)
-def _row(k, h):
-    """The k-th row a parallel loop visits: rows 0, 16, 32, ..., then 1, 17, ..., so that
-    each thread's contiguous share of the loop spans the whole image (the work per row
-    is uneven: textureless rows are cheap) and every core stays busy. Rows are
-    independent, so the order changes no result."""
-    q = h // 16
-    big = (h % 16) * (q + 1)  # the first h % 16 residues have q + 1 rows, the others q
-    if k < big:
-        return k // (q + 1) + 16 * (k % (q + 1))
-    return h % 16 + (k - big) // q + 16 * ((k - big) % q)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
@@ -131,11 +118,6 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
     for r in range(3):
         for c in range(3):
             H[r, c] = B[r, 0] * kinv[0, c] + B[r, 1] * kinv[1, c] + B[r, 2] * kinv[2, c]
-    s0 = stats[y, x, 0]
-    ma = stats[y, x, 1] / s0
-    va = stats[y, x, 2] / s0 - ma * ma
-    if va < min_var:  # a textureless window matches nothing: no need to warp it
-        return _BAD
     hs = sizes[s, 1]
     ws = sizes[s, 0]
     h, w = ref.shape
@@ -161,9 +143,12 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
             sbb += wt * b * b
             sab += wt * ref[yy, xx] * b
             k += 1
+    s0 = stats[y, x, 0]
+    ma = stats[y, x, 1] / s0
     mb = sb / s0
+    va = stats[y, x, 2] / s0 - ma * ma
     vb = sbb / s0 - mb * mb
-    if vb < min_var:
+    if va < min_var or vb < min_var:
         return _BAD
     ncc = (sab / s0 - ma * mb) / np.sqrt(va * vb)
     return 1.0 - max(-1.0, min(1.0, ncc))
@@ -211,14 +196,10 @@ def _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes, max_err):
 
 @nb.njit(cache=True, fastmath=True)
 def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
-          radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
-    """Multi-view cost: the mean of the top_k cheapest source views (of those whose bit
-    is set in ``mask``; the others count as unmatched)."""
+          radius, step, min_var, top_k, geom, sdepth, max_reproj):
+    """Multi-view cost: the mean of the top_k cheapest source views."""
     ns = ks.shape[0]
     for s in range(ns):
-        if not (mask >> s) & 1:
-            scratch[s] = _BAD
-            continue
         c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs,
                        ts, radius, step, min_var, hb)
         if geom > 0.0:
@@ -289,52 +270,28 @@ def initialise(D, N, dmin, dmax, kinv, seed):
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def final_costs(D, N, C, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
-                min_var, top_k, geom, sdepth, max_reproj, smask):
+                min_var, top_k, geom, sdepth, max_reproj):
     """The cost of every pixel's current plane (after initialisation, or to re-score)."""
     h, w = D.shape
     ns = ks.shape[0]
-    for k in nb.prange(h):
-        y = _row(k, h)
+    for y in nb.prange(h):
         scratch = np.empty(max(ns, 1))
         hb = np.empty((3, 3, 3))
         for x in range(w):
             C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, hb,
                             ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
-                            min_var, top_k, geom, sdepth, max_reproj, smask[y, x])
-
-
-@nb.njit(parallel=True, cache=True, fastmath=True)
-def source_costs(D, N, ref, wts, stats, src, sizes, kinv, ks, rs, ts, radius, step, min_var):
-    """(H, W, n_sources) photometric cost of every pixel's plane against each source."""
-    h, w = D.shape
-    ns = ks.shape[0]
-    out = np.empty((h, w, ns), np.float32)
-    for k in nb.prange(h):
-        y = _row(k, h)
-        hb = np.empty((3, 3, 3))
-        for x in range(w):
-            for s in range(ns):
-                out[y, x, s] = _view_cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2],
-                                          s, ref, wts, stats, src, sizes, kinv, ks, rs, ts,
-                                          radius, step, min_var, hb)
-    return out
+                            min_var, top_k, geom, sdepth, max_reproj)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks,
-          rs, ts, radius, step, min_var, top_k, geom, sdepth, max_reproj, perturb, smask,
-          settled):
-    """One red-black half-sweep: propagation from the four directions, then refinement.
-
-    A pixel whose cost is below ``settled`` tries fewer planes: no neighbour's plane that
-    is its own within 0.1 % in depth and 1 degree in normal, and of the refinements only
-    the small perturbation of depth and normal together (``settled`` < 0: all planes)."""
+          rs, ts, radius, step, min_var, top_k, geom, sdepth, max_reproj, perturb):
+    """One red-black half-sweep: propagation from the four directions, then refinement."""
     h, w = D.shape
     ns = ks.shape[0]
     idmin = 1.0 / dmin
     idmax = 1.0 / dmax
-    for k in nb.prange(h):
-        y = _row(k, h)
+    for y in nb.prange(h):
         scratch = np.empty(max(ns, 1))
         hb = np.empty((3, 3, 3))
         nrm = np.empty(3)
@@ -348,8 +305,6 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
             ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
             rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
-            mask = smask[y, x]
-            calm = best[0] < settled
             # propagation: in each direction, the cheapest of the neighbours at 1, 3, 5
             for dirn in range(4):
                 qx = -1
@@ -380,15 +335,12 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                         d = dd
                 if d < dmin or d > dmax:
                     continue
-                if calm and (abs(d - best[1]) < 1e-3 * best[1]
-                             and m0 * best[2] + m1 * best[3] + m2 * best[4] > 0.99985):
-                    continue
                 _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
                                    sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
-                                   geom, sdepth, max_reproj, mask), d, m0, m1, m2, best)
+                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
-            for trial in range(1 if calm else 3):
+            for trial in range(3):
                 bd = best[1]
                 b0 = best[2]
                 b1 = best[3]
@@ -420,7 +372,7 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                     continue
                 _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
                                    sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
-                                   geom, sdepth, max_reproj, mask), d, m0, m1, m2, best)
+                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
             C[y, x] = best[0]
             D[y, x] = best[1]
             N[y, x, 0] = best[2]

@@ -34,7 +34,7 @@ from core.config import Config, option
 from core.progress import track
 
 __all__ = ["PatchMatchOptions", "View", "DepthMap", "prepare_views", "depth_range",
-           "patchmatch", "upsample_planes"]
+           "patchmatch"]
 
 log = logging.getLogger(__name__)
 
@@ -75,23 +75,6 @@ class PatchMatchOptions(Config):
     max_angle_deg: float = option(45.0, unit="deg", range="(0, 90]",
                                   help="largest useful triangulation angle with a source")
     seed: int = option(0, range="[0, inf)", help="seed of the random planes")
-    coarse_to_fine: bool = option(True,
-                                  help="the photometric iterations at half resolution, then "
-                                       "fine_iterations at full resolution against the "
-                                       "sources that matched there (False: every iteration "
-                                       "at full resolution, against every source: the "
-                                       "earlier, about 3 times slower path)")
-    fine_iterations: int = option(1, range="[0, 20]",
-                                  help="coarse-to-fine: photometric iterations at full "
-                                       "resolution, from the upsampled half-resolution planes")
-    source_margin: float = option(0.3, range="[0, 2]",
-                                  help="coarse-to-fine: at full resolution a pixel is matched "
-                                       "only against the sources whose half-resolution cost "
-                                       "was within this of its best")
-    settled_cost: float = option(0.3, range="[0, 2]",
-                                 help="coarse-to-fine: a full-resolution pixel whose cost is "
-                                      "below this tries only its neighbours' different planes "
-                                      "and one small perturbation")
 
 
 @dataclass
@@ -115,8 +98,6 @@ class DepthMap:
     confidence: np.ndarray
     sources: list = field(default_factory=list)
     raw_depth: np.ndarray | None = None  # every pixel's best plane, before the cost cut
-    raw_normal: np.ndarray | None = None
-    source_mask: np.ndarray | None = None  # (H, W) int64 bits of the sources worth matching
 
     @property
     def coverage(self) -> float:
@@ -182,56 +163,8 @@ def _stack(views: Sequence[View], idx: Sequence[int], maps=None):
     return img, dep, sizes
 
 
-def _half(v: View) -> View:
-    """The view at half resolution (area average), its pinhole camera scaled to match."""
-    c = v.camera
-    w, h = max(1, (c.width + 1) // 2), max(1, (c.height + 1) // 2)
-    sx, sy = w / c.width, h / c.height
-    gray = cv2.resize(v.gray, (w, h), interpolation=cv2.INTER_AREA)
-    cam = Camera(w, h, c.fx * sx, c.fy * sy, (c.cx + 0.5) * sx - 0.5, (c.cy + 0.5) * sy - 0.5,
-                 np.zeros(5), c.cam_from_world)
-    return View(v.name, gray, v.color, cam, v.depth_range)
-
-
-def upsample_planes(depth: np.ndarray, normal: np.ndarray, coarse: Camera, fine: Camera):
-    """Each fine pixel takes the plane of the coarse pixel it falls in, carried to its own
-    ray (the depth where the ray meets that plane; the coarse depth where the plane is
-    nearly edge-on or the carried depth is more than 10 % off).
-
-    Returns (H, W) float64 depths, (H, W, 3) normals and the (H, W) coarse indices
-    (rows, columns) each fine pixel took its plane from.
-    """
-    h, w = fine.height, fine.width
-    ys, xs = np.mgrid[0:h, 0:w]
-    xc = np.clip(np.rint((xs + 0.5) * coarse.width / w - 0.5), 0, coarse.width - 1)
-    yc = np.clip(np.rint((ys + 0.5) * coarse.height / h - 0.5), 0, coarse.height - 1)
-    xc, yc = xc.astype(np.int64), yc.astype(np.int64)
-    dc = depth[yc, xc].astype(np.float64)
-    n = normal[yc, xc].astype(np.float64)
-    pc = np.stack([(xc - coarse.cx) / coarse.fx, (yc - coarse.cy) / coarse.fy,
-                   np.ones_like(dc)], -1) * dc[..., None]
-    ray = np.stack([(xs - fine.cx) / fine.fx, (ys - fine.cy) / fine.fy, np.ones_like(dc)], -1)
-    num = np.sum(n * pc, -1)
-    den = np.sum(n * ray, -1)
-    d = np.divide(num, den, out=dc.copy(), where=np.abs(den) > 1e-9)
-    d = np.where((d > 0) & (np.abs(d - dc) < 0.1 * dc), d, dc)
-    return d, n, (yc, xc)
-
-
-def _source_mask(costs: np.ndarray, margin: float) -> np.ndarray:
-    """(H, W) int64 bits of the sources within ``margin`` of each pixel's best cost (all
-    sources where none matched)."""
-    best = costs.min(axis=2, keepdims=True)
-    ok = (costs <= best + margin) & (costs < 2.0)
-    ok[~ok.any(axis=2)] = True
-    return np.sum(ok.astype(np.int64) << np.arange(costs.shape[2], dtype=np.int64), axis=2)
-
-
 def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
-              init, maps, *, iters: int, p0: float, smask=None, settled: float = -1.0,
-              want_mask: bool = False) -> DepthMap:
-    """PatchMatch of view ``i``: ``iters`` iterations from random planes (``init`` None) or
-    from ``init`` = (depth, normal); with the sources' ``maps``, geometric consistency."""
+              init: DepthMap | None, maps) -> DepthMap:
     from reconstruct.mvs import _patchmatch_kernels as pk
 
     v = views[i]
@@ -240,8 +173,7 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     h, w = cam.height, cam.width
     if not sources or dmax <= 0:
         zero = np.zeros((h, w), np.float32)
-        return DepthMap(zero, np.zeros((h, w, 3), np.float32), zero, [], zero,
-                        np.zeros((h, w, 3), np.float32))
+        return DepthMap(zero, np.zeros((h, w, 3), np.float32), zero, [], zero)
     kr = cam.K
     kinv = np.linalg.inv(kr)
     src, sdepth, sizes = _stack(views, sources, maps)
@@ -254,54 +186,32 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     geom = opt.geom_weight if maps is not None else 0.0
     min_var = opt.min_texture ** 2
     seed = opt.seed * 1_000_003 + i
-    if smask is None:
-        smask = np.full((h, w), (1 << len(sources)) - 1, np.int64)
-    if init is None:
-        D, N = np.zeros((h, w)), np.zeros((h, w, 3))
-        pk.initialise(D, N, dmin, dmax, kinv, seed)
-    else:
-        D, N = np.array(init[0], np.float64), np.array(init[1], np.float64)
+    D = np.zeros((h, w))
+    N = np.zeros((h, w, 3))
     C = np.zeros((h, w))
+    if init is None:
+        pk.initialise(D, N, dmin, dmax, kinv, seed)
+        iters, p0 = opt.iterations, 0.25
+    else:
+        D[:] = np.where(init.depth > 0, init.depth, 0.5 * (dmin + dmax))
+        N[:] = init.normal
+        bad = np.linalg.norm(N, axis=2) < 0.5
+        N[bad] = (0.0, 0.0, -1.0)
+        iters, p0 = opt.geom_iterations, 0.05
     args = (v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts, opt.window_radius,
             opt.window_step, min_var, opt.top_k, geom, sdepth, opt.max_reprojection)
-    pk.final_costs(D, N, C, *args, smask)
+    pk.final_costs(D, N, C, *args)
     for it in range(iters):
         perturb = max(p0 * 0.5 ** it, 0.01)
         for colour in (0, 1):
-            pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, dmin, dmax, *args, perturb,
-                     smask, settled)
+            pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, dmin, dmax, *args[:-4],
+                     opt.top_k, geom, sdepth, opt.max_reprojection, perturb)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)
     conf = np.where(keep, np.clip(1.0 - C, 0.0, 1.0), 0.0).astype(np.float32)
-    out = DepthMap(depth, normal, conf, [views[j].name for j in sources],
-                   D.astype(np.float32), N.astype(np.float32))
-    if want_mask:
-        costs = pk.source_costs(D, N, *args[:6], *args[7:13])
-        out.source_mask = _source_mask(costs, opt.source_margin)
-    return out
-
-
-def _restart(m: DepthMap, dmin: float, dmax: float):
-    """The geometric iterations' start (the earlier path): kept planes, the others a
-    fronto-parallel plane mid-range."""
-    D = np.where(m.depth > 0, m.depth, 0.5 * (dmin + dmax))
-    N = np.array(m.normal, np.float64)
-    N[np.linalg.norm(N, axis=2) < 0.5] = (0.0, 0.0, -1.0)
-    return D, N
-
-
-def _fine_start(views, coarse_views, coarse: Sequence[DepthMap]):
-    """Each view's full-resolution start from its half-resolution planes, and the
-    sources each pixel is matched against."""
-    starts = []
-    for v, cv_, m in zip(views, coarse_views, coarse, strict=True):
-        if not m.sources:
-            starts.append(None)
-            continue
-        d, n, (yc, xc) = upsample_planes(m.raw_depth, m.raw_normal, cv_.camera, v.camera)
-        starts.append(((d, n), m.source_mask[yc, xc]))
-    return starts
+    return DepthMap(depth, normal, conf, [views[j].name for j in sources],
+                    D.astype(np.float32))
 
 
 def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
@@ -315,43 +225,18 @@ def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
     sources : sequence of sequence of int
         Source views of each view (indices into ``views``); a view without sources, or
         without a depth range, gets an empty map.
-
-    With ``coarse_to_fine`` the photometric iterations run at half resolution; their
-    planes, carried to the full-resolution rays (:func:`upsample_planes`), start
-    ``fine_iterations`` at full resolution, each pixel against the sources that matched
-    it at half resolution (``source_margin``), settled pixels trying fewer planes
-    (``settled_cost``); then the geometric iterations, likewise.
     """
     opt = options or PatchMatchOptions()
-    n = len(views)
     t = time.perf_counter()
-    starts: list = [None] * n
-    if opt.coarse_to_fine:
-        small = [_half(v) for v in views]
-        coarse = [_run_view(i, small, sources[i], opt, None, None, iters=opt.iterations,
-                            p0=0.25, want_mask=True)
-                  for i in track(range(n), "PatchMatch (half resolution)", total=n)]
-        starts = _fine_start(views, small, coarse)
-        first = [_run_view(i, views, sources[i], opt, starts[i] and starts[i][0], None,
-                           iters=opt.fine_iterations, p0=0.05,
-                           smask=starts[i] and starts[i][1], settled=opt.settled_cost)
-                 for i in track(range(n), "PatchMatch (photometric)", total=n)]
-    else:
-        first = [_run_view(i, views, sources[i], opt, None, None, iters=opt.iterations,
-                           p0=0.25) for i in track(range(n), "PatchMatch (photometric)",
-                                                   total=n)]
+    first: list = [None] * len(views)
+    for i in track(range(len(views)), "PatchMatch (photometric)", total=len(views)):
+        first[i] = _run_view(i, views, sources[i], opt, None, None)
     timings = {"photometric": time.perf_counter() - t}
     if opt.geom_iterations == 0:
         return first, timings
     t = time.perf_counter()
     out = []
-    for i in track(range(n), "PatchMatch (geometric)", total=n):
-        if opt.coarse_to_fine and starts[i] is not None:
-            init, mask = (first[i].raw_depth, first[i].raw_normal), starts[i][1]
-            settled = opt.settled_cost
-        else:
-            init, mask, settled = _restart(first[i], *views[i].depth_range), None, -1.0
-        out.append(_run_view(i, views, sources[i], opt, init, first, iters=opt.geom_iterations,
-                             p0=0.05, smask=mask, settled=settled))
+    for i in track(range(len(views)), "PatchMatch (geometric)", total=len(views)):
+        out.append(_run_view(i, views, sources[i], opt, first[i], first))
     timings["geometric"] = time.perf_counter() - t
     return out, timings
