@@ -27,6 +27,7 @@ __all__ = [
     "from_pyvista",
     "surface_area",
     "compact",
+    "sorted_mesh",
     "submesh",
     "is_closed",
     "unique_edges",
@@ -131,6 +132,32 @@ def compact(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     used, inverse = np.unique(np.asarray(triangles, np.int64), return_inverse=True)
     return used, inverse.reshape(-1, 3)
+
+
+def sorted_mesh(mesh) -> "o3d.geometry.TriangleMesh":
+    """The same surface in an order that depends only on its geometry: vertices sorted by
+    (x, y, z), each triangle rotated to start at its smallest index (winding kept), the
+    triangles sorted. Extractors that walk a hash map (Open3D's ``VoxelBlockGrid``) return
+    the same mesh in a different order from run to run; this makes their bytes repeat.
+
+    >>> import open3d as o3d
+    >>> m = sorted_mesh(make_mesh(np.array([[1., 0, 0], [0, 0, 0], [0, 1, 0]]),
+    ...                           np.array([[0, 2, 1]])))
+    >>> np.asarray(m.vertices)[:, :2].tolist(), np.asarray(m.triangles).tolist()
+    ([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]], [[0, 2, 1]])
+    """
+    v, f = mesh_arrays(mesh)
+    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
+    rank = np.empty(len(v), np.int64)
+    rank[order] = np.arange(len(v))
+    f = rank[f]
+    roll = np.argmin(f, axis=1)
+    f = np.take_along_axis(f, (roll[:, None] + np.arange(3)) % 3, axis=1)
+    f = f[np.lexsort((f[:, 2], f[:, 1], f[:, 0]))]
+    colors = np.asarray(mesh.vertex_colors)[order] if mesh.has_vertex_colors() else None
+    normals = np.asarray(mesh.vertex_normals)[order] if mesh.has_vertex_normals() else None
+    return make_mesh(v[order], f, vertex_colors=colors, vertex_normals=normals,
+                     compute_normals=normals is None)
 
 
 def submesh(vertices: np.ndarray, triangles: np.ndarray):

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from acquire.camera import Camera
+from core.meshes import sorted_mesh
 from core.progress import track
 from core.validate import check_positive
 
@@ -134,6 +135,7 @@ class TSDFVolume:
                 raise
             _log.warning("the fused volume has no surface: empty mesh")
             return o3d.geometry.TriangleMesh()
+        mesh = sorted_mesh(mesh)  # the hash map's order differs from run to run
         mesh.compute_vertex_normals()
         return mesh
 
