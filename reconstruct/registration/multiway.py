@@ -425,8 +425,7 @@ def refine_scans(scans, model_from_scans: list[np.ndarray], *,
              for k, C in zip(order, canon, strict=True)]
     members = list(range(len(ss)))
     solved, _, _ = _fine(views, poses, members, 0, coarse, voxel, fine, options)
-    anchor = np.asarray(model_from_scans[order[0]], np.float64) @ np.linalg.inv(canon[0])
     out: list[np.ndarray] = [np.eye(4)] * len(scans)
-    for k, (T, C) in enumerate(zip(solved, canon, strict=True)):
-        out[order[k]] = anchor @ np.linalg.inv(solved[0]) @ T @ C
+    for k, (T, C) in enumerate(zip(solved, canon, strict=True)):   # the anchor (0) stays
+        out[order[k]] = T @ C
     return out
