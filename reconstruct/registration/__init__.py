@@ -4,7 +4,8 @@ frame, and many range scans to each other with no initial pose.
 Modules: ``rigid`` (a scan to a reference), ``oriented`` (oriented samples in a scan's
 canonical frame), ``features`` (FPFH, seeded RANSAC), ``verify`` (overlap, agreement and
 lines of sight of a candidate), ``pairwise`` (two scans, no initial pose), ``joint``
-(multi-view ICP), ``multiway`` (all scans: pairs, pose graph, fine alignment).
+(multi-view ICP), ``multiway`` (all scans: pairs, pose graph, fine alignment; the fine
+alignment alone from given poses).
 
 Every name below is importable from the room (``from reconstruct.registration import
 NAME``), loaded on first use.
@@ -38,6 +39,7 @@ _EXPORTS = {
     "MultiwayResult": "multiway",
     "ScanPlacement": "multiway",
     "register_scans": "multiway",
+    "refine_scans": "multiway",
     "auto_voxel": "multiway",
 }
 __all__ = sorted(_EXPORTS)

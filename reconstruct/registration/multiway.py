@@ -34,7 +34,7 @@ from core.frames import rotation_angle_deg
 from core.progress import track
 
 from .joint import JointAlignment
-from .oriented import Oriented, thin_oriented
+from .oriented import Oriented, canonical_frame, thin_oriented
 from .pairwise import PairMatch, Prepared, icp_point_to_plane, match_pair, prepare
 from .verify import VerifyOptions, verify_pair
 
@@ -44,7 +44,7 @@ log = logging.getLogger(__name__)
 _RAW_POINTS = 20000
 
 __all__ = ["MultiwayOptions", "ScanPlacement", "MultiwayResult", "register_scans",
-           "auto_voxel"]
+           "refine_scans", "auto_voxel"]
 
 
 @dataclass(frozen=True)
@@ -380,3 +380,52 @@ def _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned,
               "rotation_deg": p["rotation_deg"], "shift_m": p["shift_m"]} for p in pruned]
     timings["fine_pairs"] = n_fine_pairs
     return MultiwayResult(out, pairs, named, voxel, fine, timings)
+
+
+def refine_scans(scans, model_from_scans: list[np.ndarray], *,
+                 options: MultiwayOptions | None = None) -> list[np.ndarray]:
+    """The fine stage of :func:`register_scans` alone: the simultaneous multi-view ICP over
+    every pair that overlaps at ``model_from_scans``, on the same samples and with the
+    same shrinking matching band, from the given poses (no pair search, no pose graph).
+
+    Where it settles is the scans' own best fit near those poses: started on true poses,
+    the distance it moves is the error the fine alignment itself adds (measured on scans
+    moved onto the true surface: 0.0015 degrees on the 12 rendered scans of ``object``);
+    on measured scans it also shows what their geometry allows.
+
+    Parameters
+    ----------
+    scans : sequence of objects with ``name``, ``points``, ``normals``, ``sight``
+        (``confidence`` used when present), as for :func:`register_scans`.
+    model_from_scans : list of (4, 4) float64
+        One pose per scan; all must be given.
+    options : MultiwayOptions
+        ``voxel``, ``fine_voxel``, ``fine_iterations``, ``fine_min_overlap`` are used.
+
+    Returns
+    -------
+    list of (4, 4) float64
+        ``model_from_scan`` per scan, in input order; the first scan by name keeps its pose.
+    """
+    options = MultiwayOptions() if options is None else options
+    if len(scans) < 2:
+        raise ValueError(f"scans: expected at least 2 scans, got {len(scans)}")
+    if len(model_from_scans) != len(scans) or any(T is None for T in model_from_scans):
+        raise ValueError("model_from_scans: expected one pose per scan")
+    order = sorted(range(len(scans)), key=lambda k: (scans[k].name, len(scans[k].points)))
+    ss = [scans[k] for k in order]
+    voxel, fine = auto_voxel(ss)
+    voxel = options.voxel or voxel
+    fine = options.fine_voxel or min(fine, voxel)
+    canon = [canonical_frame(s.points) for s in ss]
+    coarse = [thin_oriented(s.points @ C[:3, :3].T + C[:3, 3], s.normals @ C[:3, :3].T,
+                            s.sight @ C[:3, :3].T, voxel) for s, C in zip(ss, canon, strict=True)]
+    views = [_fine_view(s, C, fine) for s, C in zip(ss, canon, strict=True)]
+    poses = [np.asarray(model_from_scans[k], np.float64) @ np.linalg.inv(C)
+             for k, C in zip(order, canon, strict=True)]
+    members = list(range(len(ss)))
+    solved, _, _ = _fine(views, poses, members, 0, coarse, voxel, fine, options)
+    out: list[np.ndarray] = [np.eye(4)] * len(scans)
+    for k, (T, C) in enumerate(zip(solved, canon, strict=True)):   # the anchor (0) stays
+        out[order[k]] = T @ C
+    return out
