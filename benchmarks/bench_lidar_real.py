@@ -234,8 +234,9 @@ def simulation_vs_reality(real_pts, real_res, ref):
         sim_ref = np.column_stack([truth["x"], truth["y"], truth["height"]])
         sim = _survey_figures(sim_pts, sim_res, sim_ref, area)
     print(f"   simulation against reality (stand of {len(ref)} trees grown {t_scene:.0f} s, "
-          f"{n_tri / 1e6:.1f} M triangles, flown {t_survey:.0f} s by riegl-lms-q560 at {real['first returns per m2']:.2f} "
-          "pulses/m2; the same 90 x 90 m; first returns only, as the real tile keeps):")
+          f"{n_tri / 1e6:.1f} M triangles, flown {t_survey:.0f} s by riegl-lms-q560 at "
+          f"{real['first returns per m2']:.2f} pulses/m2; the same 90 x 90 m; first returns "
+          "only, as the real tile keeps):")
     print(f"   {'':32s} {'real':>9s} {'simulated':>10s}")
     for k in real:
         print(f"   {k:32s} {real[k]:9.3f} {sim[k]:10.3f}")

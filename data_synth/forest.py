@@ -50,8 +50,7 @@ from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
 from data_synth.scenes import SceneBundle
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
-from procgen.trees import (SPECIES, TREE_PARTS, crown_years, grow_tree, place_tree,
-                           species_for)
+from procgen.trees import SPECIES, TREE_PARTS, crown_years, grow_tree, place_tree, species_for
 
 __all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse_species_mix",
            "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS"]

@@ -40,7 +40,7 @@ from core.validate import check_array, check_positive, check_rng
 
 __all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "grow_tree",
            "place_tree", "needle_clusters", "crown_years", "LEADER_GROWTH", "NEEDLE_CLUSTER",
-           "NEEDLE_DENSITY", "FAN"]
+           "NEEDLE_DENSITY", "FAN", "hull_radius"]
 
 TREE_PARTS = ("trunk", "branch", "leaf")
 """Part of each tree triangle: the stem, a branch, a leaf or needle cluster."""
@@ -293,7 +293,7 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
         same = (par >= 0) & (res.colors[np.maximum(par, 0)] == res.colors)
         par[~same] = -1
         ends = shoots[res.colors != 0, 1, :2]
-        return TreeModel(V, F, P, _hull_radius(ends), float(stem_w.max()) / 2 / top, sp.form,
+        return TreeModel(V, F, P, hull_radius(ends), float(stem_w.max()) / 2 / top, sp.form,
                          shoots=shoots, shoot_parents=par, species=sp.code)
     leafy = V[F[P == 2].ravel()] if np.any(P == 2) else V
     # the crown's radius as an inventory measures it (the edge of the foliage, not the
@@ -302,7 +302,7 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
     return TreeModel(V, F, P, crown, float(stem_w.max()) / 2 / top, sp.form, species=sp.code)
 
 
-def _hull_radius(xy: np.ndarray) -> float:
+def hull_radius(xy: np.ndarray) -> float:
     """sqrt(area / pi) of the convex hull of points ``(n, 2)``."""
     from scipy.spatial import ConvexHull, QhullError
 

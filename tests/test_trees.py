@@ -6,8 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from procgen.trees import (FAN, _hull_radius, crown_years, grow_tree, needle_clusters,
-                           place_tree, species_for)
+from procgen.trees import (
+    FAN,
+    crown_years,
+    grow_tree,
+    hull_radius,
+    needle_clusters,
+    place_tree,
+    species_for,
+)
 
 
 def _straight_axis(n=3, step=1.0):
@@ -53,7 +60,7 @@ def test_a_placed_conifer_has_the_crown_and_top_asked_and_its_own_needles():
         assert V[:, 2].max() == pytest.approx(19.0, abs=1e-9)   # the top is exact
         leaf = V[F[P == 2].ravel()]
         # the crown's radius as a LiDAR inventory measures it: its hull seen from above
-        assert _hull_radius(leaf[:, :2] - [5.0, -2.0]) == pytest.approx(2.5, rel=0.06)
+        assert hull_radius(leaf[:, :2] - [5.0, -2.0]) == pytest.approx(2.5, rel=0.06)
         # trunk, branches and needles
         assert set(np.unique(P).tolist()) == {0, 1, 2}
         out.append(leaf)
