@@ -50,7 +50,16 @@ from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
 from data_synth.scenes import SceneBundle
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
-from procgen.trees import SPECIES, TREE_PARTS, crown_years, grow_tree, place_tree, species_for
+from procgen.trees import (
+    NEEDLE_CLUSTER,
+    NEEDLE_DENSITY,
+    SPECIES,
+    TREE_PARTS,
+    crown_years,
+    grow_tree,
+    place_tree,
+    species_for,
+)
 
 __all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse_species_mix",
            "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS"]
@@ -100,9 +109,9 @@ class ForestConfig(Config):
     variants: int = option(0, range="[0, 32]",
                            help="individuals grown per species, each tree a scaled copy of "
                                 "one (0: every tree grown on its own)")
-    needle_cluster: float = option(0.2, unit="m", range="[0.02, 1]",
+    needle_cluster: float = option(NEEDLE_CLUSTER, unit="m", range="[0.02, 1]",
                                    help="side of a conifer's needle cluster (a triangle)")
-    needle_density: float = option(50.0, unit="1/m2", range="(0, 2000]",
+    needle_density: float = option(NEEDLE_DENSITY, unit="1/m2", range="(0, 2000]",
                                    help="needle clusters per square metre of a conifer "
                                         "branch's spray")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
