@@ -2,9 +2,10 @@
 
 A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
 ``crown_radius``, ``species``: :func:`core.trees_io.read_tree_table`) or is procedural
-(density, species mix, height distribution, understory; seeded). Each tree is one of a few
-individuals grown per species (:func:`procgen.trees.grow_tree`), scaled to its height and
-crown, turned about its stem and stood on the terrain so that its top is exactly at
+(density, species mix, height distribution, understory; seeded). Each tree is grown on its
+own (:func:`procgen.trees.grow_tree`; or, with ``variants``, one of a few individuals per
+species), scaled to its height and crown, given its own needle clusters in metres
+(conifers), turned about its stem and stood on the terrain so that its top is exactly at
 ground + height.
 
 Coordinates are kept as given: an inventory's projected coordinates (millions of metres)
@@ -49,7 +50,16 @@ from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
 from data_synth.scenes import SceneBundle
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
-from procgen.trees import SPECIES, TREE_PARTS, grow_tree, place_tree, species_for
+from procgen.trees import (
+    NEEDLE_CLUSTER,
+    NEEDLE_DENSITY,
+    SPECIES,
+    TREE_PARTS,
+    crown_years,
+    grow_tree,
+    place_tree,
+    species_for,
+)
 
 __all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse_species_mix",
            "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS"]
@@ -96,7 +106,14 @@ class ForestConfig(Config):
                                 help="terrain grid spacing at most this")
     elevation: float = option(0.0, unit="m", help="terrain mean elevation")
     roads: bool = option(False, help="a few roads and buildings of the procedural city")
-    variants: int = option(4, range="[1, 32]", help="individuals grown per species")
+    variants: int = option(0, range="[0, 32]",
+                           help="individuals grown per species, each tree a scaled copy of "
+                                "one (0: every tree grown on its own)")
+    needle_cluster: float = option(NEEDLE_CLUSTER, unit="m", range="[0.02, 1]",
+                                   help="side of a conifer's needle cluster (a triangle)")
+    needle_density: float = option(NEEDLE_DENSITY, unit="1/m2", range="(0, 2000]",
+                                   help="needle clusters per square metre of a conifer "
+                                        "branch's spray")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
 
@@ -292,10 +309,15 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
     lut = np.array([part_code(p) for p in codes], np.uint8)
     for k in range(n):
         sp = species_for(str(t["species"][k]))
-        if sp.code not in models:
-            models[sp.code] = [grow_tree(sp, rng=rng) for _ in range(cfg.variants)]
-        model = models[sp.code][int(rng.integers(len(models[sp.code])))]
         h = float(t["height"][k])
+        if cfg.variants == 0:
+            ratio = sp.crown_ratio * rng.uniform(0.9, 1.1)
+            years = crown_years(h, ratio) if sp.form == "conifer" else 14
+            model = grow_tree(sp, rng=rng, years=years, crown_ratio=ratio)
+        else:
+            if sp.code not in models:
+                models[sp.code] = [grow_tree(sp, rng=rng) for _ in range(cfg.variants)]
+            model = models[sp.code][int(rng.integers(len(models[sp.code])))]
         cr = t["crown_radius"][k] if t.get("crown_radius") is not None else np.nan
         if not cr > 0:
             cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
@@ -303,7 +325,9 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
         V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
                              height=h + STEM_SINK, crown_radius=float(cr),
                              dbh=float(dbh) if dbh > 0 else None,
-                             azimuth=float(rng.uniform(0, 2 * np.pi)))
+                             azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
+                             needle_cluster=cfg.needle_cluster,
+                             needle_density=cfg.needle_density)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh

@@ -46,7 +46,7 @@ def _part_mesh(objects):
 def stand(bundle) -> Path:
     import pyvista as pv
 
-    from procgen.trees import grow_tree, place_tree
+    from procgen.trees import crown_years, grow_tree, place_tree, species_for
 
     pl = pv.Plotter(off_screen=True, window_size=(1500, 700), shape=(1, 2), border=False)
     pl.subplot(0, 0)
@@ -68,14 +68,15 @@ def stand(bundle) -> Path:
 
     lut = np.array([part_code(p) for p in ("trunk", "branch", "leaf")], np.uint8)
     objs = []
-    for k, sp in enumerate(("PIAB", "ABAL", "PISY", "FASY", "BEPE")):
-        m = grow_tree(sp, rng=np.random.default_rng(k))
-        v, f, p = place_tree(m, position=(13.0 * k, 0.0, 0.0), height=20.0)
+    for k, sp in enumerate(("PIAB", "ABCO", "PSME", "PIPO", "FASY")):
+        rng = np.random.default_rng(k)
+        m = grow_tree(sp, rng=rng, years=crown_years(20.0, species_for(sp).crown_ratio))
+        v, f, p = place_tree(m, position=(13.0 * k, 0.0, 0.0), height=20.0, rng=rng)
         objs.append(_Obj(v, f, lut[p]))
     pl.add_mesh(_part_mesh(objs), scalars="rgb", rgb=True)
     pl.view_xz()
-    pl.camera.zoom(1.3)
-    pl.add_text("PIAB   ABAL   PISY   FASY   BEPE", position="lower_edge", font_size=12,
+    pl.camera.zoom(1.05)
+    pl.add_text("PIAB   ABCO   PSME   PIPO   FASY", position="lower_edge", font_size=12,
                 color="black")
     path = OUT / "lidar_stand.png"
     pl.screenshot(str(path))

@@ -3,10 +3,13 @@
 Two architectures, after Prusinkiewicz and Lindenmayer, *The Algorithmic Beauty of Plants*
 (1990), chapter 2 (monopodial and sympodial branching):
 
-- **conifer** (monopodial): a single leader that lays down one whorl of branches a year
-  (the apex rolls by the golden angle between whorls); every branch elongates each year
-  and carries needle clusters along it, so the lower (older) branches are the longest and
-  the crown is a cone. Branches droop by tropism toward -Z.
+- **conifer** (monopodial): a single leader that lays down one whorl of branches a year,
+  and two shorter interwhorl branches (the apex rolls by the golden angle between whorls);
+  every branch elongates each year, so the lower (older) branches are the longest and the
+  crown is a cone. Branches droop by tropism toward -Z. The crown reaches down to
+  ``1 - crown_ratio`` of the height. Its needles are added when the tree is placed, in
+  metres (:func:`needle_clusters`): decimetre clusters on the last ``needle_reach``
+  metres of every axis, across a flat spray of side shoots that widens away from the tip.
 - **broadleaf** (sympodial): a clear bole up to the crown base, then forks of two or three
   daughters (chosen by a stochastic production) that spread and turn up, ending in leaf
   clusters; the crown is an ellipsoidal dome.
@@ -21,8 +24,10 @@ radius and a stem diameter at breast height.
 >>> m = grow_tree("PIAB", rng=np.random.default_rng(0))
 >>> m.form, float(m.vertices[:, 2].max())
 ('conifer', 1.0)
->>> sorted(set(m.parts.tolist())) == [0, 1, 2]  # trunk, branch, leaf triangles
-True
+>>> v, f, p = place_tree(m, position=(0.0, 0.0, 0.0), height=20.0, crown_radius=3.0,
+...                      rng=np.random.default_rng(1))
+>>> sorted(set(p.tolist())), float(v[:, 2].max())  # trunk, branch, needle triangles
+([0, 1, 2], 20.0)
 """
 
 from __future__ import annotations
@@ -34,7 +39,8 @@ import numpy as np
 from core.validate import check_array, check_positive, check_rng
 
 __all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "grow_tree",
-           "place_tree"]
+           "place_tree", "needle_clusters", "crown_years", "LEADER_GROWTH", "NEEDLE_CLUSTER",
+           "NEEDLE_DENSITY", "FAN", "hull_radius"]
 
 TREE_PARTS = ("trunk", "branch", "leaf")
 """Part of each tree triangle: the stem, a branch, a leaf or needle cluster."""
@@ -62,6 +68,11 @@ class Species:
         Tropism toward -Z of the branches (0: straight).
     whorl : int
         Conifers: branches per whorl. Broadleaves: forking levels.
+    needle_reach : float
+        Conifers: metres of each shoot, back from its tip, that still carry needles (the
+        years a needle lives times a year's shoot growth).
+    spray : float
+        Conifers: half-width of a branch's foliage (its lateral shoots), metres.
     """
 
     code: str
@@ -72,21 +83,24 @@ class Species:
     branch_angle: float
     droop: float
     whorl: int
+    needle_reach: float = 1.5
+    spray: float = 0.3
 
 
 SPECIES = {s.code: s for s in (
-    Species("PIAB", "Picea abies", "conifer", 0.75, 0.12, 80, 0.25, 5),
-    Species("ABAL", "Abies alba", "conifer", 0.65, 0.12, 85, 0.10, 5),
-    Species("PISY", "Pinus sylvestris", "conifer", 0.35, 0.14, 60, 0.05, 4),
-    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.13, 75, 0.15, 5),
-    Species("LADE", "Larix decidua", "conifer", 0.55, 0.12, 70, 0.15, 5),
-    Species("PIPO", "Pinus ponderosa", "conifer", 0.45, 0.14, 65, 0.05, 4),
+    Species("PIAB", "Picea abies", "conifer", 0.75, 0.12, 80, 0.25, 5, 2.0, 0.35),
+    Species("ABAL", "Abies alba", "conifer", 0.65, 0.12, 85, 0.10, 5, 2.0, 0.35),
+    Species("ABCO", "Abies concolor", "conifer", 0.65, 0.12, 85, 0.10, 5, 2.0, 0.35),
+    Species("PISY", "Pinus sylvestris", "conifer", 0.40, 0.14, 60, 0.05, 4, 0.8, 0.25),
+    Species("PSME", "Pseudotsuga menziesii", "conifer", 0.60, 0.13, 75, 0.15, 5, 1.5, 0.35),
+    Species("LADE", "Larix decidua", "conifer", 0.55, 0.12, 70, 0.15, 5, 0.8, 0.25),
+    Species("PIPO", "Pinus ponderosa", "conifer", 0.50, 0.14, 65, 0.05, 4, 1.0, 0.30),
     Species("FASY", "Fagus sylvatica", "broadleaf", 0.60, 0.20, 35, 0.0, 6),
     Species("QURO", "Quercus robur", "broadleaf", 0.55, 0.24, 45, 0.0, 6),
     Species("BEPE", "Betula pendula", "broadleaf", 0.60, 0.16, 30, 0.1, 6),
     Species("ACPS", "Acer pseudoplatanus", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
     Species("GENB", "generic broadleaf", "broadleaf", 0.55, 0.20, 40, 0.0, 6),
-    Species("GENC", "generic conifer", "conifer", 0.60, 0.13, 75, 0.10, 5),
+    Species("GENC", "generic conifer", "conifer", 0.60, 0.13, 75, 0.10, 5, 1.5, 0.3),
 )}
 """The species known by code; :func:`species_for` also takes the Latin names."""
 
@@ -120,12 +134,22 @@ class TreeModel:
     parts : (m,) uint8
         Index into :data:`TREE_PARTS` per triangle.
     crown_radius : float
-        Horizontal distance from the stem axis within which 90 % of the leaf vertices lie
-        (height units): where the foliage ends, as an inventory's crown radius says.
+        Broadleaves: horizontal distance from the stem axis within which 90 % of the leaf
+        vertices lie (height units). Conifers: the radius of the circle of the area of the
+        convex hull of the shoots seen from above, as an inventory derived from a LiDAR
+        segmentation measures a crown.
     stem_radius : float
         Stem radius at breast height for a tree 1 unit tall... as built (height units);
         :func:`place_tree` rescales the stem to the diameter asked for.
     form : str
+    shoots : (k, 2, 3) float64 or None
+        Conifers: the axes (stem and branches) as segments, normalised like ``vertices``;
+        their needles are added in metres when the tree is placed (:func:`place_tree`),
+        so the needle clusters keep their size whatever the tree's.
+    shoot_parents : (k,) int64 or None
+        The shoot each one continues along the same axis (-1 at an axis' base).
+    species : str
+        The species' code.
     """
 
     vertices: np.ndarray
@@ -134,13 +158,16 @@ class TreeModel:
     crown_radius: float
     stem_radius: float
     form: str
+    shoots: np.ndarray | None = None
+    shoot_parents: np.ndarray | None = None
+    species: str = ""
 
 
-_NEEDLE = "[&(50){{.+(25)f({s}).-(50)f({s}).-(130)f({s}).}}]"
 _LEAF = "[&(40)$^(30){{.+(35)f({s}).-(70)f({s}).-(110)f({s}).}}]"
 
 
-def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int) -> str:
+def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int,
+                     crown_ratio: float) -> str:
     internode = 1.0
     k = sp.whorl + int(rng.integers(-1, 2))
     ang = sp.branch_angle + rng.uniform(-8, 8)
@@ -149,19 +176,20 @@ def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int) -> str:
     roll = 360.0 / k
     whorl = "".join(f"[&({ang + rng.uniform(-6, 6):.1f})'(1)!(0.06)B({b0:.3f})]/({roll:.1f})"
                     for _ in range(k))
+    # interwhorl branches: shorter, two per year halfway up the year's shoot (Pseudotsuga,
+    # Abies and Picea have them; pines few, but their long needles fill the same space)
+    inter = "".join(f"[&({ang + rng.uniform(-6, 6):.1f})'(1)!(0.04)B({0.5 * b0:.3f})]/(180)"
+                    for _ in range(2))
     # the crown is the last `years` whorls; the bole below it has shed its branches
-    bole = years * internode * (1.0 - sp.crown_ratio) / sp.crown_ratio
-    # needle clusters: two pairs on the sides of each year's shoot and one ahead, large
-    # enough that a crown is as opaque to a laser as a real one (several layers deep)
-    s = 0.5
-    needle = _NEEDLE.format(s=s)
+    bole = years * internode * (1.0 - crown_ratio) / crown_ratio
+    # the axes only: the needles are added in metres when the tree is placed
     return "\n".join([
         f"n: {years}",
         f"tropism: 0, 0, -1, {0.3 * sp.droop:.3f}",
         f"axiom: '(0)!(0.3)F({bole:.3f})A(0.25)",
-        f"A(w) -> !(w)F({internode})[{whorl}]/(137.5)A(w * 0.85)",
-        f"B(l) -> !(0.04)F(l)[-(55)${needle}][+(55)${needle}]/(90)[-(40)${needle}]"
-        f"[+(40)${needle}]{needle}B(l * {gr})",
+        f"A(w) -> !(w)F({internode / 2})/(90)[{inter}]F({internode / 2})[{whorl}]/(137.5)"
+        "A(w * 0.85)",
+        f"B(l) -> !(0.04)F(l)B(l * {gr})",
     ])
 
 
@@ -190,7 +218,7 @@ def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
 
 
 def grow_tree(species: str | Species, *, rng: np.random.Generator,
-              years: int = 14) -> TreeModel:
+              years: int = 14, crown_ratio: float | None = None) -> TreeModel:
     """Grow one tree of a species and normalise it (top at z = 1).
 
     Parameters
@@ -201,6 +229,8 @@ def grow_tree(species: str | Species, *, rng: np.random.Generator,
         Whorl counts and angles of this individual, and the stochastic forks.
     years : int
         Conifers: whorls laid down (the crown's depth in internodes).
+    crown_ratio : float, optional
+        Crown length / tree height (default: the species', +/- 10 % by ``rng``).
 
     Returns
     -------
@@ -210,8 +240,12 @@ def grow_tree(species: str | Species, *, rng: np.random.Generator,
 
     check_rng(rng)
     sp = species if isinstance(species, Species) else species_for(species)
-    text = (_conifer_grammar(sp, rng, int(years)) if sp.form == "conifer"
-            else _broadleaf_grammar(sp, rng))
+    if sp.form == "conifer":
+        cr = (sp.crown_ratio * rng.uniform(0.9, 1.1) if crown_ratio is None
+              else float(crown_ratio))
+        text = _conifer_grammar(sp, rng, int(years), min(max(cr, 0.05), 0.98))
+    else:
+        text = _broadleaf_grammar(sp, rng)
     g = parse_grammar(text, source=f"<{sp.code}>")
     res = interpret(derive(g, rng=rng), g)
     return _normalise(res, sp, polygon_arrays, tube_arrays)
@@ -222,7 +256,10 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
 
     parts_v, parts_f, parts_l = [], [], []
     count = 0
-    for label, mask, sides in ((0, res.colors == 0, 6), (1, res.colors != 0, 4)):
+    # conifers carry hundreds of thin branches: triangular tubes without caps suffice
+    thin = (3, False) if sp.form == "conifer" else (4, True)
+    for label, mask, sides, caps in ((0, res.colors == 0, 6, True),
+                                     (1, res.colors != 0, *thin)):
         idx = np.flatnonzero(mask)
         if len(idx) == 0:
             continue
@@ -232,30 +269,80 @@ def _normalise(res, sp: Species, polygon_arrays, tube_arrays) -> TreeModel:
         par = np.where(par >= 0, remap[np.maximum(par, 0)], -1)
         sub = TurtleResult(res.starts[idx], res.ends[idx], res.frames[idx], res.widths[idx],
                            res.colors[idx], par, np.empty((0, 3)), np.empty(0, np.int64))
-        v, f = tube_arrays(sub, sides=sides, caps=True)
+        v, f = tube_arrays(sub, sides=sides, caps=caps)
         parts_v.append(v)
         parts_f.append(f.astype(np.int64) + count)
         parts_l.append(np.full(len(f), label, np.uint8))
         count += len(v)
     v, f = polygon_arrays(res)
-    parts_v.append(v)
-    parts_f.append(f.astype(np.int64) + count)
-    parts_l.append(np.full(len(f), 2, np.uint8))
+    if len(f):
+        parts_v.append(v)
+        parts_f.append(f.astype(np.int64) + count)
+        parts_l.append(np.full(len(f), 2, np.uint8))
     V = np.vstack(parts_v)
     F = np.vstack(parts_f)
     P = np.concatenate(parts_l)
     top = float(V[:, 2].max())
     V = V / top
+    stem_w = res.widths[res.colors == 0]
+    if sp.form == "conifer":
+        shoots = np.stack([res.starts, res.ends], 1) / top
+        par = np.asarray(res.parents, np.int64).copy()
+        # an axis continues its parent only within the same kind (a branch's base hangs
+        # on the stem, a new axis)
+        same = (par >= 0) & (res.colors[np.maximum(par, 0)] == res.colors)
+        par[~same] = -1
+        ends = shoots[res.colors != 0, 1, :2]
+        return TreeModel(V, F, P, hull_radius(ends), float(stem_w.max()) / 2 / top, sp.form,
+                         shoots=shoots, shoot_parents=par, species=sp.code)
     leafy = V[F[P == 2].ravel()] if np.any(P == 2) else V
     # the crown's radius as an inventory measures it (the edge of the foliage, not the
     # tip of the longest shoot): 90 % of the leaf vertices lie within it
     crown = float(np.percentile(np.hypot(leafy[:, 0], leafy[:, 1]), 90))
-    stem_w = res.widths[res.colors == 0]
-    return TreeModel(V, F, P, crown, float(stem_w.max()) / 2 / top, sp.form)
+    return TreeModel(V, F, P, crown, float(stem_w.max()) / 2 / top, sp.form, species=sp.code)
+
+
+def hull_radius(xy: np.ndarray) -> float:
+    """sqrt(area / pi) of the convex hull of points ``(n, 2)``."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        area = ConvexHull(xy).volume if len(xy) >= 3 else 0.0
+    except QhullError:
+        area = 0.0
+    return float(np.sqrt(area / np.pi)) if area > 0 else float(np.abs(xy).max(initial=1e-3))
+
+
+LEADER_GROWTH = 0.45
+"""Metres a conifer's leader grows a year: a crown of length ``L`` holds ``L / 0.45``
+whorls (:func:`crown_years`)."""
+
+
+def crown_years(height: float, crown_ratio: float) -> int:
+    """Whorls in the crown of a conifer ``height`` metres tall (6-24: the number of
+    branches, and so of triangles, stays bounded).
+
+    >>> crown_years(12.0, 0.6)
+    16
+    """
+    return int(np.clip(round(height * crown_ratio / LEADER_GROWTH), 6, 24))
+
+
+NEEDLE_CLUSTER = 0.2
+"""Side of a needle cluster's triangle, metres: a shoot's tuft of needles."""
+
+NEEDLE_DENSITY = 50.0
+"""Needle clusters per square metre of a branch's needled spray."""
+
+FAN = 0.5
+"""A branch's spray widens by this much per metre back from its tip: its side shoots, a
+year older with every year's shoot of the axis, are longer the farther from the tip."""
 
 
 def place_tree(model: TreeModel, *, position, height: float, crown_radius: float | None = None,
-               dbh: float | None = None, azimuth: float = 0.0
+               dbh: float | None = None, azimuth: float = 0.0,
+               rng: np.random.Generator | None = None,
+               needle_cluster: float = NEEDLE_CLUSTER, needle_density: float = NEEDLE_DENSITY
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Scale a normalised tree to its size and stand it at ``position``.
 
@@ -272,6 +359,12 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
         Stem diameter at 1.3 m, metres (default: the model's own proportion).
     azimuth : float
         Rotation about the stem, radians.
+    rng : numpy.random.Generator, optional
+        Conifers: where the needle clusters go (default: seed 0).
+    needle_cluster : float
+        Conifers: side of a needle cluster's triangle, metres.
+    needle_density : float
+        Conifers: needle clusters per square metre of a branch's needled spray.
 
     Returns
     -------
@@ -283,6 +376,10 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
     h = check_positive(height, "height")
     kxy = h if crown_radius is None else check_positive(crown_radius, "crown_radius") / \
         model.crown_radius
+    sp = species_for(model.species) if model.shoots is not None else None
+    if sp is not None and crown_radius is not None:
+        # the needles' spray reaches half its width beyond the branch tips
+        kxy = max(crown_radius - 0.5 * sp.spray, 0.5 * crown_radius) / model.crown_radius
     V = model.vertices * np.array([kxy, kxy, h])
     if dbh is not None or kxy != h:
         # the stem keeps its own proportion (or the diameter asked for), not the crown's
@@ -291,6 +388,82 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
         stem_v = np.unique(model.triangles[model.parts == 0])
         r_now = model.stem_radius * kxy
         V[stem_v, :2] *= r_want / max(r_now, 1e-12)
+    F, P = model.triangles, model.parts
+    if sp is not None:
+        shoots = model.shoots * np.array([kxy, kxy, h])
+        nv, nf = needle_clusters(shoots, model.shoot_parents, sp,
+                                 rng if rng is not None else np.random.default_rng(0),
+                                 size=needle_cluster, density=needle_density)
+        nv[:, 2] = np.minimum(nv[:, 2], h)  # the leader's tip stays the top
+        F = np.vstack([F, nf + len(V)])
+        P = np.concatenate([P, np.full(len(nf), 2, np.uint8)])
+        V = np.vstack([V, nv])
     c, s = np.cos(azimuth), np.sin(azimuth)
     V = V @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) + p
-    return V, model.triangles, model.parts
+    return V, F, P
+
+
+def needle_clusters(shoots: np.ndarray, parents: np.ndarray, species: Species,
+                    rng: np.random.Generator, *, size: float = NEEDLE_CLUSTER,
+                    density: float = NEEDLE_DENSITY) -> tuple[np.ndarray, np.ndarray]:
+    """Needle clusters along a conifer's axes, in metres.
+
+    Each shoot (segment ``(k, 2, 3)``) carries needles on the last
+    ``species.needle_reach`` metres of its axis back from the axis' tip (older needles
+    have fallen, and the inner crown is shaded). There the branch is a flat spray of side
+    shoots, ``species.spray + FAN x`` either side at ``x`` metres from the tip and a
+    quarter of that above and below; ``density`` clusters per square metre of it, each a
+    triangle of side ``size`` turned at random.
+
+    Returns
+    -------
+    vertices : (3 n, 3) float64
+    triangles : (n, 3) int64
+    """
+    k = len(shoots)
+    a, b = shoots[:, 0], shoots[:, 1]
+    length = np.linalg.norm(b - a, axis=1)
+    # distance from each shoot's end to the farthest tip of its axis
+    beyond = np.zeros(k)
+    for i in range(k - 1, -1, -1):
+        q = parents[i]
+        if q >= 0:
+            beyond[q] = max(beyond[q], beyond[i] + length[i])
+    reach = species.needle_reach
+    # the needled stretch of each shoot, as distances from its axis' tip: [x0, x1]
+    x0 = beyond
+    x1 = np.minimum(beyond + length, reach)
+    x1 = np.maximum(x1, x0)
+    c, f = species.spray, FAN
+    area = 2 * (c * (x1 - x0) + 0.5 * f * (x1 ** 2 - x0 ** 2))  # of the spray, m^2
+    n = rng.poisson(density * area)
+    seg = np.repeat(np.arange(k), n)
+    m = len(seg)
+    if m == 0:
+        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+    # distance from the tip, drawn with the spray's width (c + f x): inverse of its CDF
+    s0, s1 = x0[seg], x1[seg]
+    cdf = rng.uniform(0.0, 1.0, m) * (c * (s1 - s0) + 0.5 * f * (s1 ** 2 - s0 ** 2))
+    x = (-c + np.sqrt(c * c + 2 * f * (cdf + c * s0 + 0.5 * f * s0 ** 2))) / f
+    t = 1.0 - (x - beyond[seg]) / np.maximum(length[seg], 1e-12)
+    d = (b - a)[seg] / np.maximum(length[seg], 1e-12)[:, None]
+    centre = a[seg] + t[:, None] * (b - a)[seg]
+    # the spray's frame: across the shoot horizontally, and its normal
+    side = np.cross(d, [0.0, 0.0, 1.0])
+    ns = np.linalg.norm(side, axis=1)
+    side = np.where(ns[:, None] > 1e-6, side / np.maximum(ns, 1e-12)[:, None], [1.0, 0, 0])
+    up = np.cross(side, d)
+    width = c + f * x
+    centre += (side * (width * rng.uniform(-1, 1, m))[:, None]
+               + up * (width / 4 * rng.uniform(-1, 1, m))[:, None])
+    # an equilateral triangle in a random plane
+    u = rng.normal(size=(m, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    w = np.cross(u, rng.normal(size=(m, 3)))
+    w /= np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-12)
+    v = np.cross(w, u)
+    r = size / np.sqrt(3.0)
+    h3 = np.sqrt(3.0) / 2
+    corners = [u, -0.5 * u + h3 * v, -0.5 * u - h3 * v]
+    V = np.stack([centre + r * c for c in corners], 1).reshape(-1, 3)
+    return V, np.arange(3 * m, dtype=np.int64).reshape(m, 3)

@@ -1,0 +1,86 @@
+"""L-system trees: conifers' needle clusters in metres, per-tree growth, crowns of the size
+an inventory asks (procgen/trees.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from procgen.trees import (
+    FAN,
+    crown_years,
+    grow_tree,
+    hull_radius,
+    needle_clusters,
+    place_tree,
+    species_for,
+)
+
+
+def _straight_axis(n=3, step=1.0):
+    """One horizontal axis of ``n`` shoots of ``step`` metres along +x, tip at x = n."""
+    a = np.array([[i * step, 0.0, 10.0] for i in range(n)])
+    b = a + [step, 0.0, 0.0]
+    return np.stack([a, b], 1), np.arange(-1, n - 1)
+
+
+def test_needle_clusters_lie_on_the_needled_spray_with_its_law():
+    sp = species_for("PSME")                 # needle reach 1.5 m, spray 0.35 m
+    shoots, parents = _straight_axis(3)
+    size, density = 0.2, 400.0
+    V, F = needle_clusters(shoots, parents, sp, np.random.default_rng(0), size=size,
+                           density=density)
+    tri = V[F]
+    # every cluster is an equilateral triangle of the side asked
+    sides = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2)
+    np.testing.assert_allclose(sides, size, rtol=1e-9)
+    c = tri.mean(1)
+    x = 3.0 - c[:, 0]                         # metres back from the axis' tip
+    reach, w0 = sp.needle_reach, sp.spray
+    # needles only on the last `reach` metres (the first shoot has none), within the
+    # spray's half-width (w0 + FAN x) across and a quarter of it above and below
+    assert x.min() >= 0 and x.max() <= reach + 1e-9
+    assert np.all(np.abs(c[:, 1]) <= w0 + FAN * x + 1e-9)
+    assert np.all(np.abs(c[:, 2] - 10.0) <= (w0 + FAN * x) / 4 + 1e-9)
+    # as many as the density times the spray's area (Poisson: 4 sigma)
+    area = 2 * (w0 * reach + FAN * reach ** 2 / 2)
+    assert abs(len(F) - density * area) < 4 * np.sqrt(density * area)
+    # the distance from the tip follows the spray's width: E[x] in closed form
+    ex = (w0 * reach ** 2 / 2 + FAN * reach ** 3 / 3) / (w0 * reach + FAN * reach ** 2 / 2)
+    assert x.mean() == pytest.approx(ex, abs=4 * x.std() / np.sqrt(len(x)))
+
+
+def test_a_placed_conifer_has_the_crown_and_top_asked_and_its_own_needles():
+    m = grow_tree("ABCO", rng=np.random.default_rng(3), years=crown_years(18.0, 0.65))
+    assert m.form == "conifer" and not np.any(m.parts == 2)   # needles come when placed
+    out = []
+    for seed in (1, 1, 2):
+        V, F, P = place_tree(m, position=(5.0, -2.0, 1.0), height=18.0, crown_radius=2.5,
+                             rng=np.random.default_rng(seed))
+        assert V[:, 2].max() == pytest.approx(19.0, abs=1e-9)   # the top is exact
+        leaf = V[F[P == 2].ravel()]
+        # the crown's radius as a LiDAR inventory measures it: its hull seen from above
+        assert hull_radius(leaf[:, :2] - [5.0, -2.0]) == pytest.approx(2.5, rel=0.06)
+        # trunk, branches and needles
+        assert set(np.unique(P).tolist()) == {0, 1, 2}
+        out.append(leaf)
+    np.testing.assert_array_equal(out[0], out[1])             # seeded
+    assert out[0].shape != out[2].shape or not np.array_equal(out[0], out[2])
+
+
+def test_crown_ratio_sets_the_crown_base():
+    lows = []
+    for ratio in (0.35, 0.7):
+        m = grow_tree("PSME", rng=np.random.default_rng(0), years=12, crown_ratio=ratio)
+        V, F, P = place_tree(m, position=(0.0, 0.0, 0.0), height=20.0, crown_radius=3.0,
+                             rng=np.random.default_rng(0))
+        lows.append(np.percentile(V[F[P == 2].ravel(), 2], 1) / 20.0)
+    # the lowest needles sit near 1 - crown ratio of the height (drooping branches a bit
+    # lower)
+    assert lows[0] == pytest.approx(0.65, abs=0.08)
+    assert lows[1] == pytest.approx(0.30, abs=0.08)
+
+
+def test_crown_years_follow_the_leader_growth():
+    assert crown_years(9.0, 0.5) == 10              # 4.5 m of crown at 0.45 m a year
+    assert crown_years(2.0, 0.3) == 6 and crown_years(60.0, 0.8) == 24   # bounded
