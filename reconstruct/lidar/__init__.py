@@ -1,6 +1,6 @@
 """reconstruct.lidar: terrain, canopy and trees of an airborne LiDAR survey, simulated or real.
 
-Modules: ``ground`` (the cloth simulation filter), ``rasters`` (DTM by TIN, CHM),
+Modules: ``ground`` (the cloth simulation filter, TIN densification, water), ``rasters`` (DTM by TIN, CHM),
 ``trees`` (tops by a variable-window local maximum, crowns by watershed), ``evaluation``
 (lidaRtRee's tree matching, detection scores, DTM errors), ``pipeline`` (``scanamp
 reconstruct lidar``).
@@ -14,6 +14,8 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "GroundOptions": "ground",
     "classify_ground": "ground",
+    "densify_tin": "ground",
+    "find_water": "ground",
     "canopy_height": "rasters",
     "dtm_from_ground": "rasters",
     "grid_for": "rasters",
