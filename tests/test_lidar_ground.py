@@ -1,6 +1,6 @@
 """The ground filter's rules on small generated clouds with a closed-form answer: Axelsson's
 TIN densification (distance, angle, offset), water (level neighbourhoods), the cloth on a
-knoll, and water written as class 9."""
+knoll, water written as class 9, and the triangulation's transforms against scipy's."""
 
 import numpy as np
 
@@ -126,3 +126,19 @@ def test_reconstruct_writes_the_water_it_finds_as_class_9(tmp_path):
     cls = read_las(tmp_path / "rec" / "classified.laz")[0]["classification"]
     assert np.all(cls[xy[:, 0] < 11] == 9)  # 3 m (the radius) and more from the shore
     assert np.all(cls[xy[:, 0] > 19] == 2)
+
+
+def test_delaunay_transforms_are_scipys():
+    from scipy.spatial import Delaunay
+
+    from reconstruct.lidar.ground import delaunay_2d
+
+    rng = np.random.default_rng(1)
+    # few points: scipy's own transforms are the slow path this avoids
+    xy = np.vstack([rng.uniform(0, 50, (30, 2)), np.mgrid[0:4, 0:4].reshape(2, -1).T * 3.0])
+    ours = delaunay_2d(xy)
+    ref = Delaunay(xy)
+    np.testing.assert_array_equal(ours.simplices, ref.simplices)
+    np.testing.assert_allclose(ours.transform, ref.transform, rtol=1e-9, atol=1e-12)
+    q = rng.uniform(-5, 55, (2000, 2))
+    np.testing.assert_array_equal(ours.find_simplex(q), ref.find_simplex(q))

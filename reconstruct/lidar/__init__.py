@@ -14,6 +14,7 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "GroundOptions": "ground",
     "classify_ground": "ground",
+    "delaunay_2d": "ground",
     "densify_tin": "ground",
     "find_water": "ground",
     "canopy_height": "rasters",
