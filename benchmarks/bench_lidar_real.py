@@ -69,7 +69,12 @@ def topography():
     print(f"   ground classification total error {total:.1%} (target <= 5 %) "
           f"{'PASS' if total <= 0.05 else 'MISS'}; without its {water.sum()} water points "
           f"{total_dry:.1%}; type I {t1:.1%}, type II {t2:.1%}")
-    print(f"   DTM at its ground points: RMS {rms:.3f} m, bias {np.mean(dz):+.3f} m "
+    wf = res.water
+    print(f"   water found {wf.sum()} points ({np.sum(wf & water)} of its {water.sum()} water, "
+          f"{np.sum(wf & g_ref)} of its ground); type II without its water: "
+          f"{np.mean(g[~g_ref & dry]):.1%}")
+    print(f"   DTM at its ground points: RMS {rms:.3f} m, bias {np.mean(dz):+.3f} m, median "
+          f"{np.median(dz):+.3f} m, {np.sum(np.abs(dz) > 1)} beyond 1 m "
           f"(target RMS <= 0.3 m) {'PASS' if rms <= 0.3 else 'MISS'}")
     c = xyz[g_ref, :2].mean(axis=0)
     h = xyz[:, 2] - LinearNDInterpolator(xyz[g_ref, :2] - c, xyz[g_ref, 2])(xyz[:, :2] - c)

@@ -1,9 +1,9 @@
 """reconstruct.lidar: terrain, canopy and trees of an airborne LiDAR survey, simulated or real.
 
-Modules: ``ground`` (the cloth simulation filter), ``rasters`` (DTM by TIN, CHM),
-``trees`` (tops by a variable-window local maximum, crowns by watershed), ``evaluation``
-(lidaRtRee's tree matching, detection scores, DTM errors), ``pipeline`` (``scanamp
-reconstruct lidar``).
+Modules: ``ground`` (the cloth simulation filter, TIN densification, water), ``rasters``
+(DTM by TIN, CHM), ``trees`` (tops by a variable-window local maximum, crowns by
+watershed), ``evaluation`` (lidaRtRee's tree matching, detection scores, DTM errors),
+``pipeline`` (``scanamp reconstruct lidar``).
 
 Every name below is importable from the room (``from reconstruct.lidar import NAME``),
 loaded on first use.
@@ -14,6 +14,9 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "GroundOptions": "ground",
     "classify_ground": "ground",
+    "delaunay_2d": "ground",
+    "densify_tin": "ground",
+    "find_water": "ground",
     "canopy_height": "rasters",
     "dtm_from_ground": "rasters",
     "grid_for": "rasters",

@@ -7,8 +7,9 @@ above it; find the trees (tops and crowns). Writes, in the file's coordinates an
 
 - ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.raster_io`);
 - ``trees.csv`` -- ``tree_id, x, y, height, crown_area``;
-- ``classified.laz`` -- the points with their ground class (2), others keep theirs
-  (a point the file called ground that the filter did not is 1, unclassified);
+- ``classified.laz`` -- the points with their ground class (2) and, when the filter ran,
+  the water it found (9); others keep theirs (a point the file called ground that the
+  filter did not is 1, unclassified);
 - ``report.json`` -- counts, shares, timings.
 """
 
@@ -36,6 +37,7 @@ __all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
 log = logging.getLogger(__name__)
 
 GROUND_CLASS = 2
+WATER_CLASS = 9
 NOISE_CLASSES = (7, 18)  # low and high noise: never ground, never canopy
 
 
@@ -57,6 +59,7 @@ class LidarResult:
 
     ground: np.ndarray  # (n,) bool
     reclassified: bool
+    water: np.ndarray  # (n,) bool: found by the filter (none when the file's class is used)
     dtm: object  # Raster
     chm: object  # Raster
     trees: dict  # x, y, height, crown_area (k,), crowns (rows, cols)
@@ -95,11 +98,15 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
             last = points["return_number"] >= points["number_of_returns"]
         keep = np.flatnonzero(~noise)
         ground = np.zeros(n, bool)
+        water = np.zeros(n, bool)
         if len(keep):
+            w = np.zeros(len(keep), bool)
             ground[keep] = classify_ground(xyz[keep], options=c.ground,
-                                           last=None if last is None else last[keep])
+                                           last=None if last is None else last[keep], water=w)
+            water[keep] = w
     else:
         ground = cls == GROUND_CLASS
+        water = np.zeros(n, bool)
     t["ground_s"] = time.perf_counter() - t0
     if ground.sum() < 3:
         raise InputError(f"no ground: {int(ground.sum())} ground points, a terrain needs at "
@@ -116,13 +123,15 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
     t0 = time.perf_counter()
     trees = detect_trees(chm, options=c.trees)
     t["trees_s"] = time.perf_counter() - t0
-    return LidarResult(ground, reclassified, dtm, chm, trees, t)
+    return LidarResult(ground, reclassified, water, dtm, chm, trees, t)
 
 
-def _classified(points: dict, ground: np.ndarray) -> np.ndarray:
+def _classified(points: dict, ground: np.ndarray, water: np.ndarray | None = None) -> np.ndarray:
     cls = points.get("classification")
     out = (np.ones(len(ground), np.uint8) if cls is None else np.asarray(cls, np.uint8).copy())
     out[(out == GROUND_CLASS) & ~ground] = 1
+    if water is not None:
+        out[water] = WATER_CLASS
     out[ground] = GROUND_CLASS
     return out
 
@@ -136,12 +145,12 @@ def run(config: LidarReconConfig, points_path, out_dir) -> Path:
     res = reconstruct_points(points, config=config, crs_wkt=info.crs_wkt, path=points_path)
     tr = res.trees
     n = info.point_count
-    cls = _classified(points, res.ground)
+    cls = _classified(points, res.ground, res.water)
     veg_h = _heights(points, res)
     report = {
         "input": str(points_path), "points": n, "crs": info.crs_wkt,
         "ground": {"reclassified": res.reclassified, "points": int(res.ground.sum()),
-                   "share": float(res.ground.mean())},
+                   "share": float(res.ground.mean()), "water_points": int(res.water.sum())},
         "rasters": {"resolution_m": config.resolution, "shape": list(res.dtm.values.shape)},
         "trees": {"count": int(len(tr["x"])),
                   "height_p50_m": float(np.median(tr["height"])) if len(tr["x"]) else None},

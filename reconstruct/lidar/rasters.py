@@ -63,6 +63,8 @@ def dtm_from_ground(ground: np.ndarray, *, bounds, res: float = 1.0,
     from scipy.interpolate import LinearNDInterpolator
     from scipy.spatial import QhullError, cKDTree
 
+    from reconstruct.lidar.ground import delaunay_2d
+
     g = check_array(ground, "ground", shape=(None, 3), min_rows=3)
     x0, y0, rows, cols = grid_for(bounds, res)
     xs = x0 + res * np.arange(cols)
@@ -72,7 +74,8 @@ def dtm_from_ground(ground: np.ndarray, *, bounds, res: float = 1.0,
     # the TIN in a local frame (projected coordinates lose digits in the triangulation)
     c = g[:, :2].mean(axis=0)
     try:
-        z = LinearNDInterpolator(g[:, :2] - c, g[:, 2])(q - c)
+        # (its transforms written out: scipy's LAPACK calls crawl on a loaded machine)
+        z = LinearNDInterpolator(delaunay_2d(g[:, :2] - c), g[:, 2])(q - c)
     except QhullError:
         raise ValueError("ground: the ground points lie on a line; no terrain to "
                          "interpolate") from None

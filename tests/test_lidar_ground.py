@@ -1,0 +1,144 @@
+"""The ground filter's rules on small generated clouds with a closed-form answer: Axelsson's
+TIN densification (distance, angle, offset), water (level neighbourhoods), the cloth on a
+knoll, water written as class 9, and the triangulation's transforms against scipy's."""
+
+import numpy as np
+
+from reconstruct.lidar.ground import GroundOptions, classify_ground, densify_tin, find_water
+
+
+def _plane(x, y):
+    return 50.0 + 0.2 * x - 0.1 * y  # an 11-degree slope: the tests hold on slopes
+
+
+def test_densification_joins_by_distance_angle_and_offset():
+    # seeds: a 10 m square of ground on the plane; candidates at known heights above it
+    corners = np.array([[0.0, 0], [10, 0], [0, 10], [10, 10]])
+    seeds = np.column_stack([corners, _plane(*corners.T)])
+    cases = [  # (x, y, height above the plane, joins?)
+        (5.0, 5.0, 0.0, True),     # on the plane
+        (5.0, 5.0, 0.45, True),    # 7.07 m from every corner: atan(0.45 / 7.07) = 3.6 deg
+        (5.0, 5.0, 0.80, False),   # 6.5 deg > 6
+        (5.0, 5.0, -0.45, True),   # below the plane counts the same
+        (2.0, 1.0, 0.18, True),    # 2.24 m from a corner, 4.5 deg
+        (0.5, 0.5, 0.09, True),    # 0.7 m from a corner: 7.3 deg, but within the 0.1 m offset
+        (0.5, 0.5, 0.15, False),   # 12 deg and above the offset
+        (11.0, 5.0, 0.0, False),   # outside the seeds' triangulation
+    ]
+    pts = np.array([[x, y, _plane(x, y) + h] for x, y, h, _ in cases])
+    p = np.vstack([seeds, pts])
+    seed = np.r_[np.ones(4, bool), np.zeros(len(cases), bool)]
+    # one pass, so that no candidate is judged against another that joined before it
+    g = densify_tin(p, seed, np.ones(len(p), bool), angle=6.0, distance=1.4, offset=0.1,
+                    passes=1)
+    assert np.all(g[:4])
+    assert list(g[4:]) == [c[3] for c in cases]
+    # the distance bound: at the centre of a 40 m square, 28 m from every corner, 1.45 m
+    # above the plane (1.42 m from it) is 2.9 deg off but too far; 1.35 m (1.32 m) joins
+    big = np.array([[0.0, 0], [40, 0], [0, 40], [40, 40]])
+    p2 = np.vstack([np.column_stack([big, _plane(*big.T)]),
+                    [[20.0, 20.0, _plane(20, 20) + 1.45], [20.0, 20.0 + 1e-3,
+                                                           _plane(20, 20) + 1.35]]])
+    g2 = densify_tin(p2, np.r_[np.ones(4, bool), False, False], np.ones(6, bool), passes=1)
+    assert list(g2[4:]) == [False, True]
+
+
+def test_densification_measures_angles_from_the_slope():
+    # a 25-degree ramp sampled every 0.5 m, seeded on its border: every point joins (the
+    # angle is measured from the triangles' planes, not from the horizontal), and shrubs
+    # 1 m above it (0.9 m from it, within the distance) never do
+    xs, ys = np.meshgrid(np.arange(0, 20.01, 0.5), np.arange(0, 10.01, 0.5))
+    z = np.tan(np.radians(25)) * xs
+    p = np.column_stack([xs.ravel(), ys.ravel(), z.ravel()])
+    seeds = (p[:, 0] == 0) | (p[:, 0] == 20) | (p[:, 1] == 0) | (p[:, 1] == 10)
+    shrub = p[~seeds][::7] + [0.1, 0.1, 1.0]
+    q = np.vstack([p, shrub])
+    s = np.r_[seeds, np.zeros(len(shrub), bool)]
+    g = densify_tin(q, s, np.ones(len(q), bool))
+    assert np.all(g[:len(p)]) and not np.any(g[len(p):])
+
+
+def test_water_is_a_level_neighbourhood():
+    # a lake (z = 100 +- 1 cm) for x < 20, a bank rising 0.2 m per metre beyond
+    xs, ys = np.meshgrid(np.arange(0, 30.01, 0.25), np.arange(0, 10.01, 0.25))
+    x, y = xs.ravel(), ys.ravel()
+    rng = np.random.default_rng(0)
+    z = 100 + rng.uniform(-0.01, 0.01, len(x)) + 0.2 * np.maximum(x - 20, 0)
+    p = np.column_stack([x, y, z])
+    w = find_water(p, np.ones(len(p), bool), radius=3.0, flatness=0.1)
+    # level within 0.1 m: every neighbour within 3 m short of x = 20.45 (0.09 m of bank)
+    assert np.all(w[x <= 17.25]) and not np.any(w[x >= 17.75])
+    # not eligible (first returns, say): not water, and no neighbour of anything
+    el = x < 10
+    w2 = find_water(p, el)
+    assert not np.any(w2[~el]) and np.all(w2[x <= 7])
+
+
+def test_a_lake_beside_a_hill_is_water_not_ground():
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(0, 60, (12000, 2))
+    z = 300 + np.where(xy[:, 0] < 25, 0.0, 0.3 * (xy[:, 0] - 25)) + rng.normal(0, 0.01, 12000)
+    z[xy[:, 0] < 25] = 300 + rng.normal(0, 0.01, (xy[:, 0] < 25).sum())
+    canopy = (xy[:, 0] > 30) & (rng.random(12000) < 0.3)
+    z[canopy] += rng.uniform(3, 20, canopy.sum())
+    water = np.zeros(12000, bool)
+    g = classify_ground(np.column_stack([xy, z]), water=water)
+    lake = xy[:, 0] < 21
+    assert np.all(water[lake]) and not np.any(g[lake])
+    hill = (xy[:, 0] > 30) & (xy[:, 0] < 57) & (xy[:, 1] > 3) & (xy[:, 1] < 57)
+    assert np.all(g[hill & ~canopy]) and not np.any(g[hill & canopy])
+    assert not np.any(water[xy[:, 0] > 27])
+
+
+def test_a_knoll_under_trees_is_ground():
+    # a 6 m knoll (Gaussian, sigma 10 m) on a 60 m plain; a third of the points are canopy
+    rng = np.random.default_rng(4)
+    xy = rng.uniform(0, 60, (15000, 2))
+    r2 = ((xy - 30) ** 2).sum(axis=1)
+    canopy = rng.random(15000) < 0.33
+    z = 400 + 6 * np.exp(-r2 / 200.0) + np.where(canopy, rng.uniform(2, 25, 15000), 0.0)
+    p = np.column_stack([xy, z])
+    top = (r2 < 4.0 ** 2) & ~canopy  # the knoll's top, 5.5-6 m above the plain
+    g = classify_ground(p)
+    assert np.all(g[top]) and not np.any(g[canopy])
+    # the cloth alone: the paper's time step stops it above the knoll (no particle moves
+    # 5 mm a step any more), a step of 1 lets it settle on most of the top
+    share = [classify_ground(p, options=GroundOptions(time_step=t, densify_angle=0))[top].mean()
+             for t in (0.65, 1.0)]
+    assert share[0] == 0.0 and share[1] > 0.5, share
+
+
+def test_reconstruct_writes_the_water_it_finds_as_class_9(tmp_path):
+    from core.las_io import LasWriter, read_las
+    from reconstruct.lidar import LidarReconConfig, run
+
+    rng = np.random.default_rng(6)
+    xy = rng.uniform(0, 40, (8000, 2))
+    lake = xy[:, 0] < 15
+    z = np.where(lake, 200.0, 200 + 0.25 * (xy[:, 0] - 15)) + rng.normal(0, 0.005, 8000)
+    src = tmp_path / "s.laz"
+    with LasWriter(src, origin=(0.0, 0.0, 0.0)) as w:
+        w.write({"x": xy[:, 0], "y": xy[:, 1], "z": z,
+                 "return_number": np.ones(8000, np.uint8),
+                 "number_of_returns": np.ones(8000, np.uint8),
+                 "classification": np.ones(8000, np.uint8)})
+    run(LidarReconConfig(reclassify=True), src, tmp_path / "rec")
+    cls = read_las(tmp_path / "rec" / "classified.laz")[0]["classification"]
+    assert np.all(cls[xy[:, 0] < 11] == 9)  # 3 m (the radius) and more from the shore
+    assert np.all(cls[xy[:, 0] > 19] == 2)
+
+
+def test_delaunay_transforms_are_scipys():
+    from scipy.spatial import Delaunay
+
+    from reconstruct.lidar.ground import delaunay_2d
+
+    rng = np.random.default_rng(1)
+    # few points: scipy's own transforms are the slow path this avoids
+    xy = np.vstack([rng.uniform(0, 50, (30, 2)), np.mgrid[0:4, 0:4].reshape(2, -1).T * 3.0])
+    ours = delaunay_2d(xy)
+    ref = Delaunay(xy)
+    np.testing.assert_array_equal(ours.simplices, ref.simplices)
+    np.testing.assert_allclose(ours.transform, ref.transform, rtol=1e-9, atol=1e-12)
+    q = rng.uniform(-5, 55, (2000, 2))
+    np.testing.assert_array_equal(ours.find_simplex(q), ref.find_simplex(q))
