@@ -124,10 +124,17 @@ def auto_voxel(scans) -> tuple[float, float]:
 
 def _match_all(prep: list[Prepared], opts: MultiwayOptions, vopts: VerifyOptions,
                guess: list[np.ndarray | None] | None) -> list[PairMatch]:
+    """Every pair matched, on as many threads as there are cores (the k-d trees and the
+    matrix products release the interpreter). Each pair draws from a generator seeded by
+    its own place, so the answers do not depend on the threads."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
     n = len(prep)
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
-    out = []
-    for i, j in track(pairs, "matching pairs"):
+
+    def one(pair):
+        i, j = pair
         m = None
         if guess is not None and guess[i] is not None and guess[j] is not None:
             m = _from_guess(prep[i], prep[j], guess[i], guess[j], vopts)
@@ -135,8 +142,13 @@ def _match_all(prep: list[Prepared], opts: MultiwayOptions, vopts: VerifyOptions
             rng = np.random.default_rng([opts.seed, i, j])
             m = match_pair(prep[i], prep[j], rng=rng, iterations=opts.ransac_iterations,
                            options=vopts)
-        out.append(m)
-    return out
+        return m
+
+    threads = min(len(pairs), os.cpu_count() or 1, 8)
+    if threads <= 1:
+        return [one(p) for p in track(pairs, "matching pairs")]
+    with ThreadPoolExecutor(threads) as pool:
+        return list(track(pool.map(one, pairs), "matching pairs", total=len(pairs)))
 
 
 def _from_guess(a: Prepared, b: Prepared, ga, gb, vopts) -> PairMatch | None:

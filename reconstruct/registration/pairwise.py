@@ -41,6 +41,8 @@ __all__ = ["Prepared", "PairMatch", "prepare", "match_pair", "icp_point_to_plane
 #: twin from another feature match was accepted with the same pose
 _ROUGH_BLOCKING = 5.0
 _ROUGH_BACKFACING = 3.0
+#: samples of the source scan (about) that the coarse ICP of a candidate runs on
+_COARSE_SAMPLES = 1000
 
 
 @dataclass
@@ -151,13 +153,16 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
     hyps = ransac_rigid(s.points, t.points, matches, inlier=1.5 * voxel, rng=rng,
                         iterations=iterations, keep=keep)
     best, best_v, rejected, tried = None, None, [], []
+    # the coarse ICP on every k-th sample: at three voxels' reach a third of the samples
+    # pull it as far, at a third of the cost
+    coarse = s.points[::max(1, len(s) // _COARSE_SAMPLES)]
     for h in hyps:
         d, _ = target.tree.query(s.points @ h[:3, :3].T + h[:3, 3],
                                  distance_upper_bound=2.0 * voxel)
         if np.mean(np.isfinite(d)) < 0.5 * options.min_overlap:
             rejected.append("overlap too small at the feature match")
             continue
-        T = icp_point_to_plane(s.points, t.points, t.normals, h, 3.0 * voxel, target.tree,
+        T = icp_point_to_plane(coarse, t.points, t.normals, h, 3.0 * voxel, target.tree,
                                iterations=10)
         if any(_same(T, o, voxel) for o in tried):
             # a basin already refined and judged: the finer ICP would end where it did
