@@ -66,7 +66,7 @@ class JointAlignment:
         rel = np.linalg.inv(poses[j]) @ poses[i]
         vi, vj = self.views[i], self.views[j]
         p_in_j = vi.points @ rel[:3, :3].T + rel[:3, 3]
-        d, k = self.trees[j].query(p_in_j, distance_upper_bound=threshold, workers=-1)
+        d, k = self.trees[j].query(p_in_j, distance_upper_bound=threshold)
         ok = np.isfinite(d)
         ok[ok] = np.sum((vi.normals[ok] @ rel[:3, :3].T) * vj.normals[k[ok]], axis=1) \
             > self.min_dot
