@@ -287,3 +287,28 @@ def test_edge_fill_keeps_only_closing_surface_next_to_the_data(sphere_scans, sph
     v, t = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
     r = np.linalg.norm(v[t[filled]].reshape(-1, 3), axis=1)
     assert np.all(np.abs(r - R) < rep["voxel_size"])
+
+
+def test_fusing_only_voxels_within_reach_leaves_the_mesh_as_it_was(sphere_scans, sphere_merged,
+                                                                    monkeypatch):
+    import reconstruct.surface.volumetric as vol
+
+    fused = []
+    fuse = vol._fuse
+
+    def counting(points, *args):
+        fused.append(len(points))
+        return fuse(points, *args)
+
+    monkeypatch.setattr(vol, "_fuse", counting)
+    masked, _ = merge_scans(*sphere_scans)
+    n_masked = sum(fused)
+    monkeypatch.setattr(vol, "_reach_mask", lambda *args: None)
+    fused.clear()
+    full, _ = merge_scans(*sphere_scans)   # every voxel of the near chunks
+    assert sum(fused) > 1.2 * n_masked      # the mask spared work ...
+    for a, b in ((masked, full), (masked, sphere_merged[False][0])):   # ... and nothing else
+        assert np.asarray(a.vertices).tobytes() == np.asarray(b.vertices).tobytes()
+        assert np.asarray(a.triangles).tobytes() == np.asarray(b.triangles).tobytes()
+        assert np.array_equal(np.asarray(a.triangle_material_ids),
+                              np.asarray(b.triangle_material_ids))

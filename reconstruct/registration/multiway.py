@@ -87,7 +87,10 @@ class ScanPlacement:
 @dataclass
 class MultiwayResult:
     """``scans`` in input order; ``pairs``: every pair tried (names, verdict);
-    ``pruned``: edges removed by the pose graph; ``timings`` in seconds."""
+    ``pruned``: edges removed by the pose graph; ``timings``: wall-clock seconds per
+    stage (``prepare``, ``pairs``, ``pose_graph``, ``fine``) and ``fine_pairs``, the
+    number of pairs of the fine alignment; ``cpu_timings``: the CPU seconds of the same
+    stages (all the process's threads)."""
 
     scans: list[ScanPlacement]
     pairs: list[dict]
@@ -95,6 +98,7 @@ class MultiwayResult:
     voxel: float
     fine_voxel: float
     timings: dict = field(default_factory=dict)
+    cpu_timings: dict = field(default_factory=dict)
 
     @property
     def model_from_scans(self) -> list[np.ndarray | None]:
@@ -120,10 +124,17 @@ def auto_voxel(scans) -> tuple[float, float]:
 
 def _match_all(prep: list[Prepared], opts: MultiwayOptions, vopts: VerifyOptions,
                guess: list[np.ndarray | None] | None) -> list[PairMatch]:
+    """Every pair matched, on as many threads as there are cores (the k-d trees and the
+    matrix products release the interpreter). Each pair draws from a generator seeded by
+    its own place, so the answers do not depend on the threads."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
     n = len(prep)
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
-    out = []
-    for i, j in track(pairs, "matching pairs"):
+
+    def one(pair):
+        i, j = pair
         m = None
         if guess is not None and guess[i] is not None and guess[j] is not None:
             m = _from_guess(prep[i], prep[j], guess[i], guess[j], vopts)
@@ -131,8 +142,13 @@ def _match_all(prep: list[Prepared], opts: MultiwayOptions, vopts: VerifyOptions
             rng = np.random.default_rng([opts.seed, i, j])
             m = match_pair(prep[i], prep[j], rng=rng, iterations=opts.ransac_iterations,
                            options=vopts)
-        out.append(m)
-    return out
+        return m
+
+    threads = min(len(pairs), os.cpu_count() or 1, 8)
+    if threads <= 1:
+        return [one(p) for p in track(pairs, "matching pairs")]
+    with ThreadPoolExecutor(threads) as pool:
+        return list(track(pool.map(one, pairs), "matching pairs", total=len(pairs)))
 
 
 def _from_guess(a: Prepared, b: Prepared, ga, gb, vopts) -> PairMatch | None:
@@ -296,7 +312,7 @@ def register_scans(scans, *, options: MultiwayOptions | None = None,
     -------
     MultiwayResult
     """
-    t0 = time.perf_counter()
+    clock = _Clock()
     options = MultiwayOptions() if options is None else options
     if len(scans) < 2:
         raise ValueError(f"scans: expected at least 2 scans, got {len(scans)}")
@@ -309,10 +325,10 @@ def register_scans(scans, *, options: MultiwayOptions | None = None,
     vopts = VerifyOptions(options.min_overlap, options.max_backfacing, options.max_blocking)
     prep = [prepare(s.name, s.points, s.normals, s.sight, voxel=voxel)
             for s in track(ss, "preparing scans")]
-    timings = {"prepare": time.perf_counter() - t0}
+    clock.lap("prepare")
     guess = None if initial is None else [initial[k] for k in order]
     matches = _match_all(prep, options, vopts, guess)
-    timings["pairs"] = time.perf_counter() - t0 - timings["prepare"]
+    clock.lap("pairs")
     n = len(ss)
     edges = {}
     for m in matches:
@@ -322,7 +338,6 @@ def register_scans(scans, *, options: MultiwayOptions | None = None,
                 prep[j].canon_from_scan)
             edges[(i, j)] = (m.verdict.overlap, T)
     group = _groups(n, list(edges))[0]
-    t1 = time.perf_counter()
     coarse = [p.samples for p in prep]
     root = group[0]
     poses, pruned = [None] * n, []
@@ -331,16 +346,32 @@ def register_scans(scans, *, options: MultiwayOptions | None = None,
                                                if e[0] in group and e[1] in group},
                                      group, root, voxel, options)
         group = [k for k in group if poses[k] is not None]
-    timings["pose_graph"] = time.perf_counter() - t1
-    t2 = time.perf_counter()
+    clock.lap("pose_graph")
     stats, fine_pairs = {}, []
     if len(group) > 1:
         views = [_fine_view(s, p.canon_from_scan, fine) for s, p in zip(ss, prep, strict=True)]
         poses, stats, fine_pairs = _fine(views, poses, group, root, coarse, voxel, fine,
                                          options)
-    timings["fine"] = time.perf_counter() - t2
-    return _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned,
-                   voxel, fine, timings, len(fine_pairs))
+    clock.lap("fine")
+    result = _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned,
+                     voxel, fine, clock.wall, len(fine_pairs))
+    result.cpu_timings = clock.cpu
+    return result
+
+
+class _Clock:
+    """Wall-clock and CPU seconds of consecutive stages."""
+
+    def __init__(self):
+        self.wall: dict = {}
+        self.cpu: dict = {}
+        self._last = (time.perf_counter(), time.process_time())
+
+    def lap(self, name: str) -> None:
+        now = (time.perf_counter(), time.process_time())
+        self.wall[name] = now[0] - self._last[0]
+        self.cpu[name] = now[1] - self._last[1]
+        self._last = now
 
 
 def _fine_view(scan, canon_from_scan: np.ndarray, fine: float) -> Oriented:

@@ -34,6 +34,16 @@ from .verify import Verdict, VerifyOptions, ViewMap, verify_pair
 
 __all__ = ["Prepared", "PairMatch", "prepare", "match_pair", "icp_point_to_plane"]
 
+#: a candidate is dropped after the coarse ICP when its lines of sight disagree by this
+#: many times the final bounds (``max_blocking``, ``max_backfacing``): the finer ICP
+#: does not mend that. Measured on the dragon's 105 pairs: 217 of the 254 candidates
+#: that the final check rejects are dropped so, and of the 117 it accepts, one, whose
+#: twin from another feature match was accepted with the same pose
+_ROUGH_BLOCKING = 5.0
+_ROUGH_BACKFACING = 3.0
+#: samples of the source scan (about) that the coarse ICP of a candidate runs on
+_COARSE_SAMPLES = 1000
+
 
 @dataclass
 class Prepared:
@@ -113,6 +123,13 @@ def icp_point_to_plane(src: np.ndarray, dst: np.ndarray, dst_normals: np.ndarray
     return T
 
 
+def _same(a: np.ndarray, b: np.ndarray, voxel: float) -> bool:
+    """Two alignments less than a tenth of ``voxel`` and 0.1 degree apart."""
+    d = a @ np.linalg.inv(b)
+    angle = np.arccos(np.clip(0.5 * (np.trace(d[:3, :3]) - 1.0), -1.0, 1.0))
+    return bool(np.linalg.norm(d[:3, 3]) < 0.1 * voxel and angle < np.radians(0.1))
+
+
 def rigid_step(x: np.ndarray) -> np.ndarray:
     """The rigid 4x4 of a small step ``x = (rotation vector, translation)`` (6,)."""
     from core.frames import axis_angle_matrix
@@ -135,18 +152,32 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
     matches = match_features(source.features, target.features)
     hyps = ransac_rigid(s.points, t.points, matches, inlier=1.5 * voxel, rng=rng,
                         iterations=iterations, keep=keep)
-    best, best_v, rejected = None, None, []
+    best, best_v, rejected, tried = None, None, [], []
+    # the coarse ICP on every k-th sample: at three voxels' reach a third of the samples
+    # pull it as far, at a third of the cost
+    coarse = s.points[::max(1, len(s) // _COARSE_SAMPLES)]
     for h in hyps:
         d, _ = target.tree.query(s.points @ h[:3, :3].T + h[:3, 3],
                                  distance_upper_bound=2.0 * voxel)
         if np.mean(np.isfinite(d)) < 0.5 * options.min_overlap:
             rejected.append("overlap too small at the feature match")
             continue
-        T = icp_point_to_plane(s.points, t.points, t.normals, h, 3.0 * voxel, target.tree,
+        T = icp_point_to_plane(coarse, t.points, t.normals, h, 3.0 * voxel, target.tree,
                                iterations=10)
+        if any(_same(T, o, voxel) for o in tried):
+            # a basin already refined and judged: the finer ICP would end where it did
+            # (measured on the dragon: 82 of 333 refinements were such repeats)
+            continue
+        tried.append(T)
         d, _ = target.tree.query(s.points @ T[:3, :3].T + T[:3, 3], distance_upper_bound=voxel)
         if np.mean(np.isfinite(d)) < 0.7 * options.min_overlap:  # no need to refine it
             rejected.append("overlap too small after a coarse ICP")
+            continue
+        rough = verify_pair(t, s, T, tau=voxel, target_map=target.view,
+                            source_map=source.view, target_tree=target.tree, options=options)
+        if (rough.blocking > _ROUGH_BLOCKING * options.max_blocking
+                or rough.backfacing > _ROUGH_BACKFACING * options.max_backfacing):
+            rejected.append(f"already after a coarse ICP: {rough.reason}")
             continue
         T = icp_point_to_plane(s.points, t.points, t.normals, T, 1.5 * voxel, target.tree,
                                iterations=30)

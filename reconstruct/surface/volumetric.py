@@ -506,26 +506,42 @@ def _grid(scans, model_from_scans, h: float, opt: MergeOptions) -> _Grid:
 
 
 _CHUNK = 8   # voxels per edge of the chunks that narrow-band culling decides on
+_REACH_CHUNK = 2   # voxels per edge of the finer cells of the reach mask (no fill_holes)
 
 
 def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float,
-                 fill: bool) -> np.ndarray:
-    """(cx, cy, cz) bool: chunks of ``_CHUNK``^3 voxels within the band (plus the longest
-    triangle edge) of some sample: the only ones where a scan can observe a voxel."""
-    from scipy.ndimage import binary_dilation
+                 fill: bool, chunk: int = _CHUNK, extra: float = 0.0) -> np.ndarray:
+    """(cx, cy, cz) bool: chunks of ``chunk``^3 voxels within the band (plus the longest
+    triangle edge, plus ``extra`` metres) of some sample: the only ones where a scan can
+    observe a voxel."""
+    from scipy.ndimage import maximum_filter
 
-    shape = -(-grid.dims // _CHUNK)
+    shape = -(-grid.dims // chunk)
     near = np.zeros(shape, bool)
     for s, T in zip(scans, model_from_scans, strict=True):
         p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
-        c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // _CHUNK
+        c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // chunk
         near[c[:, 0], c[:, 1], c[:, 2]] = True
     # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's;
     # with fill_holes one more ring, integrated voxel by voxel: far chunks only sample
     # the carving at their corners, which misses thin carved lines of sight (measured on
     # the dragon: 430 instead of 178 cm^2 of closing surface without it)
-    r = int(np.ceil((grid.band + max_edge + grid.h) / (_CHUNK * grid.h))) + int(fill)
-    return binary_dilation(near, np.ones((2 * r + 1,) * 3, bool))
+    r = int(np.ceil((grid.band + max_edge + grid.h + extra) / (chunk * grid.h))) + int(fill)
+    # a cube's dilation, axis by axis (the same set as binary_dilation, far faster)
+    return maximum_filter(near, size=2 * r + 1, mode="constant", cval=False)
+
+
+def _reach_mask(scans, model_from_scans, grid: _Grid, max_edge: float,
+                opt: MergeOptions) -> np.ndarray | None:
+    """Without fill_holes, cells of ``_REACH_CHUNK`` voxels near enough a sample to hold a
+    voxel that a scan observes or a neighbour of one (the corners of the cubes that the
+    kept triangles cross, and the surface within ``edge_fill_voxels`` of a sample); None
+    with fill_holes. Only these need the scans' distances: the mesh is the same, and the
+    dragon's merge fuses 16.7 instead of 29.3 million voxels."""
+    if opt.fill_holes:
+        return None
+    return _near_chunks(scans, model_from_scans, grid, max_edge, False, _REACH_CHUNK,
+                        (2.0 + opt.edge_fill_voxels) * grid.h)
 
 
 def _blocks(dims: np.ndarray, b: int):
@@ -559,10 +575,14 @@ def _lattice_states(grid: _Grid, views, opt, ci: list, far: np.ndarray) -> np.nd
     return out
 
 
-def _block_field(grid: _Grid, views, start, shape, opt, near: np.ndarray):
+def _block_field(grid: _Grid, views, start, shape, opt, near: np.ndarray,
+                 reach: np.ndarray | None = None):
     """The merged ``(value, state)`` of a block, each ``shape``: voxel by voxel in the
     chunks near a surface (and, with fill_holes, where a far chunk's corners disagree);
-    a far chunk is otherwise unseen, or with fill_holes all in its corners' state."""
+    a far chunk is otherwise unseen, or with fill_holes all in its corners' state.
+    ``reach`` (without fill_holes): the finer cells of ``_REACH_CHUNK`` voxels that can
+    hold a voxel a scan observes or one of its neighbours; the rest of a near chunk is
+    unseen too."""
     ci = [np.arange(start[a] // _CHUNK, (start[a] + shape[a] - 1) // _CHUNK + 1)
           for a in range(3)]
     far = ~near[np.ix_(*ci)]
@@ -570,20 +590,26 @@ def _block_field(grid: _Grid, views, start, shape, opt, near: np.ndarray):
                    else np.where(far, UNSEEN, 255).astype(np.uint8))
     local = [(start[a] + np.arange(shape[a])) // _CHUNK - ci[a][0] for a in range(3)]
     state = chunk_state[np.ix_(*local)]
+    if reach is not None and not opt.fill_holes:
+        cell = [(start[a] + np.arange(shape[a])) // _REACH_CHUNK for a in range(3)]
+        state[~reach[np.ix_(*cell)]] = UNSEEN
     # without fill_holes a far chunk is positive: no surface (to be dropped) around it
     value = np.where((state == EMPTY) | ~opt.fill_holes, grid.band, -grid.band).astype(
         np.float32)
     todo = state == 255
     if todo.any():
-        pts = _block_points(grid.origin, grid.h, start, shape)[todo.ravel()]
+        idx = np.nonzero(todo)   # the voxel centres of _block_points, only these
+        pts = np.stack([grid.origin[a] + grid.h * (start[a] + idx[a].astype(np.float64))
+                        for a in range(3)], axis=1)
         value[todo], state[todo], _ = _fuse(pts, views, grid.band, opt)
     return value, state
 
 
-def _block_mesh(grid: _Grid, views, start, shape, opt, near: np.ndarray, samples):
+def _block_mesh(grid: _Grid, views, start, shape, opt, near: np.ndarray, samples,
+                reach: np.ndarray | None = None):
     """Fuse and contour one block: ``(keys, verts, triangles, observed (t,) bool)``;
     ``samples`` is a cKDTree of the posed samples (for ``edge_fill_voxels``)."""
-    value, state = _block_field(grid, views, start, shape, opt, near)
+    value, state = _block_field(grid, views, start, shape, opt, near, reach)
     if opt.fill_holes:   # the volume's outer layer is empty, so every surface closes
         edge = np.zeros(shape, bool)
         for a in range(3):
@@ -700,8 +726,9 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     corners = grid.corners()
     views = [_virtual_view(s, T, h, opt, n, corners, float(np.median(d)))
              for s, T, n, d in zip(scans, Ts, names, lengths, strict=True)]
-    near = _near_chunks(scans, Ts, grid, float(np.percentile(np.concatenate(lengths), 99)),
-                        opt.fill_holes)
+    max_edge = float(np.percentile(np.concatenate(lengths), 99))
+    near = _near_chunks(scans, Ts, grid, max_edge, opt.fill_holes)
+    reach = _reach_mask(scans, Ts, grid, max_edge, opt)
     samples = None
     if not opt.fill_holes and opt.edge_fill_voxels > 0:
         from scipy.spatial import cKDTree
@@ -711,7 +738,7 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     blocks = list(_blocks(grid.dims, int(opt.block_voxels)))
     parts = []
     for k, (start, shape) in enumerate(blocks):
-        part = _block_mesh(grid, views, start, shape, opt, near, samples)
+        part = _block_mesh(grid, views, start, shape, opt, near, samples, reach)
         if part is not None:
             parts.append(part)
         if progress is not None:
