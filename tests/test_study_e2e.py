@@ -107,6 +107,7 @@ seed = 0
 "head.steps" = 60
 "head.height" = 120
 "head.width" = 120
+"head.laser_thickness" = 0.0025
 [sweep]
 views = [3, 9]
 [output]
