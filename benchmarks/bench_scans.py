@@ -151,10 +151,9 @@ def rendered(root, peak=None, steps=None):
     from acquire.scans.capture import ScansCaptureConfig, capture_scans
     from acquire.scans.head import ScanHead
     from core.mesh_io import read_mesh
-    from core.meshes import transform_mesh
-    from reconstruct.evaluation.evaluate import evaluate
-    from core.meshes import bbox_diagonal, mesh_arrays
+    from core.meshes import bbox_diagonal, mesh_arrays, transform_mesh
     from core.range_io import read_poses_json
+    from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.scans import load_scans
     from reconstruct.scans.pipeline import ScansReconConfig, run
     from scanamp.methods import scene_for_capture

@@ -8,8 +8,14 @@ import pytest
 
 from acquire.render.materials import Material
 from acquire.render.scene import RenderScene, SceneObject
-from acquire.scans import (ScanHead, ScansCaptureConfig, SpacetimePeaks, capture_scans,
-                           stripe_peaks, view_poses)
+from acquire.scans import (
+    ScanHead,
+    ScansCaptureConfig,
+    SpacetimePeaks,
+    capture_scans,
+    stripe_peaks,
+    view_poses,
+)
 from core.range_io import read_conf, read_poses_json
 from reconstruct.scans import load_scans
 from scanamp.cli import main
