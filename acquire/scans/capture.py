@@ -116,10 +116,6 @@ def scan_view(renderer: LaserRenderer, head: ScanHead, model_from_scan: np.ndarr
                                           ambient=head.ambient, rng=rng).radiance, rng)
               for x in sweep)
     if head.peak == "spacetime":
-        if head.sheet_steps < 0.6:
-            log.warning("range scans: the sheet is %.2f sweep steps thick: too few frames "
-                        "sample each pixel's temporal peak (raise --head.steps or "
-                        "--head.laser-thickness)", head.sheet_steps)
         acc = SpacetimePeaks((head.height, head.width))
         for image in frames:
             acc.add(image)
@@ -179,6 +175,10 @@ def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Gen
 
     rng = check_rng(rng)
     head, out_dir = config.head, Path(out_dir)
+    if head.peak == "spacetime" and head.sheet_steps < 0.6:
+        log.warning("range scans: the sheet is %.2f sweep steps thick: too few frames "
+                    "sample each pixel's temporal peak (raise --head.steps or "
+                    "--head.laser-thickness)", head.sheet_steps)
     aim = scene.bounds().mean(axis=0)
     poses = view_poses(config.views, aim, standoff=head.standoff,
                        elevation_min_deg=config.elevation_min_deg,
