@@ -26,10 +26,11 @@ The firmware (``peak``) has two ways of finding where the sheet meets the surfac
   sweep (:class:`SpacetimePeaks`). The sheet crosses the pixel's surface point when that
   temporal profile peaks: a Gaussian in sweep position (the sheet translates with a fixed
   normal) whose centre does not depend on the point's reflectance, nor, to first order,
-  on the surface's slope, and a point the sheet reaches only in part (a depth edge, a
-  shadow) loses height, not position. The peak is refined to a sub-step sweep position
-  by a parabola through the logarithms of the maximum and its two neighbours (exact for a
-  Gaussian), after the pixel's background (its mean over the sweep without those three
+  on the surface's slope; the pixel sees one point, so neighbouring texture or a depth
+  edge beside it (where the camera sees only part of the stripe) do not enter (the edge
+  of a laser shadow, which cuts the profile in time, still does). The peak is refined to
+  a sub-step sweep position by a parabola through the logarithms of the maximum and its
+  two neighbours (exact for a Gaussian), after the pixel's background (its mean over the sweep without those three
   samples) is taken off; a pixel whose peak does not stand ``min_peak`` digital numbers
   above its background has no sample. The camera ray of the pixel meets the sheet at that
   interpolated sweep position. A scan is a range grid on the camera's pixels: **row =
