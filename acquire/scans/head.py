@@ -30,9 +30,9 @@ The firmware (``peak``) has two ways of finding where the sheet meets the surfac
   edge beside it (where the camera sees only part of the stripe) do not enter (the edge
   of a laser shadow, which cuts the profile in time, still does). The peak is refined to
   a sub-step sweep position by a parabola through the logarithms of the maximum and its
-  two neighbours (exact for a Gaussian), after the pixel's background (its mean over the sweep without those three
-  samples) is taken off; a pixel whose peak does not stand ``min_peak`` digital numbers
-  above its background has no sample. The camera ray of the pixel meets the sheet at that
+  two neighbours (exact for a Gaussian), after the pixel's background (its mean over the
+  sweep without those three samples) is taken off; a pixel whose peak does not stand
+  ``min_peak`` digital numbers above its background has no sample. The camera ray of the pixel meets the sheet at that
   interpolated sweep position. A scan is a range grid on the camera's pixels: **row =
   image row, column = image column** (like a range camera). The profile must be sampled
   finely enough for its neighbours to stand above the noise: with the 1 mm sheet at a
