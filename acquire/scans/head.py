@@ -25,19 +25,20 @@ The firmware (``peak``) has two ways of finding where the sheet meets the surfac
   spacetime analysis", ICCV 1995): each camera pixel follows its own intensity over the
   sweep (:class:`SpacetimePeaks`). The sheet crosses the pixel's surface point when that
   temporal profile peaks: a Gaussian in sweep position (the sheet translates with a fixed
-  normal) whose centre does not depend on the point's reflectance, nor, to first order,
-  on the surface's slope; the pixel sees one point, so neighbouring texture or a depth
-  edge beside it (where the camera sees only part of the stripe) do not enter (the edge
-  of a laser shadow, which cuts the profile in time, still does). The peak is refined to
-  a sub-step sweep position by a parabola through the logarithms of the maximum and its
-  two neighbours (exact for a Gaussian), after the pixel's background (its mean over the
-  sweep without those three samples) is taken off; a pixel whose peak does not stand
-  ``min_peak`` digital numbers above its background has no sample. The camera ray of the pixel meets the sheet at that
-  interpolated sweep position. A scan is a range grid on the camera's pixels: **row =
-  image row, column = image column** (like a range camera). The profile must be sampled
-  finely enough for its neighbours to stand above the noise: with the 1 mm sheet at a
-  35 degree triangulation angle the default 150 steps put 0.79 steps in its standard
-  deviation (100 steps: 0.53, and a peak half a step off has a neighbour at 2 % of it).
+  normal) whose centre does not depend on the point's reflectance, nor, to first order, on
+  the surface's slope; the pixel sees one point, so neighbouring texture or a depth edge
+  beside it (where the camera sees only part of the stripe) do not enter (the edge of a
+  laser shadow, which cuts the profile in time, still does). The peak is refined to a
+  sub-step sweep position by a parabola through the logarithms of the maximum and its two
+  neighbours (exact for a Gaussian), after the pixel's background (its mean over the sweep
+  without those three samples) is taken off; a pixel whose peak does not stand
+  ``min_peak`` digital numbers above its background has no sample. The camera ray of the
+  pixel meets the sheet at that interpolated sweep position. A scan is a range grid on the
+  camera's pixels: **row = image row, column = image column** (like a range camera). The
+  profile must be sampled finely enough for its neighbours to stand above the noise: with
+  the 1 mm sheet at a 35 degree triangulation angle the default 150 steps put 0.79 steps
+  in its standard deviation (100 steps: 0.53, and a peak half a step off has a neighbour
+  at 2 % of it).
 - ``spatial`` (:func:`stripe_peaks`): each frame's image rows, the brightest column
   refined to the centroid of the light above the row's median within ``window`` pixels
   (a row whose peak does not stand ``min_peak`` above its median has no sample); the
