@@ -107,6 +107,7 @@ seed = 0
 "head.steps" = 60
 "head.height" = 120
 "head.width" = 120
+"head.laser_thickness" = 0.0025
 [sweep]
 views = [3, 9]
 [output]
@@ -118,8 +119,9 @@ def test_tiny_scans_study_registers_more_with_more_views(tmp_path):
     """The scans kind end to end: scan, register with no pose given, merge, score. Three
     views on the band barely overlap: the run fails and the study records why (no pair
     verified) instead of forcing scans together; nine place every scan near its true
-    pose (the study measures 0.18 deg at 9 views with this head), and the merged mesh,
-    carried into the world by the fitted gauge, lies on the scene."""
+    pose (the study measures 0.046 deg at 9 views with this head and the spacetime
+    firmware, 0.18 with spatial peaks), and the merged mesh, carried into the world by the
+    fitted gauge, lies on the scene."""
     spec = tmp_path / "scans.toml"
     spec.write_text(SCANS_SPEC)
     assert main(["-q", "study", str(spec), "--out", str(tmp_path / "o"), "--workers", "2"]) == 0
@@ -128,5 +130,5 @@ def test_tiny_scans_study_registers_more_with_more_views(tmp_path):
     assert (df.loc[3, "status"] == "failed"
             and "no two scans could be registered" in df.loc[3, "error"]) or \
         df.loc[3, "registered_fraction"] < 1.0
-    assert df.loc[9, "poses.rotation_error_deg.max"] < 0.5
+    assert df.loc[9, "poses.rotation_error_deg.max"] < 0.15
     assert df.loc[9, "mesh.fscore"] > 0.5

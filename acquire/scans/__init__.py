@@ -3,8 +3,9 @@ linear sweep, with its factory geometry and on-board peak detection, placed at m
 viewpoints around and above a scene; each sweep is written as a PLY range grid in the
 scanner's own frame, the true placements for evaluation only.
 
-Modules: ``head`` (:class:`ScanHead`, :func:`stripe_peaks`), ``capture``
-(:class:`ScansCaptureConfig`, :func:`view_poses`, :func:`scan_view`, :func:`capture_scans`).
+Modules: ``head`` (:class:`ScanHead`, :class:`SpacetimePeaks`, :func:`stripe_peaks`),
+``capture`` (:class:`ScansCaptureConfig`, :func:`view_poses`, :func:`scan_view`,
+:func:`grid_layout`, :func:`capture_scans`).
 
 Every name below is importable from the room (``from acquire.scans import NAME``), loaded on
 first use.
@@ -15,6 +16,8 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "ScanHead": "head",
     "stripe_peaks": "head",
+    "SpacetimePeaks": "head",
+    "grid_layout": "capture",
     "ScansCaptureConfig": "capture",
     "view_poses": "capture",
     "scan_view": "capture",

@@ -9,8 +9,13 @@ to the reconstruction: the true placements are written for evaluation only.
 
 Each frame of a sweep is rendered with the laser capture's renderer (the scene's
 materials, shadows, speckle) and digitised by the sensor model (shot and read noise,
-quantisation); the head's firmware finds the stripe and triangulates it with the head's
-factory geometry. Output folder::
+quantisation); the head's firmware finds where the sheet meets the surface and
+triangulates it with the head's factory geometry: by default each camera pixel's peak in
+time over the sweep (spacetime analysis, Curless and Levoy 1995: free of the bias that
+texture, slope and depth edges give a peak found across the stripe in each frame), so
+the range grid is the camera's pixel grid; ``--head.peak spatial`` finds the stripe in
+each frame's image rows instead (one profile per sweep step). See
+:mod:`acquire.scans.head`. Output folder::
 
     scans/scan_00.ply ...  PLY range grids in each scanner's frame (core.range_io); the
                            camera at the origin saw every point
@@ -30,7 +35,7 @@ import numpy as np
 from acquire.camera import look_at_cam_from_world
 from acquire.capture_io import write_capture
 from acquire.render.laser_sheet import LaserRenderer, camera_directions
-from acquire.scans.head import ScanHead, stripe_peaks
+from acquire.scans.head import ScanHead, SpacetimePeaks, stripe_peaks
 from acquire.sensor import Sensor
 from core.config import Config, option, to_dict
 from core.files import atomic_dir
@@ -41,7 +46,7 @@ from core.validate import check_rng
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ScansCaptureConfig", "view_poses", "scan_view", "capture_scans"]
+__all__ = ["ScansCaptureConfig", "view_poses", "scan_view", "grid_layout", "capture_scans"]
 
 
 @dataclass
@@ -102,17 +107,32 @@ def view_poses(n: int, aim, *, standoff: float, elevation_min_deg: float,
 
 def scan_view(renderer: LaserRenderer, head: ScanHead, model_from_scan: np.ndarray,
               sensor: Sensor, rng: np.random.Generator) -> RangeGrid:
-    """One sweep of the head placed at ``model_from_scan``: the range grid it measures,
-    in its own frame (row = sweep step, column = image row)."""
+    """One sweep of the head placed at ``model_from_scan``: the range grid it measures, in
+    its own frame (:func:`grid_layout`)."""
     cam_from_world = np.linalg.inv(model_from_scan)
+    sweep = head.sweep()
+    frames = (sensor.apply(renderer.frame(cam_from_world,
+                                          head.laser(x).transformed(model_from_scan),
+                                          ambient=head.ambient, rng=rng).radiance, rng)
+              for x in sweep)
+    if head.peak == "spacetime":
+        acc = SpacetimePeaks((head.height, head.width))
+        for image in frames:
+            acc.add(image)
+        at = acc.positions(min_peak=head.min_peak)
+        v, u = np.nonzero(np.isfinite(at))                 # row-major: the grid's order
+        P = head.triangulate(v.astype(np.float64), u.astype(np.float64),
+                             sweep[0] + at[v, u] * head.step)
+        good = np.isfinite(P).all(axis=1)
+        v, u, P = v[good], u[good], P[good]
+        index = np.full((head.height, head.width), -1, np.int64)
+        index[v, u] = np.arange(len(P))
+        return RangeGrid(P, index, obj_info={"scanner": "scanamp_sheet_of_light"})
     rows = np.arange(head.height, dtype=np.float64)
     index = np.full((head.steps, head.height), -1, np.int64)
     points = []
     count = 0
-    for s, x in enumerate(head.sweep()):
-        frame = renderer.frame(cam_from_world, head.laser(x).transformed(model_from_scan),
-                               ambient=head.ambient, rng=rng)
-        image = sensor.apply(frame.radiance, rng)
+    for s, (x, image) in enumerate(zip(sweep, frames, strict=True)):
         cols = stripe_peaks(image, min_peak=head.min_peak, window=head.window)
         ok = np.flatnonzero(np.isfinite(cols))
         P = head.triangulate(rows[ok], cols[ok], x)
@@ -123,6 +143,13 @@ def scan_view(renderer: LaserRenderer, head: ScanHead, model_from_scan: np.ndarr
         points.append(P)
     return RangeGrid(np.concatenate(points) if points else np.empty((0, 3)), index,
                      obj_info={"scanner": "scanamp_sheet_of_light"})
+
+
+def grid_layout(head: ScanHead) -> str:
+    """What a scan's grid rows and columns are under the head's firmware."""
+    if head.peak == "spacetime":
+        return "row = image row, column = image column"
+    return "row = sweep step, column = image row"
 
 
 def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Generator, *,
@@ -148,6 +175,10 @@ def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Gen
 
     rng = check_rng(rng)
     head, out_dir = config.head, Path(out_dir)
+    if head.peak == "spacetime" and head.sheet_steps < 0.6:
+        log.warning("range scans: the sheet is %.2f sweep steps thick: too few frames "
+                    "sample each pixel's temporal peak (raise --head.steps or "
+                    "--head.laser-thickness)", head.sheet_steps)
     aim = scene.bounds().mean(axis=0)
     poses = view_poses(config.views, aim, standoff=head.standoff,
                        elevation_min_deg=config.elevation_min_deg,
@@ -177,7 +208,7 @@ def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Gen
             "sensor": config.sensor.to_dict(),
             "cameras": {"head": {"width": head.width, "height": head.height}},
             "rig": {"head": to_dict(head), "views": config.views,
-                    "grid": "row = sweep step, column = image row"},
+                    "grid": grid_layout(head)},
             "frames": frames,
             "ground_truth": {"poses": "poses.json", "conf": "poses.conf",
                              "mesh": "gt/mesh.ply", "aim": aim.tolist(),

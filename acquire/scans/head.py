@@ -17,14 +17,37 @@ Geometry (scanner frame, metres)::
           optical axis at z = standoff (the sheet translates: its normal is fixed)
 
 so the stripe runs down the image (one peak per image row, the profile) and the sweep moves
-it across. A scan is a range grid: row ``s`` is sweep step ``s``, column ``v`` image row
-``v``. The default sweep crosses the camera's horizontal field at the stand-off.
+it across. The default sweep crosses the camera's horizontal field at the stand-off.
 
-The firmware (:func:`stripe_peaks`) finds in each image row the brightest column and refines
-it to the centroid of the light above the row's median within ``window`` pixels; a row whose
-peak does not stand ``min_peak`` digital numbers above its median has no sample. The camera
-ray through ``(row, sub-pixel column)`` meets the sheet of that step
-(:meth:`ScanHead.triangulate`).
+The firmware (``peak``) has two ways of finding where the sheet meets the surface:
+
+- ``spacetime`` (the default; Curless and Levoy, "Better optical triangulation through
+  spacetime analysis", ICCV 1995): each camera pixel follows its own intensity over the
+  sweep (:class:`SpacetimePeaks`). The sheet crosses the pixel's surface point when that
+  temporal profile peaks: a Gaussian in sweep position (the sheet translates with a fixed
+  normal) whose centre does not depend on the point's reflectance, nor, to first order, on
+  the surface's slope; the pixel sees one point, so neighbouring texture or a depth edge
+  beside it (where the camera sees only part of the stripe) do not enter (the edge of a
+  laser shadow, which cuts the profile in time, still does). The peak is refined to a
+  sub-step sweep position by a parabola through the logarithms of the maximum and its two
+  neighbours (exact for a Gaussian), after the pixel's background (its mean over the sweep
+  without those three samples) is taken off; a pixel whose peak does not stand
+  ``min_peak`` digital numbers above its background has no sample. The camera ray of the
+  pixel meets the sheet at that interpolated sweep position. A scan is a range grid on the
+  camera's pixels: **row = image row, column = image column** (like a range camera). The
+  profile must be sampled finely enough for its neighbours to stand above the noise: with
+  the 1 mm sheet at a 35 degree triangulation angle the default 150 steps put 0.79 steps
+  in its standard deviation (100 steps: 0.53, and a peak half a step off has a neighbour
+  at 2 % of it).
+- ``spatial`` (:func:`stripe_peaks`): each frame's image rows, the brightest column
+  refined to the centroid of the light above the row's median within ``window`` pixels
+  (a row whose peak does not stand ``min_peak`` above its median has no sample); the
+  camera ray through ``(row, sub-pixel column)`` meets the sheet of that step. Texture
+  across the stripe, the surface's slope and depth edges pull that centroid off the
+  sheet's centre. A scan is a range grid: row ``s`` is sweep step ``s``, column ``v``
+  image row ``v``.
+
+Triangulation: :meth:`ScanHead.triangulate`.
 """
 
 from __future__ import annotations
@@ -38,7 +61,7 @@ from acquire.render.laser_sheet import LaserSheet
 from core.config import Config, option
 from core.validate import check_array
 
-__all__ = ["ScanHead", "stripe_peaks"]
+__all__ = ["ScanHead", "SpacetimePeaks", "stripe_peaks"]
 
 
 @dataclass
@@ -56,7 +79,9 @@ class ScanHead(Config):
                             help="field of view along the image rows (vertical)")
     triangulation_angle_deg: float = option(35.0, unit="deg", range="[1, 80]",
                                             help="angle between the camera axis and the sheet")
-    steps: int = option(100, range="[2, 100000]", help="sweep steps: profiles per scan")
+    steps: int = option(150, range="[2, 100000]",
+                        help="sweep steps: frames per scan (spacetime wants the sheet at least "
+                             "0.6 steps thick along its normal: sheet_steps, 0.79 by default)")
     sweep_length: float | None = option(None, unit="m", range="(0, inf)",
                                         help="travel of the laser (none: the camera's "
                                              "horizontal field at the stand-off)")
@@ -68,10 +93,14 @@ class ScanHead(Config):
     speckle: float = option(0.0, range="[0, 2]", help="speckle contrast of the stripe "
                                                       "(independent pixels)")
     ambient: float = option(0.05, range="[0, inf)", help="room light while scanning")
+    peak: str = option("spacetime", choices=("spacetime", "spatial"),
+                       help="firmware: spacetime (each pixel's peak over the sweep, Curless "
+                            "and Levoy 1995) or spatial (each image row's centroid per frame)")
     min_peak: float = option(12.0, unit="DN", range="(0, inf)",
-                             help="firmware: a row's peak must stand this far above its median")
+                             help="firmware: a peak must stand this far above its background "
+                                  "(the pixel's over the sweep, or the row's median)")
     window: int = option(3, unit="px", range="[1, 50]",
-                         help="firmware: half-width of the peak's centroid window")
+                         help="firmware (spatial): half-width of the peak's centroid window")
 
     def __post_init__(self):
         super().__post_init__()
@@ -102,6 +131,19 @@ class ScanHead(Config):
         return Camera(self.width, self.height, f, f, (self.width - 1) / 2,
                       (self.height - 1) / 2, np.zeros(5), np.eye(4))
 
+    @property
+    def step(self) -> float:
+        """Sweep step (m): the laser's travel between two frames."""
+        return self.travel / max(self.steps - 1, 1)
+
+    @property
+    def sheet_steps(self) -> float:
+        """The sheet's thickness (standard deviation) in sweep steps along its normal: the
+        temporal profile's standard deviation, in frames, that the spacetime firmware sees
+        (0.79 with the defaults; under about 0.6 a peak's neighbours sink into the noise)."""
+        n, _ = self.sheet_plane()
+        return self.laser_thickness / (self.step * n[0])
+
     def sweep(self) -> np.ndarray:
         """Sweep positions ``(steps,)`` of the laser (m along the scanner's x), centred."""
         return np.linspace(-self.travel / 2, self.travel / 2, self.steps)
@@ -120,15 +162,17 @@ class ScanHead(Config):
                           np.radians(self.fan_angle_deg), self.laser_thickness,
                           self.laser_power, None, self.speckle, 0.0)
 
-    def triangulate(self, rows: np.ndarray, cols: np.ndarray, x: float = 0.0) -> np.ndarray:
+    def triangulate(self, rows: np.ndarray, cols: np.ndarray, x=0.0) -> np.ndarray:
         """Points ``(k, 3)`` in the scanner frame seen at pixels ``(rows, cols) (k,)`` on the
-        sheet at sweep position ``x`` (NaN where the ray misses it in front of the camera)."""
+        sheet at sweep position ``x`` (a float, or one per pixel ``(k,)``; NaN where the ray
+        misses it in front of the camera)."""
         rows = check_array(rows, "rows", shape=(None,))
         cols = check_array(cols, "cols", shape=(len(rows),), finite=False)
         cam = self.camera()
         ray = np.stack([(cols - cam.cx) / cam.fx, (rows - cam.cy) / cam.fy,
                         np.ones(len(rows))], -1)
-        n, d = self.sheet_plane(x)
+        n, _ = self.sheet_plane()
+        d = n[0] * (self.baseline + np.asarray(x, np.float64))
         denom = ray @ n
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.where(np.abs(denom) > 1e-12, d / denom, np.nan)
@@ -172,3 +216,67 @@ def stripe_peaks(image: np.ndarray, *, min_peak: float = 12.0, window: int = 3) 
     with np.errstate(invalid="ignore", divide="ignore"):
         centre = (w * cols).sum(axis=1) / total
     return np.where((height >= min_peak) & (total > 0), centre, np.nan)
+
+
+class SpacetimePeaks:
+    """The spacetime firmware (Curless and Levoy 1995): each pixel's temporal peak over a
+    sweep, refined to a fraction of a step.
+
+    Frames are fed one at a time (:meth:`add`); only running per-pixel figures are kept
+    (the maximum, its step and its two neighbours, the last frame and the sum), never the
+    frames themselves. :meth:`positions` gives the sub-step index of each pixel's peak.
+
+    >>> sigma, centre = 0.8, 16.37                       # a Gaussian in time on a pedestal
+    >>> acc = SpacetimePeaks((1, 1))
+    >>> for s in range(40):
+    ...     acc.add(np.full((1, 1), 5 + 100 * np.exp(-0.5 * ((s - centre) / sigma) ** 2)))
+    >>> round(float(acc.positions(min_peak=12)[0, 0]), 3)
+    16.37
+    """
+
+    def __init__(self, shape: tuple[int, int]):
+        self.shape = tuple(shape)
+        self.count = 0
+        self._sum = np.zeros(self.shape)
+        self._best = np.full(self.shape, -np.inf)
+        self._at = np.full(self.shape, -1, np.int64)
+        self._before = np.full(self.shape, np.nan)
+        self._after = np.full(self.shape, np.nan)
+        self._last = np.full(self.shape, np.nan)
+
+    def add(self, image: np.ndarray) -> None:
+        """Feed the next frame ``(H, W)`` of the sweep."""
+        img = np.asarray(image, np.float64)
+        if img.shape != self.shape:
+            raise ValueError(f"image: expected shape {self.shape}, got {img.shape}")
+        follows = self._at == self.count - 1          # the maximum was the previous frame
+        self._after[follows] = img[follows]
+        new = img > self._best                         # the first of equal maxima stays
+        self._best[new] = img[new]
+        self._at[new] = self.count
+        self._before[new] = self._last[new]
+        self._after[new] = np.nan
+        self._sum += img
+        self._last = img
+        self.count += 1
+
+    def positions(self, *, min_peak: float = 12.0) -> np.ndarray:
+        """``(H, W)`` sub-step sweep index of each pixel's temporal peak (NaN: none).
+
+        The pixel's background is its mean over the sweep without the peak and its two
+        neighbours; the peak must stand ``min_peak`` above it and not be the sweep's first
+        or last frame. A parabola through the logarithms of the three background-free
+        samples (each floored at half a digital number) gives the centre, exact for a
+        Gaussian profile however coarsely it is sampled.
+        """
+        if self.count < 4:
+            raise ValueError(f"frames: expected at least 4 for a temporal peak, got "
+                             f"{self.count}")
+        a, b, c = self._before, self._best, self._after
+        bg = (self._sum - a - b - c) / (self.count - 3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            la, lb, lc = (np.log(np.maximum(v - bg, 0.5)) for v in (a, b, c))
+            curve = la - 2.0 * lb + lc
+            off = np.where(curve < 0, 0.5 * (la - lc) / curve, 0.0)
+        ok = np.isfinite(a) & np.isfinite(c) & (b - bg >= min_peak)
+        return np.where(ok, self._at + np.clip(off, -0.5, 0.5), np.nan)
