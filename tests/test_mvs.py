@@ -221,7 +221,8 @@ def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     iterations only against them finds the plane the all-source run finds, with a source
     that sees something else among them."""
     from reconstruct.mvs import _patchmatch_kernels as pk
-    from reconstruct.mvs.patchmatch import PatchMatchOptions, _relative, patchmatch
+    from reconstruct.mvs.patchmatch import (PatchMatchOptions, _relative, homography_parts,
+                                            patchmatch)
 
     opt = PatchMatchOptions(max_image_size=128, iterations=3, geom_iterations=1, seed=3)
     views = _plane_setup(4, opt, junk=(2,))
@@ -236,12 +237,12 @@ def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     def costs(js, nact):
         rel = [_relative(cam, views[j].camera) for j in js]
         C, S = np.zeros((h, w)), np.zeros((h, w), np.int64)
+        ks = np.stack([views[j].camera.K for j in js])
+        rs, ts = np.stack([r for r, _ in rel]), np.stack([t for _, t in rel])
         pk.final_costs(D, N, C, S, nact, ref.gray, wts, stats,
                        np.stack([views[j].gray for j in js]),
                        np.array([[views[j].camera.width, views[j].camera.height] for j in js]),
-                       kinv, cam.K, np.stack([views[j].camera.K for j in js]),
-                       np.stack([r for r, _ in rel]), np.stack([t for _, t in rel]),
-                       4, 2, opt.min_texture ** 2, 1, 0.0, np.zeros((len(js), h, w),
+                       kinv, cam.K, ks, rs, ts, homography_parts(cam.K, ks, rs, ts), 4, 2, opt.min_texture ** 2, 1, 0.0, np.zeros((len(js), h, w),
                                                                     np.float32), 3.0)
         return C, S
 

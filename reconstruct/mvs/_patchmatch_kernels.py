@@ -104,9 +104,17 @@ def _bilinear(img, hs, ws, u, v):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs, ts,
-               radius, step, min_var, hb):
-    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s."""
+def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius, step,
+               min_var, hb):
+    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s.
+
+    ``hm[s]`` = (K_s R K_r^-1 row by row, K_s t): the plane's homography
+    K_s (R + t n^T / dp) K_r^-1 is then K_s R K_r^-1 + (K_s t) (n^T K_r^-1) / dp."""
+    s0 = stats[y, x, 0]
+    ma = stats[y, x, 1] / s0
+    va = stats[y, x, 2] / s0 - ma * ma
+    if va < min_var:  # a textureless window matches nothing: no need to warp it
+        return _BAD
     # the point and the plane offset: n . X = dp for X on the plane
     rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
     ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
@@ -114,28 +122,16 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
     dp = d * (n0 * rx + n1 * ry + n2 * rz)
     if abs(dp) < 1e-12:
         return _BAD
-    # H = K_s (R + t n^T / dp) K_r^-1
-    R = rs[s]
-    t = ts[s]
-    K = ks[s]
-    A = hb[0]
-    for r in range(3):
-        A[r, 0] = R[r, 0] + t[r] * n0 / dp
-        A[r, 1] = R[r, 1] + t[r] * n1 / dp
-        A[r, 2] = R[r, 2] + t[r] * n2 / dp
-    B = hb[1]
-    for r in range(3):
-        for c in range(3):
-            B[r, c] = K[r, 0] * A[0, c] + K[r, 1] * A[1, c] + K[r, 2] * A[2, c]
+    g0 = (n0 * kinv[0, 0] + n1 * kinv[1, 0] + n2 * kinv[2, 0]) / dp
+    g1 = (n0 * kinv[0, 1] + n1 * kinv[1, 1] + n2 * kinv[2, 1]) / dp
+    g2 = (n0 * kinv[0, 2] + n1 * kinv[1, 2] + n2 * kinv[2, 2]) / dp
+    m = hm[s]
     H = hb[2]
     for r in range(3):
-        for c in range(3):
-            H[r, c] = B[r, 0] * kinv[0, c] + B[r, 1] * kinv[1, c] + B[r, 2] * kinv[2, c]
-    s0 = stats[y, x, 0]
-    ma = stats[y, x, 1] / s0
-    va = stats[y, x, 2] / s0 - ma * ma
-    if va < min_var:  # a textureless window matches nothing: no need to warp it
-        return _BAD
+        e = m[9 + r]
+        H[r, 0] = m[3 * r] + e * g0
+        H[r, 1] = m[3 * r + 1] + e * g1
+        H[r, 2] = m[3 * r + 2] + e * g2
     hs = sizes[s, 1]
     ws = sizes[s, 0]
     h, w = ref.shape
@@ -216,7 +212,7 @@ def _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes, max_err):
 
 @nb.njit(cache=True, fastmath=True)
 def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
-          radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
+          hm, radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
     """Multi-view cost: the mean of the top_k cheapest source views among those whose bit
     is set in ``mask`` (the others count as unmatched, cost 2). ``scratch[:ns]`` keeps
     each source's cost, in source order."""
@@ -225,8 +221,8 @@ def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, k
         if not (mask >> s) & 1:
             scratch[s] = _BAD + geom * max_reproj
             continue
-        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs,
-                       ts, radius, step, min_var, hb)
+        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius,
+                       step, min_var, hb)
         if geom > 0.0:
             c += geom * _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes,
                                       max_reproj)
@@ -320,8 +316,8 @@ def initialise(D, N, dmin, dmax, kinv, seed):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius,
-                step, min_var, top_k, geom, sdepth, max_reproj):
+def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm,
+                radius, step, min_var, top_k, geom, sdepth, max_reproj):
     """The cost of every pixel's current plane against every source (after
     initialisation, or to re-score), and in ``S`` the bits of its ``nact`` best sources."""
     h, w = D.shape
@@ -333,14 +329,14 @@ def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs,
         hb = np.empty((3, 3, 3))
         for x in range(w):
             C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, hb,
-                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
-                            min_var, top_k, geom, sdepth, max_reproj, every)
+                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius,
+                            step, min_var, top_k, geom, sdepth, max_reproj, every)
             S[y, x] = _best_sources(scratch, ns, nact)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats, src, sizes,
-          kinv, kr, ks, rs, ts, radius, step, min_var, top_k, geom, sdepth, max_reproj,
+          kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom, sdepth, max_reproj,
           perturb):
     """One red-black half-sweep: propagation from the four directions, then refinement.
 
@@ -362,6 +358,10 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
         nrm = np.empty(3)
         best = np.empty(5)  # cost, depth, normal of the best plane so far
         for x in range((y + colour) % 2, w, 2):
+            s0 = stats[y, x, 0]
+            ma = stats[y, x, 1] / s0
+            if stats[y, x, 2] / s0 - ma * ma < min_var:
+                continue  # a textureless window: every plane costs the same
             best[0] = C[y, x]
             best[1] = D[y, x]
             best[2] = N[y, x, 0]
@@ -404,7 +404,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                     continue
                 mask = every if full else own | S[qy, qx]
                 if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                      sizes, kinv, kr, ks, rs, ts, radius, step, min_var,
+                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
                                       top_k, geom, sdepth, max_reproj, mask),
                                 d, m0, m1, m2, best):
                     bm = _best_sources(scratch, ns, nact)
@@ -443,7 +443,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                 if d < dmin or d > dmax:
                     continue
                 if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                      sizes, kinv, kr, ks, rs, ts, radius, step, min_var,
+                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
                                       top_k, geom, sdepth, max_reproj, own),
                                 d, m0, m1, m2, best):
                     bm = _best_sources(scratch, ns, nact)
