@@ -19,7 +19,8 @@ it replaced), side by side on the same inputs, in one run.
 The real sets are read from ../shared/data/real when it is there; otherwise those parts
 say so and are skipped (a fresh clone has no ../shared). SGBM runs beside PatchMatch only
 with MVS_BENCH_PEERS=1 (the peers reuse PatchMatch's sparse stages). With MVS_BENCH_DIR
-the captures and the unchanged stages of an earlier run there are reused.
+the captures and the unchanged stages of an earlier run there are reused (MVS_BENCH_FROM=dense
+forces the dense stage and the later ones, after a change of code).
 """
 
 import os
@@ -48,7 +49,7 @@ def _run(config, inp, out):
     from reconstruct.sfm.pipeline import run
 
     t = time.perf_counter()
-    res = run(config, inp, out)
+    res = run(config, inp, out, from_stage=os.environ.get("MVS_BENCH_FROM") or None)
     rep = res.report
     rep["wall"] = time.perf_counter() - t
     return res, rep
