@@ -215,6 +215,16 @@ def _plane_setup(n, opt, junk=()):
     return views
 
 
+def test_the_interleaved_row_order_visits_every_row_once():
+    from reconstruct.mvs._patchmatch_kernels import _row
+
+    for h in (1, 7, 16, 17, 96, 480, 481):
+        order = [_row(k, h) for k in range(h)]
+        assert sorted(order) == list(range(h)), h
+        if h >= 32:  # the first half of the loop (one thread's share) spans the image
+            assert max(order[: h // 2]) > 0.9 * h
+
+
 def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     """A pixel's active sources are the views whose single-view cost of its plane is the
     lowest (the kernel's bits against each source scored alone); scoring the later
