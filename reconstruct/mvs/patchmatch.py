@@ -53,7 +53,7 @@ class PatchMatchOptions(Config):
     iterations: int = option(3, range="[1, 20]", help="photometric iterations")
     geom_iterations: int = option(2, range="[0, 20]",
                                   help="iterations with geometric consistency")
-    active_sources: int = option(2, range="[0, 16]",
+    active_sources: int = option(3, range="[0, 16]",
                                  help="after the first full_iterations photometric "
                                       "iterations, a pixel's planes are scored only against "
                                       "the active_sources views that matched its best plane "
@@ -62,10 +62,6 @@ class PatchMatchOptions(Config):
     full_iterations: int = option(1, range="[1, 20]",
                                   help="photometric iterations that score every plane "
                                        "against every source view")
-    first_step: int = option(0, unit="px", range="[0, 8]",
-                             help="the first photometric iteration samples the window every "
-                                  "first_step pixels (0: window_step), the planes then "
-                                  "re-scored with the full window")
     window_radius: int = option(4, unit="px", range="[1, 15]", help="matching window radius")
     window_step: int = option(2, unit="px", range="[1, 5]",
                               help="the window is sampled every window_step pixels")
@@ -226,20 +222,13 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
             opt.max_reprojection)
     S = np.zeros((h, w), np.int64)  # each pixel's active sources (bits)
     nact = opt.active_sources if opt.active_sources < len(sources) else 0
-    coarse = init is None and opt.first_step > opt.window_step
-    if coarse:  # the first iteration with a sparser window: random planes need no detail
-        cw, cs = pk.bilateral_weights(v.gray, opt.window_radius, opt.first_step,
-                                      opt.sigma_color, float(opt.window_radius))
-        first = (v.gray, cw, cs, *args[3:12], opt.first_step, *args[13:])
-    pk.final_costs(D, N, C, S, nact, *(first if coarse else args))
+    pk.final_costs(D, N, C, S, nact, *args)
     for it in range(iters):
         perturb = max(p0 * 0.5 ** it, 0.01)
         full = nact == 0 or (init is None and it < opt.full_iterations)
         for colour in (0, 1):
             pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, S, nact, full, dmin, dmax,
-                     *(first if coarse and it == 0 else args), perturb)
-        if coarse and it == 0:
-            pk.final_costs(D, N, C, S, nact, *args)
+                     *args, perturb)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)
