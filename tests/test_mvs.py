@@ -231,8 +231,12 @@ def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     iterations only against them finds the plane the all-source run finds, with a source
     that sees something else among them."""
     from reconstruct.mvs import _patchmatch_kernels as pk
-    from reconstruct.mvs.patchmatch import (PatchMatchOptions, _relative, homography_parts,
-                                            patchmatch)
+    from reconstruct.mvs.patchmatch import (
+        PatchMatchOptions,
+        _relative,
+        homography_parts,
+        patchmatch,
+    )
 
     opt = PatchMatchOptions(max_image_size=128, iterations=3, geom_iterations=1, seed=3)
     views = _plane_setup(4, opt, junk=(2,))
@@ -252,8 +256,9 @@ def test_active_sources_are_the_cheapest_and_find_the_same_plane():
         pk.final_costs(D, N, C, S, nact, ref.gray, wts, stats,
                        np.stack([views[j].gray for j in js]),
                        np.array([[views[j].camera.width, views[j].camera.height] for j in js]),
-                       kinv, cam.K, ks, rs, ts, homography_parts(cam.K, ks, rs, ts), 4, 2, opt.min_texture ** 2, 1, 0.0, np.zeros((len(js), h, w),
-                                                                    np.float32), 3.0)
+                       kinv, cam.K, ks, rs, ts, homography_parts(cam.K, ks, rs, ts), 4, 2,
+                       opt.min_texture ** 2, 1, 0.0, np.zeros((len(js), h, w), np.float32),
+                       3.0)
         return C, S
 
     alone = np.stack([costs([j], 0)[0] for j in srcs], axis=2)
