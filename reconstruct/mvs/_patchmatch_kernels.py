@@ -12,8 +12,9 @@ one source view is ``1 - NCC`` of a bilateral-weighted window sampled every ``st
 pixels, the source sampled through the plane's homography; it is 2 where the window
 has no texture or leaves the source image. The multi-view cost is the mean of the
 ``top_k`` cheapest source views (of a pixel's active sources, see :func:`sweep`). With
-source depth maps (``geom`` > 0), each view's cost adds ``geom * min(e, max_reproj)``, ``e`` the forward-backward reprojection error (px)
-through that view's depth map (geometric consistency, as in ACMM).
+source depth maps (``geom`` > 0), each view's cost adds ``geom * min(e, max_reproj)``,
+``e`` the forward-backward reprojection error (px) through that view's depth map
+(geometric consistency, as in ACMM).
 
 Random numbers come from a counter-based hash of (seed, pixel, iteration, draw), so the
 result does not depend on the number of threads: the same seed gives the same bytes.
