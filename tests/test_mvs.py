@@ -2,6 +2,7 @@
 camera files of other tools, PatchMatch against a plane of known depth, fusion, and the
 SfM pipeline on a phone-like folder and from known cameras."""
 
+import dataclasses
 import json
 
 import cv2
@@ -199,6 +200,87 @@ def test_patchmatch_recovers_the_depth_and_normal_of_a_plane():
     # the same seed gives the same bytes; another seed other bytes, the same plane
     again, _ = patchmatch(views, [[1, 2], [0, 2], [0, 1]], opt)
     assert again[0].depth.tobytes() == ref.depth.tobytes()
+
+
+def _plane_setup(n, opt, junk=()):
+    from reconstruct.mvs.patchmatch import depth_range, prepare_views
+
+    cams, imgs = _plane_views(n=n)
+    for j in junk:  # a source that sees something else (an occluder): noise
+        imgs[j] = np.random.default_rng(j).integers(0, 256, imgs[j].shape, np.uint8)
+    pts = np.column_stack([np.random.default_rng(2).uniform(-0.8, 0.8, (60, 2)), np.zeros(60)])
+    views = prepare_views([f"v{i}" for i in range(n)], imgs, cams, opt.max_image_size)
+    for v in views:
+        v.depth_range = depth_range(v.camera, pts, np.arange(60), opt.depth_margin)
+    return views
+
+
+def test_the_interleaved_row_order_visits_every_row_once():
+    from reconstruct.mvs._patchmatch_kernels import _row
+
+    for h in (1, 7, 16, 17, 96, 480, 481):
+        order = [_row(k, h) for k in range(h)]
+        assert sorted(order) == list(range(h)), h
+        if h >= 32:  # the first half of the loop (one thread's share) spans the image
+            assert max(order[: h // 2]) > 0.9 * h
+
+
+def test_active_sources_are_the_cheapest_and_find_the_same_plane():
+    """A pixel's active sources are the views whose single-view cost of its plane is the
+    lowest (the kernel's bits against each source scored alone); scoring the later
+    iterations only against them finds the plane the all-source run finds, with a source
+    that sees something else among them."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+    from reconstruct.mvs.patchmatch import (
+        PatchMatchOptions,
+        _relative,
+        homography_parts,
+        patchmatch,
+    )
+
+    opt = PatchMatchOptions(max_image_size=128, iterations=3, geom_iterations=1, seed=3)
+    views = _plane_setup(4, opt, junk=(2,))
+    ref, srcs = views[0], [1, 2, 3]
+    cam = ref.camera
+    kinv = np.linalg.inv(cam.K)
+    wts, stats = pk.bilateral_weights(ref.gray, 4, 2, 0.2, 4.0)
+    h, w = ref.gray.shape
+    D, N = np.zeros((h, w)), np.zeros((h, w, 3))
+    pk.initialise(D, N, *ref.depth_range, kinv, 5)
+
+    def costs(js, nact):
+        rel = [_relative(cam, views[j].camera) for j in js]
+        C, S = np.zeros((h, w)), np.zeros((h, w), np.int64)
+        ks = np.stack([views[j].camera.K for j in js])
+        rs, ts = np.stack([r for r, _ in rel]), np.stack([t for _, t in rel])
+        pk.final_costs(D, N, C, S, nact, ref.gray, wts, stats,
+                       np.stack([views[j].gray for j in js]),
+                       np.array([[views[j].camera.width, views[j].camera.height] for j in js]),
+                       kinv, cam.K, ks, rs, ts, homography_parts(cam.K, ks, rs, ts), 4, 2,
+                       opt.min_texture ** 2, 1, 0.0, np.zeros((len(js), h, w), np.float32),
+                       3.0)
+        return C, S
+
+    alone = np.stack([costs([j], 0)[0] for j in srcs], axis=2)
+    C, S = costs(srcs, 2)
+    np.testing.assert_allclose(C, alone.min(axis=2), atol=1e-9)
+    order = np.argsort(alone, axis=2, kind="stable")
+    distinct = np.abs(np.diff(np.sort(alone, axis=2), axis=2)).min(axis=2) > 1e-9
+    want = (1 << order[..., 0]) | (1 << order[..., 1])
+    assert distinct.mean() > 0.5 and np.array_equal(S[distinct], want[distinct])
+
+    truth = _true_depth(views[0].camera)
+    inner = np.zeros_like(truth, bool)
+    inner[8:-8, 8:-8] = True
+    runs = {}
+    for a in (0, 1):
+        o = dataclasses.replace(opt, active_sources=a)
+        runs[a] = patchmatch(views, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]], o)[0][0]
+        good = inner & (runs[a].depth > 0) & (np.abs(runs[a].depth - truth) < 0.005 * truth)
+        assert good.sum() > 0.8 * inner.sum(), a
+    both = (runs[0].depth > 0) & (runs[1].depth > 0) & inner
+    rel = np.abs(runs[0].depth[both] - runs[1].depth[both]) / runs[0].depth[both]
+    assert np.median(rel) < 0.001
 
 
 def test_fusion_keeps_what_views_agree_on():

@@ -18,6 +18,23 @@ def test_builtin_scenes():
     assert np.asarray(b.object_mesh("object").vertices)[:, 2].min() == pytest.approx(0, abs=1e-9)
 
 
+def test_columns_scene_has_thin_columns_on_steps():
+    """The multi-view stereo detail scene: six columns 14 mm across and 10 cm high stand
+    on the top of three steps and carry a lintel."""
+    b = build_scene("columns")
+    assert "columns" in scene_names()
+    tops = []
+    for i in range(1, 7):
+        col = b.object_mesh(f"column{i}")
+        ext = np.ptp(np.asarray(col.vertices), axis=0)
+        assert ext[0] == pytest.approx(0.014, abs=5e-4) and ext[2] == pytest.approx(0.1)
+        tops.append(np.asarray(col.vertices)[:, 2].min())
+    step3 = np.asarray(b.object_mesh("step3").vertices)
+    np.testing.assert_allclose(tops, step3[:, 2].max(), atol=1e-9)  # on the top step
+    lintel = np.asarray(b.object_mesh("lintel").vertices)
+    assert lintel[:, 2].min() == pytest.approx(0.145, abs=1e-9)  # on the columns' tops
+
+
 def test_scene_folder_rebuilds_bit_for_bit(tmp_path):
     assert main(["scene", "primitives", "--out", str(tmp_path / "a"), "--seed", "3"]) == 0
     assert main(["scene", str(tmp_path / "a" / "scene.toml"), "--out", str(tmp_path / "b")]) == 0

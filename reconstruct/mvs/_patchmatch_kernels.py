@@ -11,9 +11,10 @@ Planes are per pixel: a depth ``D`` (z in the reference camera) and a unit norma
 one source view is ``1 - NCC`` of a bilateral-weighted window sampled every ``step``
 pixels, the source sampled through the plane's homography; it is 2 where the window
 has no texture or leaves the source image. The multi-view cost is the mean of the
-``top_k`` cheapest source views. With source depth maps (``geom`` > 0), each view's cost
-adds ``geom * min(e, max_reproj)``, ``e`` the forward-backward reprojection error (px)
-through that view's depth map (geometric consistency, as in ACMM).
+``top_k`` cheapest source views (of a pixel's active sources, see :func:`sweep`). With
+source depth maps (``geom`` > 0), each view's cost adds ``geom * min(e, max_reproj)``,
+``e`` the forward-backward reprojection error (px) through that view's depth map
+(geometric consistency, as in ACMM).
 
 Random numbers come from a counter-based hash of (seed, pixel, iteration, draw), so the
 result does not depend on the number of threads: the same seed gives the same bytes.
@@ -40,6 +41,19 @@ def _uniform(seed, a, b, c):
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     z = z ^ (z >> np.uint64(31))
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@nb.njit(cache=True)
+def _row(k, h):
+    """The k-th row a parallel loop visits: rows 0, 16, 32, ..., then 1, 17, ..., so that
+    each thread's contiguous share of the loop spans the whole image (the work per row
+    is uneven: textureless rows are cheap) and both cores stay busy. Rows are
+    independent within a call, so the order changes no result."""
+    q = h // 16
+    big = (h % 16) * (q + 1)  # the first h % 16 residues have q + 1 rows, the others q
+    if k < big:
+        return k // (q + 1) + 16 * (k % (q + 1))
+    return h % 16 + (k - big) // q + 16 * ((k - big) % q)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
@@ -91,9 +105,17 @@ def _bilinear(img, hs, ws, u, v):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs, ts,
-               radius, step, min_var, hb):
-    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s."""
+def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius, step,
+               min_var, hb):
+    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s.
+
+    ``hm[s]`` = (K_s R K_r^-1 row by row, K_s t): the plane's homography
+    K_s (R + t n^T / dp) K_r^-1 is then K_s R K_r^-1 + (K_s t) (n^T K_r^-1) / dp."""
+    s0 = stats[y, x, 0]
+    ma = stats[y, x, 1] / s0
+    va = stats[y, x, 2] / s0 - ma * ma
+    if va < min_var:  # a textureless window matches nothing: no need to warp it
+        return _BAD
     # the point and the plane offset: n . X = dp for X on the plane
     rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
     ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
@@ -101,23 +123,16 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
     dp = d * (n0 * rx + n1 * ry + n2 * rz)
     if abs(dp) < 1e-12:
         return _BAD
-    # H = K_s (R + t n^T / dp) K_r^-1
-    R = rs[s]
-    t = ts[s]
-    K = ks[s]
-    A = hb[0]
-    for r in range(3):
-        A[r, 0] = R[r, 0] + t[r] * n0 / dp
-        A[r, 1] = R[r, 1] + t[r] * n1 / dp
-        A[r, 2] = R[r, 2] + t[r] * n2 / dp
-    B = hb[1]
-    for r in range(3):
-        for c in range(3):
-            B[r, c] = K[r, 0] * A[0, c] + K[r, 1] * A[1, c] + K[r, 2] * A[2, c]
+    g0 = (n0 * kinv[0, 0] + n1 * kinv[1, 0] + n2 * kinv[2, 0]) / dp
+    g1 = (n0 * kinv[0, 1] + n1 * kinv[1, 1] + n2 * kinv[2, 1]) / dp
+    g2 = (n0 * kinv[0, 2] + n1 * kinv[1, 2] + n2 * kinv[2, 2]) / dp
+    m = hm[s]
     H = hb[2]
     for r in range(3):
-        for c in range(3):
-            H[r, c] = B[r, 0] * kinv[0, c] + B[r, 1] * kinv[1, c] + B[r, 2] * kinv[2, c]
+        e = m[9 + r]
+        H[r, 0] = m[3 * r] + e * g0
+        H[r, 1] = m[3 * r + 1] + e * g1
+        H[r, 2] = m[3 * r + 2] + e * g2
     hs = sizes[s, 1]
     ws = sizes[s, 0]
     h, w = ref.shape
@@ -128,13 +143,18 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
     k = 0
     for j in range(-radius, radius + 1, step):
         yy = min(max(y + j, 0), h - 1)
+        # the row's homogeneous coordinates, stepped along x (clamped at the border)
+        pu = H[0, 1] * yy + H[0, 2]
+        pv = H[1, 1] * yy + H[1, 2]
+        pz = H[2, 1] * yy + H[2, 2]
         for i in range(-radius, radius + 1, step):
             xx = min(max(x + i, 0), w - 1)
-            zz = H[2, 0] * xx + H[2, 1] * yy + H[2, 2]
+            zz = H[2, 0] * xx + pz
             if zz <= 1e-12:
                 return _BAD
-            u = (H[0, 0] * xx + H[0, 1] * yy + H[0, 2]) / zz
-            v = (H[1, 0] * xx + H[1, 1] * yy + H[1, 2]) / zz
+            iz = 1.0 / zz
+            u = (H[0, 0] * xx + pu) * iz
+            v = (H[1, 0] * xx + pv) * iz
             b = _bilinear(img, hs, ws, u, v)
             if b < 0.0:
                 return _BAD
@@ -143,12 +163,9 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs
             sbb += wt * b * b
             sab += wt * ref[yy, xx] * b
             k += 1
-    s0 = stats[y, x, 0]
-    ma = stats[y, x, 1] / s0
     mb = sb / s0
-    va = stats[y, x, 2] / s0 - ma * ma
     vb = sbb / s0 - mb * mb
-    if va < min_var or vb < min_var:
+    if vb < min_var:
         return _BAD
     ncc = (sab / s0 - ma * mb) / np.sqrt(va * vb)
     return 1.0 - max(-1.0, min(1.0, ncc))
@@ -196,39 +213,70 @@ def _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes, max_err):
 
 @nb.njit(cache=True, fastmath=True)
 def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
-          radius, step, min_var, top_k, geom, sdepth, max_reproj):
-    """Multi-view cost: the mean of the top_k cheapest source views."""
+          hm, radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
+    """Multi-view cost: the mean of the top_k cheapest source views among those whose bit
+    is set in ``mask`` (the others count as unmatched, cost 2). ``scratch[:ns]`` keeps
+    each source's cost, in source order."""
     ns = ks.shape[0]
     for s in range(ns):
-        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, ks, rs,
-                       ts, radius, step, min_var, hb)
+        if not (mask >> s) & 1:
+            scratch[s] = _BAD + geom * max_reproj
+            continue
+        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius,
+                       step, min_var, hb)
         if geom > 0.0:
             c += geom * _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes,
                                       max_reproj)
         scratch[s] = c
     k = min(top_k, ns)
+    if k == 1:
+        best = scratch[0]
+        for s in range(1, ns):
+            best = min(best, scratch[s])
+        return best
+    for s in range(ns):
+        scratch[ns + s] = scratch[s]
     total = 0.0
-    for j in range(k):  # partial selection sort: the k smallest
-        best = j
-        for i in range(j + 1, ns):
+    for j in range(k):  # partial selection sort of the copy: the k smallest
+        best = ns + j
+        for i in range(ns + j + 1, 2 * ns):
             if scratch[i] < scratch[best]:
                 best = i
-        tmp = scratch[j]
-        scratch[j] = scratch[best]
+        tmp = scratch[ns + j]
+        scratch[ns + j] = scratch[best]
         scratch[best] = tmp
-        total += scratch[j]
+        total += scratch[ns + j]
     return total / k
 
 
 @nb.njit(cache=True, inline="always")
+def _best_sources(scratch, ns, nact):
+    """The bits of the ``nact`` cheapest sources in ``scratch[:ns]`` (all when nact = 0 or
+    nact >= ns)."""
+    if nact <= 0 or nact >= ns:
+        return (1 << ns) - 1
+    mask = 0
+    for _ in range(nact):
+        b = -1
+        for s in range(ns):
+            if not (mask >> s) & 1 and (b < 0 or scratch[s] < scratch[b]):
+                b = s
+        mask |= 1 << b
+    return mask
+
+
+@nb.njit(cache=True, inline="always")
 def _keep_better(c, d, m0, m1, m2, best):
-    """Keep (d, m) in ``best`` = (cost, depth, normal) when its cost ``c`` is lower."""
+    """Keep (d, m) in ``best`` = (cost, depth, normal) when its cost ``c`` is lower; True
+    when it did."""
     if c < best[0]:
         best[0] = c
         best[1] = d
         best[2] = m0
         best[3] = m1
         best[4] = m2
+        return True
+    return False
 
 
 @nb.njit(cache=True, fastmath=True, inline="always")
@@ -269,39 +317,59 @@ def initialise(D, N, dmin, dmax, kinv, seed):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def final_costs(D, N, C, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
-                min_var, top_k, geom, sdepth, max_reproj):
-    """The cost of every pixel's current plane (after initialisation, or to re-score)."""
+def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm,
+                radius, step, min_var, top_k, geom, sdepth, max_reproj):
+    """The cost of every pixel's current plane against every source (after
+    initialisation, or to re-score), and in ``S`` the bits of its ``nact`` best sources."""
     h, w = D.shape
     ns = ks.shape[0]
-    for y in nb.prange(h):
-        scratch = np.empty(max(ns, 1))
+    every = (1 << ns) - 1
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(2 * max(ns, 1))
         hb = np.empty((3, 3, 3))
         for x in range(w):
             C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, hb,
-                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, radius, step,
-                            min_var, top_k, geom, sdepth, max_reproj)
+                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius,
+                            step, min_var, top_k, geom, sdepth, max_reproj, every)
+            S[y, x] = _best_sources(scratch, ns, nact)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks,
-          rs, ts, radius, step, min_var, top_k, geom, sdepth, max_reproj, perturb):
-    """One red-black half-sweep: propagation from the four directions, then refinement."""
+def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats, src, sizes,
+          kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom, sdepth, max_reproj,
+          perturb):
+    """One red-black half-sweep: propagation from the four directions, then refinement.
+
+    With ``full`` every plane is scored against every source. Otherwise a pixel's planes
+    are scored only against its active sources ``S[y, x]`` (the bits of the ``nact``
+    sources that matched its best plane best, when that plane was scored against more),
+    a neighbour's plane against the neighbour's active sources too: the matching views
+    of a surface change little from one iteration to the next, and a source left out
+    only makes a plane look worse, never better."""
     h, w = D.shape
     ns = ks.shape[0]
+    every = (1 << ns) - 1
     idmin = 1.0 / dmin
     idmax = 1.0 / dmax
-    for y in nb.prange(h):
-        scratch = np.empty(max(ns, 1))
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(2 * max(ns, 1))
         hb = np.empty((3, 3, 3))
         nrm = np.empty(3)
         best = np.empty(5)  # cost, depth, normal of the best plane so far
         for x in range((y + colour) % 2, w, 2):
+            s0 = stats[y, x, 0]
+            ma = stats[y, x, 1] / s0
+            if stats[y, x, 2] / s0 - ma * ma < min_var:
+                continue  # a textureless window: every plane costs the same
             best[0] = C[y, x]
             best[1] = D[y, x]
             best[2] = N[y, x, 0]
             best[3] = N[y, x, 1]
             best[4] = N[y, x, 2]
+            own = every if full else S[y, x]
+            bm = S[y, x]
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
             ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
             rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
@@ -335,9 +403,14 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                         d = dd
                 if d < dmin or d > dmax:
                     continue
-                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
-                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
+                mask = every if full else own | S[qy, qx]
+                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                      top_k, geom, sdepth, max_reproj, mask),
+                                d, m0, m1, m2, best):
+                    bm = _best_sources(scratch, ns, nact)
+            if not full:
+                own = bm
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
             for trial in range(3):
@@ -370,9 +443,12 @@ def sweep(colour, it, seed, D, N, C, dmin, dmax, ref, wts, stats, src, sizes, ki
                         continue
                 if d < dmin or d > dmax:
                     continue
-                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                   sizes, kinv, kr, ks, rs, ts, radius, step, min_var, top_k,
-                                   geom, sdepth, max_reproj), d, m0, m1, m2, best)
+                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                      top_k, geom, sdepth, max_reproj, own),
+                                d, m0, m1, m2, best):
+                    bm = _best_sources(scratch, ns, nact)
+            S[y, x] = bm
             C[y, x] = best[0]
             D[y, x] = best[1]
             N[y, x, 0] = best[2]

@@ -3,8 +3,12 @@
 :func:`fuse_points` keeps a pixel's point only where at least ``min_views`` other views
 agree with it after reprojection: their depth map, at the pixel the point projects
 to, gives back a point that reprojects within ``max_reprojection`` px, at a depth within
-``depth_tol`` (relative), with a normal within ``max_normal_deg``. Each kept point carries
-its normal, colour and the number of views that saw it (its visibility).
+``depth_tol`` (relative; or, with ``disparity_tol``, within the depth change that many
+pixels of disparity make for that pair, :func:`depth_per_pixel`: the depth's own
+uncertainty), with a normal within ``max_normal_deg``. Depths within ``edge_erosion`` px
+of an edge of a depth map are not fused: a gap (of at least ``hole_area`` pixels) or a
+depth step (``edge_jump``), :func:`depth_edges`. Each kept point carries its normal,
+colour and the number of views that saw it (its visibility).
 
 :func:`poisson_surface` meshes the fused points (screened Poisson, open3d) and trims it
 three ways: by Poisson density (where the points were sparse), by distance to the
@@ -24,7 +28,8 @@ from acquire.camera import Camera
 from core.config import Config, option
 from core.progress import track
 
-__all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface"]
+__all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface", "depth_edges",
+           "depth_per_pixel"]
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +41,11 @@ class FusionOptions(Config):
     min_views: int = option(1, range="[1, 64]",
                             help="other views that must agree with a depth to keep it")
     depth_tol: float = option(0.01, range="(0, 1)", help="relative depth agreement")
+    disparity_tol: float = option(0.0, unit="px", range="[0, inf)",
+                                  help="depth agreement at the scale of the depth's own "
+                                       "uncertainty: within the depth change this many pixels "
+                                       "of disparity make for that pair of views (0: "
+                                       "depth_tol, relative)")
     max_reprojection: float = option(2.0, unit="px", range="(0, inf)",
                                      help="forward-backward reprojection agreement")
     max_normal_deg: float = option(30.0, unit="deg", range="(0, 180]",
@@ -44,6 +54,12 @@ class FusionOptions(Config):
                                help="depths this close to the edge of a depth map's valid "
                                     "region are not fused (windows straddling an occlusion "
                                     "edge fatten the foreground)")
+    edge_jump: float = option(0.0, range="[0, 1)",
+                              help="a depth step is an edge too: 4-neighbours whose depths "
+                                   "differ by more than this fraction (0: gaps only)")
+    hole_area: int = option(0, unit="px", range="[0, inf)",
+                            help="gaps in a depth map smaller than this are holes in a "
+                                 "surface, not edges (0: every gap is an edge)")
     poisson_depth: int = option(0, range="[0, 12]",
                                 help="screened Poisson octree depth; 0 chooses it: cells "
                                      "of about two pixel footprints (median depth / focal "
@@ -73,19 +89,67 @@ class FusedPoints:
         return [float(m.mean()) for m in self.masks]
 
 
-def _backproject(cam: Camera, depth: np.ndarray, erosion: int = 0):
+def depth_edges(depth: np.ndarray, *, jump: float, hole_area: int) -> np.ndarray:
+    """Where a depth map has an edge: (H, W) bool, True at the pixels on either side of a
+    depth step (4-neighbours whose depths differ by more than ``jump``, relative; 0 = no
+    step is an edge) and at the pixels of gaps of at least ``hole_area`` pixels (0 = every
+    gap). A smaller gap is a hole in a surface, not an edge.
+
+    >>> d = np.ones((5, 8)); d[2, 2] = 0; d[:, 5:] = 2.0
+    >>> depth_edges(d, jump=0.03, hole_area=4).astype(int)[2]
+    array([0, 0, 0, 0, 1, 1, 0, 0])
+    """
+    import cv2
+
+    valid = depth > 0
+    edge = np.zeros(depth.shape, bool)
+    if jump > 0:
+        for a, b in (((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+                     ((slice(1, None), slice(None)), (slice(None, -1), slice(None)))):
+            da, db = depth[a], depth[b]
+            step = valid[a] & valid[b] & (np.abs(da - db) > jump * np.minimum(da, db))
+            edge[a] |= step
+            edge[b] |= step
+    gaps = ~valid
+    if hole_area > 0 and gaps.any():
+        n, lab, stats, _ = cv2.connectedComponentsWithStats(gaps.astype(np.uint8),
+                                                            connectivity=8)
+        gaps &= (stats[:, cv2.CC_STAT_AREA] >= hole_area)[lab]
+    return edge | gaps
+
+
+def _backproject(cam: Camera, depth: np.ndarray, erosion: int = 0, *, jump: float = 0.0,
+                 hole_area: int = 0):
     valid = depth > 0
     if erosion > 0:
         import cv2
 
-        valid = cv2.erode(valid.astype(np.uint8), np.ones((3, 3), np.uint8),
-                          iterations=erosion).astype(bool)
+        edge = depth_edges(depth, jump=jump, hole_area=hole_area)
+        valid &= ~cv2.dilate(edge.astype(np.uint8), np.ones((3, 3), np.uint8),
+                             iterations=erosion).astype(bool)
     v, u = np.nonzero(valid)
     z = depth[v, u].astype(np.float64)
     x = (u - cam.cx) / cam.fx * z
     y = (v - cam.cy) / cam.fy * z
     pc = np.stack([x, y, z], 1)
     return u, v, pc
+
+
+def depth_per_pixel(cam: Camera, points: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """The depth change along ``rays`` that moves ``points`` one pixel in ``cam``: the
+    depth uncertainty of one pixel of disparity for that pair of views.
+
+    ``points`` (n, 3) world, ``rays`` (n, 3) world directions scaled so that a step of
+    1 along them is a step of 1 in the depth being judged. For two pinhole cameras of
+    focal length f side by side at baseline b it is z^2 / (f b).
+    """
+    R, t = cam.cam_from_world[:3, :3], cam.cam_from_world[:3, 3]
+    Y = points @ R.T + t
+    B = rays @ R.T
+    z2 = np.maximum(Y[:, 2], 1e-12) ** 2
+    du = cam.fx * (B[:, 0] * Y[:, 2] - Y[:, 0] * B[:, 2]) / z2
+    dv = cam.fy * (B[:, 1] * Y[:, 2] - Y[:, 1] * B[:, 2]) / z2
+    return 1.0 / np.maximum(np.hypot(du, dv), 1e-12)
 
 
 def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
@@ -102,7 +166,8 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     P, Nn, Cc, V, masks = [], [], [], [], []
     for i in track(range(len(cameras)), "fusion", total=len(cameras)):
         cam = cameras[i]
-        u, v, pc = _backproject(cam, depths[i], opt.edge_erosion)
+        u, v, pc = _backproject(cam, depths[i], opt.edge_erosion, jump=opt.edge_jump,
+                                hole_area=opt.hole_area)
         count = np.zeros(len(u), np.int32)
         R_wc = cam.world_from_cam[:3, :3]
         X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
@@ -156,10 +221,15 @@ def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_m
     pu = cam.fx * Z[:, 0] / zr + cam.cx
     pv = cam.fy * Z[:, 1] / zr + cam.cy
     err = np.hypot(pu - u[idx], pv - v[idx])
-    rel = np.abs(z[idx] - d) / d
+    if opt.disparity_tol > 0:  # judged at the depth change one pixel of disparity in this
+        # view makes along the other view's ray
+        ray = (W - other.world_from_cam[:3, 3]) / d[:, None]
+        near = np.abs(z[idx] - d) <= opt.disparity_tol * depth_per_pixel(cam, W, ray)
+    else:
+        near = np.abs(z[idx] - d) / d <= opt.depth_tol
     n_other = normal[vo, uo].astype(np.float64) @ other.world_from_cam[:3, :3].T
     cosang = np.sum(n_other * n_ref[idx], 1)
-    good = (err <= opt.max_reprojection) & (rel <= opt.depth_tol) & (cosang >= cos_max)
+    good = (err <= opt.max_reprojection) & near & (cosang >= cos_max)
     out[idx[good]] = 1
     return out
 

@@ -53,6 +53,15 @@ class PatchMatchOptions(Config):
     iterations: int = option(3, range="[1, 20]", help="photometric iterations")
     geom_iterations: int = option(2, range="[0, 20]",
                                   help="iterations with geometric consistency")
+    active_sources: int = option(3, range="[0, 16]",
+                                 help="after the first full_iterations photometric "
+                                      "iterations, a pixel's planes are scored only against "
+                                      "the active_sources views that matched its best plane "
+                                      "best (and a neighbour's plane against the "
+                                      "neighbour's too); 0: always every source")
+    full_iterations: int = option(1, range="[1, 20]",
+                                  help="photometric iterations that score every plane "
+                                       "against every source view")
     window_radius: int = option(4, unit="px", range="[1, 15]", help="matching window radius")
     window_step: int = option(2, unit="px", range="[1, 5]",
                               help="the window is sampled every window_step pixels")
@@ -148,6 +157,15 @@ def _relative(ref: Camera, src: Camera) -> tuple[np.ndarray, np.ndarray]:
     return T[:3, :3], T[:3, 3]
 
 
+def homography_parts(kr: np.ndarray, ks: np.ndarray, rs: np.ndarray,
+                     ts: np.ndarray) -> np.ndarray:
+    """(n_sources, 12): K_s R K_r^-1 (row by row) and K_s t of each source, the parts of
+    every plane's homography K_s (R + t n^T / dp) K_r^-1 that do not depend on the plane."""
+    kinv = np.linalg.inv(kr)
+    m = np.einsum("sij,sjk,kl->sil", ks, rs, kinv).reshape(len(ks), 9)
+    return np.ascontiguousarray(np.hstack([m, np.einsum("sij,sj->si", ks, ts)]))
+
+
 def _stack(views: Sequence[View], idx: Sequence[int], maps=None):
     hm = max(views[i].camera.height for i in idx)
     wm = max(views[i].camera.width for i in idx)
@@ -198,14 +216,19 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
         bad = np.linalg.norm(N, axis=2) < 0.5
         N[bad] = (0.0, 0.0, -1.0)
         iters, p0 = opt.geom_iterations, 0.05
-    args = (v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts, opt.window_radius,
-            opt.window_step, min_var, opt.top_k, geom, sdepth, opt.max_reprojection)
-    pk.final_costs(D, N, C, *args)
+    hm = homography_parts(kr, ks, rs, ts)
+    args = (v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm,
+            opt.window_radius, opt.window_step, min_var, opt.top_k, geom, sdepth,
+            opt.max_reprojection)
+    S = np.zeros((h, w), np.int64)  # each pixel's active sources (bits)
+    nact = opt.active_sources if opt.active_sources < len(sources) else 0
+    pk.final_costs(D, N, C, S, nact, *args)
     for it in range(iters):
         perturb = max(p0 * 0.5 ** it, 0.01)
+        full = nact == 0 or (init is None and it < opt.full_iterations)
         for colour in (0, 1):
-            pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, dmin, dmax, *args[:-4],
-                     opt.top_k, geom, sdepth, opt.max_reprojection, perturb)
+            pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, S, nact, full, dmin, dmax,
+                     *args, perturb)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)

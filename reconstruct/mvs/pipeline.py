@@ -144,8 +144,10 @@ def depth_stage(names: Sequence[str], images: Sequence[np.ndarray],
                              po.max_angle_deg)
     timings = {"prepare": time.perf_counter() - t}
     t = time.perf_counter()
+    cpu = time.process_time()
     maps, pm_t = patchmatch(views, sources, po)
     timings["depth_maps"] = time.perf_counter() - t
+    cpu = time.process_time() - cpu
     timings.update({f"depth_maps_{k}": v for k, v in pm_t.items()})
     t = time.perf_counter()
     for v, m in zip(views, maps, strict=True):
@@ -163,6 +165,7 @@ def depth_stage(names: Sequence[str], images: Sequence[np.ndarray],
             "input_cameras": list(cameras), "max_image_size": po.max_image_size,
             "sources": sources, "depth_range": [list(v.depth_range) for v in views],
             "depth_coverage": [m.coverage for m in maps], "timings": timings,
+            "depth_maps_cpu_s": cpu,
             "megapixel_views_per_s": (mpix * (po.iterations + po.geom_iterations)
                                       / max(timings["depth_maps"], 1e-9))}
 
@@ -262,6 +265,7 @@ def dense_report(depth: dict, fused: dict, surface: str, mesh) -> dict:
         "timings": {**depth["timings"], **fused["timings"]},
         "triangles": 0 if mesh is None else len(mesh.triangles)}
     if "megapixel_views_per_s" in depth:
+        report["depth_maps_cpu_s"] = depth.get("depth_maps_cpu_s")
         report["megapixel_views_per_s"] = depth["megapixel_views_per_s"]
         report["megapixel_views_per_s_definition"] = (
             "working-resolution megapixels of all views x PatchMatch iterations / "
