@@ -224,7 +224,8 @@ def _tree_table(cfg, inventory, rng, path):
         sp = (np.array([species_for(s).code for s in t["species"]]) if "species" in t
               else np.full(n, "GENB"))
         return {"x": t["x"], "y": t["y"], "height": t["height"], "species": sp,
-                "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius")}
+                "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius"),
+                "crown_dx": t.get("crown_dx"), "crown_dy": t.get("crown_dy")}
     return _procedural_trees(cfg, rng, path=path)
 
 
@@ -283,6 +284,14 @@ def _crs_wkt(crs: str) -> str | None:
 
 
 def _add(objects, meshes, name, V, F, parts, material, object_id):
+    # a tree's wood and foliage are two objects cut from one vertex array: each keeps only
+    # the vertices its triangles use (else every tree's vertices are held twice over in the
+    # mesh, its normals, and the ray caster's world arrays)
+    used = np.unique(F)
+    if len(used) < len(V):
+        remap = np.zeros(len(V), np.int64)
+        remap[used] = np.arange(len(used))
+        V, F = V[used], remap[F]
     mesh = make_mesh(V, F)
     so = SceneObject(name, mesh, material, np.eye(4), object_id,
                      part_labels=np.asarray(parts, np.uint8))
@@ -322,12 +331,16 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
         if not cr > 0:
             cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
         dbh = t["dbh"][k] if t.get("dbh") is not None else np.nan
+        off = (0.0, 0.0)
+        if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
+            off = (float(t["crown_dx"][k]), float(t["crown_dy"][k]))
+            off = off if np.all(np.isfinite(off)) else (0.0, 0.0)
         V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
                              height=h + STEM_SINK, crown_radius=float(cr),
                              dbh=float(dbh) if dbh > 0 else None,
                              azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
                              needle_cluster=cfg.needle_cluster,
-                             needle_density=cfg.needle_density)
+                             needle_density=cfg.needle_density, crown_offset=off)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh
