@@ -1,7 +1,8 @@
 """Forest worlds to survey: a stand of L-system trees on a fractal terrain, with its truth.
 
 A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
-``crown_radius``, ``species``: :func:`core.trees_io.read_tree_table`) or is procedural
+``crown_radius``, ``crown_dx``/``crown_dy`` (the crown's centre from the stem), ``species``:
+:func:`core.trees_io.read_tree_table`) or is procedural
 (density, species mix, height distribution, understory; seeded). Each tree is grown on its
 own (:func:`procgen.trees.grow_tree`; or, with ``variants``, one of a few individuals per
 species), scaled to its height and crown, given its own needle clusters in metres
