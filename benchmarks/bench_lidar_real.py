@@ -12,11 +12,12 @@
 3. Speed: ``reconstruct lidar`` (ground filter included) on a 1 ha tile cut from
    Topography, in seconds and as a ratio to the time to read that tile (target <= 10 s).
 4. Simulation against reality: a stand grown from MixedConifer's crowns (positions,
-   heights, crown radii), flown by ``scanamp capture lidar`` (riegl-lms-q560) at the
-   survey's pulse density; point density, share of pulses with several returns, ground
-   share, vegetation height P50/P95 and tree detection F side by side (the real tile holds
-   first returns only -- its number_of_returns still says how many the pulse had -- so the
-   simulated survey is compared by its first returns too).
+   heights, crown radii, and each crown's displacement from its top), flown by ``scanamp
+   capture lidar`` (riegl-lms-q560) at the survey's pulse density; point density, share
+   of pulses with several returns, ground share, canopy cover (a diagnostic), vegetation
+   height P50/P95 and tree detection F side by side (the real tile holds first returns
+   only -- its number_of_returns still says how many the pulse had -- so the simulated
+   survey is compared by its first returns too).
 
 The data are read from ``$SCANAMP_REAL_DATA`` or ``../shared/data/real`` beside the
 repository (or beside its worktree folder); without them each part says so and is skipped.
@@ -96,7 +97,8 @@ def _tree_ids(pts):
 
 
 def mixed_conifer_reference(pts):
-    """(n, 3) ``x, y, height`` of each treeID crown's highest point, and crown radii (n,).
+    """(n, 3) ``x, y, height`` of each treeID crown's highest point, crown radii (n,) and
+    (n, 2) crown displacements (the centroid of the crown's convex hull from its top).
 
     The radius is half the crown width as forest inventories measure it (FIA; Bechtold
     2004): the mean of the crown's longest width and the width across it, here of the
@@ -136,7 +138,8 @@ def _polygon_centroid(p):
     a = cr.sum() / 2
     if abs(a) < 1e-9:
         return p.mean(axis=0)
-    return np.array([np.sum((x + np.roll(x, -1)) * cr), np.sum((y + np.roll(y, -1)) * cr)]) / (6 * a)
+    return np.array([np.sum((x + np.roll(x, -1)) * cr),
+                     np.sum((y + np.roll(y, -1)) * cr)]) / (6 * a)
 
 
 def _survey_figures(pts, res, ref_trees, area):
