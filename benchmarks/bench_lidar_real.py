@@ -12,11 +12,12 @@
 3. Speed: ``reconstruct lidar`` (ground filter included) on a 1 ha tile cut from
    Topography, in seconds and as a ratio to the time to read that tile (target <= 10 s).
 4. Simulation against reality: a stand grown from MixedConifer's crowns (positions,
-   heights, crown radii), flown by ``scanamp capture lidar`` (riegl-lms-q560) at the
-   survey's pulse density; point density, share of pulses with several returns, ground
-   share, vegetation height P50/P95 and tree detection F side by side (the real tile holds
-   first returns only -- its number_of_returns still says how many the pulse had -- so the
-   simulated survey is compared by its first returns too).
+   heights, crown radii, and each crown's displacement from its top), flown by ``scanamp
+   capture lidar`` (riegl-lms-q560) at the survey's pulse density; point density, share
+   of pulses with several returns, ground share, canopy cover (a diagnostic), vegetation
+   height P50/P95 and tree detection F side by side (the real tile holds first returns
+   only -- its number_of_returns still says how many the pulse had -- so the simulated
+   survey is compared by its first returns too).
 
 The data are read from ``$SCANAMP_REAL_DATA`` or ``../shared/data/real`` beside the
 repository (or beside its worktree folder); without them each part says so and is skipped.
@@ -96,7 +97,8 @@ def _tree_ids(pts):
 
 
 def mixed_conifer_reference(pts):
-    """(n, 3) ``x, y, height`` of each treeID crown's highest point, and crown radii (n,).
+    """(n, 3) ``x, y, height`` of each treeID crown's highest point, crown radii (n,) and
+    (n, 2) crown displacements (the centroid of the crown's convex hull from its top).
 
     The radius is half the crown width as forest inventories measure it (FIA; Bechtold
     2004): the mean of the crown's longest width and the width across it, here of the
@@ -106,7 +108,7 @@ def mixed_conifer_reference(pts):
     from scipy.spatial import ConvexHull, QhullError
 
     tid = _tree_ids(pts)
-    out, radii = [], []
+    out, radii, offsets = [], [], []
     for i in np.unique(tid[tid > 0]):
         s = np.flatnonzero(tid == i)
         k = s[np.argmax(pts["z"][s])]
@@ -124,7 +126,20 @@ def mixed_conifer_reference(pts):
             u = (hv[b] - hv[a]) / longest
             across = float(np.ptp(hv @ np.array([-u[1], u[0]])))
         radii.append(max((longest + across) / 4, 0.5))
-    return np.array(out), np.array(radii)
+        # the crown's centre (its hull's centroid) from its top: crowns grow towards gaps
+        c = hv.mean(axis=0) if len(hv) < 3 else _polygon_centroid(hv)
+        offsets.append(c - out[-1][:2])
+    return np.array(out), np.array(radii), np.array(offsets).reshape(-1, 2)
+
+
+def _polygon_centroid(p):
+    x, y = p[:, 0], p[:, 1]
+    cr = x * np.roll(y, -1) - np.roll(x, -1) * y
+    a = cr.sum() / 2
+    if abs(a) < 1e-9:
+        return p.mean(axis=0)
+    return np.array([np.sum((x + np.roll(x, -1)) * cr),
+                     np.sum((y + np.roll(y, -1)) * cr)]) / (6 * a)
 
 
 def _survey_figures(pts, res, ref_trees, area):
@@ -137,12 +152,19 @@ def _survey_figures(pts, res, ref_trees, area):
     veg = h[(~ground) & (h > 2.0)]
     tr = res.trees
     s = tree_scores(ref_trees, np.column_stack([tr["x"], tr["y"], tr["height"]]))
+    # canopy cover: the share of the plot's 1 m cells holding a first return over 2 m
+    xy = _xyz(pts)[:, :2]
+    ij = np.floor(xy - xy.min(axis=0)).astype(np.int64)
+    cells = (ij[:, 0].max() + 1) * (ij[:, 1].max() + 1)
+    hi = first & (h > 2.0)
+    cover = len(np.unique(ij[hi, 0] * (ij[:, 1].max() + 1) + ij[hi, 1])) / cells
     return {"points per m2": len(first) / area, "first returns per m2": first.sum() / area,
             "pulses with several returns": float(np.mean(pts["number_of_returns"][first] > 1)),
             "ground share": float(np.mean(ground)),
             # by height, not by class: the tile's class 2 leaves a third of its ground-level
             # returns unclassed (6.6 % of its points at 0-0.3 m, none with a later return)
             "share within 0.3 m of the DTM": float(np.mean(h < 0.3)),
+            "canopy cover (1 m cells, > 2 m)": float(cover),
             "vegetation height P50 (m)": float(np.percentile(veg, 50)),
             "vegetation height P95 (m)": float(np.percentile(veg, 95)),
             "trees detected": len(tr["x"]), "tree detection F": s["f"],
@@ -154,7 +176,7 @@ def mixed_conifer():
     from reconstruct.lidar import reconstruct_points, tree_scores
 
     pts, info = read_las(LIDAR / "MixedConifer.laz")
-    ref, _ = mixed_conifer_reference(pts)
+    ref, _, _ = mixed_conifer_reference(pts)
     res = reconstruct_points(pts, crs_wkt=info.crs_wkt)
     tr = res.trees
     s = tree_scores(ref, np.column_stack([tr["x"], tr["y"], tr["height"]]))
@@ -204,7 +226,7 @@ def simulation_vs_reality(real_pts, real_res, ref):
     from reconstruct.lidar import reconstruct_points
     from scanamp.lidar_run import run_lidar_capture
 
-    _, radii = mixed_conifer_reference(real_pts)
+    _, radii, offsets = mixed_conifer_reference(real_pts)
     xy = _xyz(real_pts)[:, :2]
     area = float(np.prod(xy.max(axis=0) - xy.min(axis=0)))
     real = _survey_figures(real_pts, real_res, ref, area)
@@ -216,7 +238,8 @@ def simulation_vs_reality(real_pts, real_res, ref):
         # pine, Douglas-fir and white fir, drawn here in equal shares (seeded)
         species = np.random.default_rng(7).choice(["PIPO", "PSME", "ABCO"], size=len(ref))
         write_tree_table(inv, {"x": ref[:, 0], "y": ref[:, 1], "height": np.maximum(ref[:, 2], 2),
-                               "crown_radius": radii, "species": species})
+                               "crown_radius": radii, "crown_dx": offsets[:, 0],
+                               "crown_dy": offsets[:, 1], "species": species})
         cfg = ForestConfig(relief=0.0, margin=5.0, understory=200.0, crs="EPSG:26912")
         t0 = time.perf_counter()
         bundle = build_forest(cfg, inventory=inv, seed=1)

@@ -1,7 +1,8 @@
 """Forest worlds to survey: a stand of L-system trees on a fractal terrain, with its truth.
 
 A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
-``crown_radius``, ``species``: :func:`core.trees_io.read_tree_table`) or is procedural
+``crown_radius``, ``crown_dx``/``crown_dy`` (the crown's centre from the stem), ``species``:
+:func:`core.trees_io.read_tree_table`) or is procedural
 (density, species mix, height distribution, understory; seeded). Each tree is grown on its
 own (:func:`procgen.trees.grow_tree`; or, with ``variants``, one of a few individuals per
 species), scaled to its height and crown, given its own needle clusters in metres
@@ -224,7 +225,8 @@ def _tree_table(cfg, inventory, rng, path):
         sp = (np.array([species_for(s).code for s in t["species"]]) if "species" in t
               else np.full(n, "GENB"))
         return {"x": t["x"], "y": t["y"], "height": t["height"], "species": sp,
-                "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius")}
+                "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius"),
+                "crown_dx": t.get("crown_dx"), "crown_dy": t.get("crown_dy")}
     return _procedural_trees(cfg, rng, path=path)
 
 
@@ -283,6 +285,14 @@ def _crs_wkt(crs: str) -> str | None:
 
 
 def _add(objects, meshes, name, V, F, parts, material, object_id):
+    # a tree's wood and foliage are two objects cut from one vertex array: each keeps only
+    # the vertices its triangles use (else every tree's vertices are held twice over in the
+    # mesh, its normals, and the ray caster's world arrays)
+    used = np.unique(F)
+    if len(used) < len(V):
+        remap = np.zeros(len(V), np.int64)
+        remap[used] = np.arange(len(used))
+        V, F = V[used], remap[F]
     mesh = make_mesh(V, F)
     so = SceneObject(name, mesh, material, np.eye(4), object_id,
                      part_labels=np.asarray(parts, np.uint8))
@@ -322,12 +332,16 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
         if not cr > 0:
             cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
         dbh = t["dbh"][k] if t.get("dbh") is not None else np.nan
+        off = (0.0, 0.0)
+        if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
+            off = (float(t["crown_dx"][k]), float(t["crown_dy"][k]))
+            off = off if np.all(np.isfinite(off)) else (0.0, 0.0)
         V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
                              height=h + STEM_SINK, crown_radius=float(cr),
                              dbh=float(dbh) if dbh > 0 else None,
                              azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
                              needle_cluster=cfg.needle_cluster,
-                             needle_density=cfg.needle_density)
+                             needle_density=cfg.needle_density, crown_offset=off)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh

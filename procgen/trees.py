@@ -342,8 +342,8 @@ year older with every year's shoot of the axis, are longer the farther from the 
 def place_tree(model: TreeModel, *, position, height: float, crown_radius: float | None = None,
                dbh: float | None = None, azimuth: float = 0.0,
                rng: np.random.Generator | None = None,
-               needle_cluster: float = NEEDLE_CLUSTER, needle_density: float = NEEDLE_DENSITY
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               needle_cluster: float = NEEDLE_CLUSTER, needle_density: float = NEEDLE_DENSITY,
+               crown_offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Scale a normalised tree to its size and stand it at ``position``.
 
     Parameters
@@ -365,6 +365,12 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
         Conifers: side of a needle cluster's triangle, metres.
     needle_density : float
         Conifers: needle clusters per square metre of a branch's needled spray.
+    crown_offset : (2,) float
+        Metres from the stem to the centre of the crown's projection (a crown grown towards
+        the open side, as crowns between neighbours do: Seidel et al. 2011). The crown
+        reaches ``1 + a cos(t)`` of its radius at azimuth ``t`` from the offset's direction,
+        ``a = |offset| / crown radius`` (at most 0.6), which moves a round crown's centre by
+        ``a`` radii; the stem and the top stay where they are.
 
     Returns
     -------
@@ -399,8 +405,18 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
         P = np.concatenate([P, np.full(len(nf), 2, np.uint8)])
         V = np.vstack([V, nv])
     c, s = np.cos(azimuth), np.sin(azimuth)
-    V = V @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) + p
-    return V, F, P
+    V = V @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    d = np.asarray(crown_offset, np.float64).reshape(2)
+    if np.any(d != 0):
+        r = crown_radius if crown_radius is not None else model.crown_radius * kxy
+        a = min(float(np.hypot(*d)) / max(r, 1e-9), 0.6)
+        u = d / np.hypot(*d)
+        rho = np.hypot(V[:, 0], V[:, 1])
+        cos_t = np.divide(V[:, :2] @ u, rho, out=np.zeros(len(V)), where=rho > 1e-12)
+        k = 1.0 + a * cos_t
+        k[np.unique(model.triangles[model.parts == 0])] = 1.0  # the stem stays round
+        V[:, :2] *= k[:, None]
+    return V + p, F, P
 
 
 def needle_clusters(shoots: np.ndarray, parents: np.ndarray, species: Species,

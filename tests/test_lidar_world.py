@@ -323,3 +323,25 @@ def test_raster_sample_and_tree_table_errors(tmp_path):
     p.write_text("x,y,height\n1,2\n")
     with pytest.raises(InputError, match="row 2: expected 3 values"):
         read_tree_table(p)
+
+
+def test_an_inventory_crown_offset_moves_that_crown_only(tmp_path):
+    from data_synth.forest import ForestConfig, build_forest
+
+    cfg = ForestConfig(relief=0.0, margin=2.0, understory=0.0, variants=1)
+    base = "x,y,height,crown_radius,species{h}\n10,10,12,2.0,FASY{a}\n20,10,12,2.0,FASY{b}\n"
+    leaves = []
+    for name, text in (("plain", base.format(h="", a="", b="")),
+                       ("offset", base.format(h=",crown_dx,crown_dy", a=",0.8,0", b=",,"))):
+        inv = tmp_path / f"{name}.csv"
+        inv.write_text(text)
+        objs = {o.name: o for o in build_forest(cfg, inventory=inv, seed=3).render_scene.objects}
+        leaves.append([objs[f"tree{k:05d}.leaf"].world_arrays()[0] for k in (1, 2)])
+        # each object keeps only the vertices its own triangles use
+        for o in objs.values():
+            assert len(np.unique(np.asarray(o.mesh.triangles))) == len(o.mesh.vertices)
+    (a1, a2), (b1, b2) = leaves
+    shift = b1[:, :2].mean(0) - a1[:, :2].mean(0)
+    assert shift[0] > 0.15 and abs(shift[1]) < 0.3 * shift[0]   # towards +x
+    assert b1[:, 0].max() - 10 > a1[:, 0].max() - 10 + 0.3       # reaching further there
+    np.testing.assert_array_equal(a2, b2)                         # an empty offset: none

@@ -84,3 +84,29 @@ def test_crown_ratio_sets_the_crown_base():
 def test_crown_years_follow_the_leader_growth():
     assert crown_years(9.0, 0.5) == 10              # 4.5 m of crown at 0.45 m a year
     assert crown_years(2.0, 0.3) == 6 and crown_years(60.0, 0.8) == 24   # bounded
+
+
+def test_a_crown_offset_moves_the_crown_not_the_stem_or_the_top():
+    m = grow_tree("PSME", rng=np.random.default_rng(4), years=crown_years(16.0, 0.6))
+    kw = dict(position=(3.0, 4.0, 0.0), height=16.0, crown_radius=2.5)
+    V0, F0, P0 = place_tree(m, rng=np.random.default_rng(1), **kw)
+    V1, F1, P1 = place_tree(m, rng=np.random.default_rng(1), crown_offset=(0.0, 0.75), **kw)
+    np.testing.assert_array_equal(F0, F1)
+    stem = np.unique(F0[P0 == 0])
+    np.testing.assert_array_equal(V0[stem], V1[stem])           # the stem stays round
+    top0, top1 = V0[np.argmax(V0[:, 2])], V1[np.argmax(V1[:, 2])]
+    assert np.hypot(*(top1[:2] - top0[:2])) < 0.05               # and the top on it
+    leaf0, leaf1 = V0[F0[P0 == 2].ravel()], V1[F1[P1 == 2].ravel()]
+    # r(t) = r (1 + a cos t): each point moves a * rho * cos(t) along its own direction,
+    # so its y by a * dy^2 / rho: the foliage's centre moves about a * (mean reach) / 2
+    a = 0.75 / 2.5
+    d = leaf0[:, :2] - [3.0, 4.0]
+    rho = np.hypot(d[:, 0], d[:, 1])
+    shift = leaf1[:, :2].mean(0) - leaf0[:, :2].mean(0)
+    assert shift[1] == pytest.approx(a * np.mean(d[:, 1] ** 2 / rho), rel=1e-9)
+    assert shift[1] == pytest.approx(a * rho.mean() / 2, rel=0.15)
+    assert abs(shift[0]) < 0.1 * shift[1]
+    # the crown reaches further on the offset's side, less on the other
+    far = np.max(leaf1[:, 1] - 4.0) / np.max(leaf0[:, 1] - 4.0)
+    near = np.max(4.0 - leaf1[:, 1]) / np.max(4.0 - leaf0[:, 1])
+    assert far == pytest.approx(1 + a, rel=0.1) and near == pytest.approx(1 - a, rel=0.1)

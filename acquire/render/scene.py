@@ -71,10 +71,12 @@ class SceneObject:
         """World-frame ``vertices (n, 3)``, ``triangles (m, 3)``, ``vertex normals (n, 3)``."""
         v, f = mesh_arrays(self.mesh)
         T = self.world_from_object
-        vw = v @ T[:3, :3].T + T[:3, 3]
-        n = np.asarray(self.mesh.vertex_normals, dtype=np.float64) @ T[:3, :3].T
+        n = np.array(self.mesh.vertex_normals, dtype=np.float64)  # a copy, normalised below
+        if not np.array_equal(T, np.eye(4)):  # (a forest's thousands of objects are placed)
+            v = v @ T[:3, :3].T + T[:3, 3]
+            n = n @ T[:3, :3].T
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-        return vw, f, n
+        return v, f, n
 
 
 @dataclass(eq=False)
@@ -167,5 +169,5 @@ class RenderScene:
     def bounds(self) -> np.ndarray:
         """World bounding box ``(2, 3)`` of all objects."""
         _, parts, _ = self.raycasting()
-        allv = np.vstack([p[0] for p in parts])
-        return np.stack([allv.min(0), allv.max(0)])
+        return np.stack([np.min([p[0].min(0) for p in parts], axis=0),
+                         np.max([p[0].max(0) for p in parts], axis=0)])
