@@ -9,7 +9,7 @@ it replaced), side by side on the same inputs, in one run.
    >= 0.95 and precision >= 0.97.
 3. monstree (../shared/data/real/monstree/images: 23 phone photos, 2016x1512, 19 of them
    portrait by their EXIF orientation): all 23 registered; >= 60 % of the pixels of every
-   registered view carry a fused depth; dense stage <= 3x the sparse stage; megapixel-
+   registered view carry a fused depth; dense stage <= 1.2x the sparse stage (issue 32); megapixel-
    views per second on this machine.
 4. dinoSparseRing from its given cameras (--cameras dinoSR_par.txt): silhouettes by a
    threshold on the black background, dilated 2 px. Of the mesh drawn into every view
@@ -158,7 +158,7 @@ def monstree(root: Path):
     ok &= _check("monstree: fused coverage of the worst view",
                  rep["dense"]["min_fused_coverage"], 0.60)
     ratio = rep["timings"]["dense"] / rep["timings"]["sparse_total"]
-    ok &= _check("monstree: dense stage / sparse stage", ratio, 3.0, higher=False,
+    ok &= _check("monstree: dense stage / sparse stage", ratio, 1.2, higher=False,
                  fmt="{:.2f}")
     print(f"   monstree: {rep['dense']['megapixel_views_per_s']:.3f} megapixel-views/s on "
           f"{os.cpu_count()} cores (working size {max(rep['dense']['working_size'].values())})")
