@@ -273,16 +273,11 @@ def reconstruct(database: str | Path, image_dir: str | Path, sparse_dir: str | P
     return best, len(models)
 
 
-def _extract(opt, database: Path, image_dir, cameras, position_priors,
-             prior_sigma: float) -> None:
-    """Stage extract: SIFT features of every image into the database, one camera per
-    entry of ``cameras`` (each extraction call makes its own camera)."""
+def _extract_cameras(database: Path, image_dir, cameras, extraction) -> None:
+    """SIFT features into ``database`` with ``extraction`` options, one extraction call
+    (so one camera) per ``(names, model, params)`` entry of ``cameras``."""
     import pycolmap
 
-    cpu = pycolmap.Device.cpu
-    extraction = pycolmap.FeatureExtractionOptions()
-    extraction.num_threads = opt.num_threads
-    extraction.sift.max_num_features = opt.max_features
     for names, model, params in cameras:
         reader = pycolmap.ImageReaderOptions()
         reader.camera_model = model
@@ -291,7 +286,19 @@ def _extract(opt, database: Path, image_dir, cameras, position_priors,
         pycolmap.extract_features(str(database), str(image_dir), image_names=list(names),
                                   camera_mode=pycolmap.CameraMode.SINGLE,
                                   reader_options=reader, extraction_options=extraction,
-                                  device=cpu)
+                                  device=pycolmap.Device.cpu)
+
+
+def _extract(opt, database: Path, image_dir, cameras, position_priors,
+             prior_sigma: float) -> None:
+    """Stage extract: SIFT features of every image into the database, one camera per
+    entry of ``cameras`` (each extraction call makes its own camera)."""
+    import pycolmap
+
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = opt.num_threads
+    extraction.sift.max_num_features = opt.max_features
+    _extract_cameras(database, image_dir, cameras, extraction)
     if position_priors:
         _write_position_priors(database, position_priors, prior_sigma)
     if opt.matcher == "spatial" and _num_pose_priors(database) == 0:

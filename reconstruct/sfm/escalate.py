@@ -53,7 +53,7 @@ import numpy as np
 
 from reconstruct.camera_files import image_cam_from_world
 from reconstruct.evaluation.sim3 import Sim3
-from reconstruct.sfm.colmap import ColmapOptions, _quiet_colmap
+from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colmap
 
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
@@ -404,15 +404,7 @@ def _extract_strong(db: Path, image_dir, cameras, opts: ColmapOptions,
     ex.sift.peak_threshold = esc.peak_threshold
     ex.sift.estimate_affine_shape = affine
     ex.sift.domain_size_pooling = dsp
-    for names, model, params in cameras:
-        reader = pycolmap.ImageReaderOptions()
-        reader.camera_model = model
-        if params is not None:
-            reader.camera_params = params
-        pycolmap.extract_features(str(db), str(image_dir), image_names=list(names),
-                                  camera_mode=pycolmap.CameraMode.SINGLE,
-                                  reader_options=reader, extraction_options=ex,
-                                  device=pycolmap.Device.cpu)
+    _extract_cameras(db, image_dir, cameras, ex)
 
 
 def _match_strong(db: Path, names: Sequence[str], opts: ColmapOptions,
