@@ -16,7 +16,8 @@
    crowns leave out measured on the tile's own points (unlisted small trees in the gaps,
    shrubs: :func:`vegetation_not_listed`), flown by ``scanamp capture lidar``
    (riegl-lms-q560) at the survey's pulse density with two receivers (the preset's full
-   waveform, and a discrete one: 4 returns 2.7 m apart; the tile names no sensor);
+   waveform, and a discrete one: 4 returns 2.7 m apart), and by the leica-als50-ii
+   preset whole (the tile names no sensor);
    point density, share of pulses with several returns, ground share, understory
    share, canopy cover (a diagnostic), vegetation height P50/P95 and tree detection F
    side by side (the real tile holds first returns only -- its number_of_returns still
@@ -289,11 +290,13 @@ def vegetation_not_listed(pts, res, species):
             "shrub_cover": shrub_cover}
 
 
-#: The receivers the stand is flown with: the preset's own (the LMS-Q560's full waveform,
-#: echoes 0.6 m apart) and a discrete-return one (the ALS50-II's: 4 returns, 2.7 m apart).
+#: The scanners the stand is flown with: the LMS-Q560 with its own receiver (full
+#: waveform, echoes 0.6 m apart), with a discrete-return one (the ALS50-II's: 4 returns,
+#: 2.7 m apart), and the ALS50-II whole (its beam, pulse, wavelength and mirror too).
 #: The tile names no sensor; its returns stop at 4, as those of discrete receivers do.
 RECEIVERS = {"waveform": {},
-             "discrete": {"detection": "discrete", "min_separation": 2.7, "max_returns": 4}}
+             "discrete": {"detection": "discrete", "min_separation": 2.7, "max_returns": 4},
+             "als50-ii": {"preset": "leica-als50-ii"}}
 
 
 def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=None,
@@ -364,8 +367,8 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
                       + f", {times[n]:.0f} s" for n, rx in receivers.items())
     print(f"   simulation against reality: a stand of {int(listed.sum())} listed trees + "
           f"{int((~listed).sum())} unlisted, shrubs {cfg.understory:.0f}/ha (grown "
-          f"{t_scene:.0f} s, {n_tri / 1e6:.1f} M triangles), flown by {ccfg.preset} at "
-          f"{real['first returns per m2']:.2f} pulses/m2 with each receiver ({flown}); the "
+          f"{t_scene:.0f} s, {n_tri / 1e6:.1f} M triangles), flown at "
+          f"{real['first returns per m2']:.2f} pulses/m2 by riegl-lms-q560 unless said ({flown}); the "
           "same 90 x 90 m; first returns only, as the real tile keeps:")
     print(f"   {'':32s} {'real':>9s}" + "".join(f" {n:>10s}" for n in sims))
     for k in real:
