@@ -368,8 +368,8 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
     print(f"   simulation against reality: a stand of {int(listed.sum())} listed trees + "
           f"{int((~listed).sum())} unlisted, shrubs {cfg.understory:.0f}/ha (grown "
           f"{t_scene:.0f} s, {n_tri / 1e6:.1f} M triangles), flown at "
-          f"{real['first returns per m2']:.2f} pulses/m2 by riegl-lms-q560 unless said ({flown}); the "
-          "same 90 x 90 m; first returns only, as the real tile keeps:")
+          f"{real['first returns per m2']:.2f} pulses/m2 by riegl-lms-q560 unless said "
+          f"({flown}); the same 90 x 90 m; first returns only, as the real tile keeps:")
     print(f"   {'':32s} {'real':>9s}" + "".join(f" {n:>10s}" for n in sims))
     for k in real:
         print(f"   {k:32s} {real[k]:9.3f}" + "".join(f" {s[k]:10.3f}" for s in sims.values()))
