@@ -12,12 +12,17 @@
 3. Speed: ``reconstruct lidar`` (ground filter included) on a 1 ha tile cut from
    Topography, in seconds and as a ratio to the time to read that tile (target <= 10 s).
 4. Simulation against reality: a stand grown from MixedConifer's crowns (positions,
-   heights, crown radii, and each crown's displacement from its top), flown by ``scanamp
-   capture lidar`` (riegl-lms-q560) at the survey's pulse density; point density, share
-   of pulses with several returns, ground share, canopy cover (a diagnostic), vegetation
-   height P50/P95 and tree detection F side by side (the real tile holds first returns
-   only -- its number_of_returns still says how many the pulse had -- so the simulated
-   survey is compared by its first returns too).
+   heights, crown radii, and each crown's displacement from its top), with what those
+   crowns leave out measured on the tile's own points (unlisted small trees in the gaps,
+   shrubs: :func:`vegetation_not_listed`), flown by ``scanamp capture lidar``
+   (riegl-lms-q560) at the survey's pulse density with two receivers (the preset's full
+   waveform, and a discrete one: 4 returns 2.7 m apart), and by the leica-als50-ii
+   preset whole (the tile names no sensor);
+   point density, share of pulses with several returns, ground share, understory
+   share, canopy cover (a diagnostic), vegetation height P50/P95 and tree detection F
+   side by side (the real tile holds first returns only -- its number_of_returns still
+   says how many the pulse had -- so the simulated survey is compared by its first
+   returns too).
 
 The data are read from ``$SCANAMP_REAL_DATA`` or ``../shared/data/real`` beside the
 repository (or beside its worktree folder); without them each part says so and is skipped.
@@ -164,6 +169,8 @@ def _survey_figures(pts, res, ref_trees, area):
             # by height, not by class: the tile's class 2 leaves a third of its ground-level
             # returns unclassed (6.6 % of its points at 0-0.3 m, none with a later return)
             "share within 0.3 m of the DTM": float(np.mean(h < 0.3)),
+            "share at 0.3-2 m (understory)": float(np.mean((h >= 0.3) & (h <= 2.0))),
+            "shrub cover of the open ground": _shrub_cover(first, h),
             "canopy cover (1 m cells, > 2 m)": float(cover),
             "vegetation height P50 (m)": float(np.percentile(veg, 50)),
             "vegetation height P95 (m)": float(np.percentile(veg, 95)),
@@ -218,7 +225,87 @@ def _timed(fn):
     return time.perf_counter() - t
 
 
-def simulation_vs_reality(real_pts, real_res, ref):
+#: The shrubs :func:`data_synth.forest.build_forest` grows: 0.5-2.5 m tall (uniform), crown
+#: radius 0.4 x height, so a mean crown area of pi 0.16 E[h^2] = pi 0.16 (2.5^3 - 0.5^3) / 6.
+SHRUB_CROWN_AREA = np.pi * 0.16 * (2.5 ** 3 - 0.5 ** 3) / 6.0
+
+
+def _shrub_cover(first, h):
+    """The share of the first returns at 0.3-2 m above the DTM among those under 2 m."""
+    low = first & (h <= 2.0)
+    return float(np.sum(low & (h > 0.3)) / max(low.sum(), 1))
+
+
+def _cell_tops(xyz, h):
+    """The highest ``h`` per 1 m cell of the points' extent (-inf where none)."""
+    ij = np.floor(xyz[:, :2] - xyz[:, :2].min(axis=0)).astype(np.int64)
+    top = np.full(tuple(ij.max(axis=0) + 1), -np.inf)
+    np.maximum.at(top, (ij[:, 0], ij[:, 1]), h)
+    return top
+
+
+def vegetation_not_listed(pts, res, species):
+    """What the tile's crowns (its inventory) leave out, measured on the tile's own points
+    as a practitioner would before growing a stand from it. On a 1 m grid of the highest
+    return per cell (heights above the survey's DTM):
+
+    - unlisted trees: the cells where no ``treeID`` point lies but the top is over 2 m
+      (their cover); their heights, the highest cell of each 8-connected patch of such
+      cells (one patch ~ one small tree the segmentation missed); their number per
+      hectare, that cover over the mean crown area of trees of those heights
+      (``pi (crown_width h)^2`` with the species' crown proportion, the stand's mix);
+    - shrubs: the share of the first returns at 0.3-2 m among those under 2 m (the shrub
+      cover of the open ground: the pulses that reach under 2 m fall on it at random;
+      by cells it would be overstated, a shrub of 1.3 m2 touching several 1 m cells),
+      per hectare as ``-ln(1 - cover)`` over a shrub's mean crown area
+      (:data:`SHRUB_CROWN_AREA`): shrubs stand anywhere, so that many cover that share
+      of any open patch.
+
+    Returns a dict: ``unlisted`` (1/ha), ``unlisted_height``, ``unlisted_height_sd`` (m),
+    ``understory`` (1/ha) and the covers they come from.
+    """
+    from scipy import ndimage
+
+    from procgen.trees import species_for
+    from reconstruct.lidar import height_above
+
+    xyz = _xyz(pts)
+    h = height_above(res.dtm, xyz)
+    top = _cell_tops(xyz, h)
+    ij = np.floor(xyz[:, :2] - xyz[:, :2].min(axis=0)).astype(np.int64)
+    crown = np.zeros(top.shape, bool)
+    inc = _tree_ids(pts) > 0
+    crown[ij[inc, 0], ij[inc, 1]] = True
+    gap_veg = np.isfinite(top) & ~crown & (top > 2.0)
+    lab, n = ndimage.label(gap_veg, structure=np.ones((3, 3)))
+    hmax = np.asarray(ndimage.maximum(top, lab, np.arange(1, n + 1)))
+    mu, sd = float(hmax.mean()), float(hmax.std())
+    cw2 = np.mean([species_for(s).crown_width ** 2 for s in species])
+    crown_area = np.pi * cw2 * (mu ** 2 + sd ** 2)
+    cover = float(gap_veg.sum() / top.size)
+    shrub_cover = _shrub_cover(pts["return_number"] == 1, h)
+    return {"unlisted": cover * 1e4 / crown_area, "unlisted_height": mu,
+            "unlisted_height_sd": sd, "unlisted_cover": cover, "unlisted_patches": n,
+            "understory": -np.log1p(-shrub_cover) * 1e4 / SHRUB_CROWN_AREA,
+            "shrub_cover": shrub_cover}
+
+
+#: The scanners the stand is flown with: the LMS-Q560 with its own receiver (full
+#: waveform, echoes 0.6 m apart), with a discrete-return one (the ALS50-II's: 4 returns,
+#: 2.7 m apart), and the ALS50-II whole (its beam, pulse, wavelength and mirror too).
+#: The tile names no sensor; its returns stop at 4, as those of discrete receivers do.
+RECEIVERS = {"waveform": {},
+             "discrete": {"detection": "discrete", "min_separation": 2.7, "max_returns": 4},
+             "als50-ii": {"preset": "leica-als50-ii"}}
+
+
+def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=None,
+                          estimate=True):
+    """The side-by-side table: the stand grown once, flown with each of ``receivers``
+    (name -> LidarCaptureConfig fields over the preset and the tile's density; default
+    :data:`RECEIVERS`). ``forest``: ForestConfig fields over the stand's; with
+    ``estimate``, the unlisted trees and shrubs measured on the tile
+    (:func:`vegetation_not_listed`), else none and 200 shrubs/ha."""
     from acquire.lidar.capture import LidarCaptureConfig
     from core.las_io import read_las
     from core.trees_io import read_tree_table, write_tree_table
@@ -226,48 +313,67 @@ def simulation_vs_reality(real_pts, real_res, ref):
     from reconstruct.lidar import reconstruct_points
     from scanamp.lidar_run import run_lidar_capture
 
+    receivers = RECEIVERS if receivers is None else receivers
     _, radii, offsets = mixed_conifer_reference(real_pts)
     xy = _xyz(real_pts)[:, :2]
     area = float(np.prod(xy.max(axis=0) - xy.min(axis=0)))
     real = _survey_figures(real_pts, real_res, ref, area)
+    # a 2 m-tall tree is ground-level in lidR's crowns; the stand starts at 2 m. The
+    # tile names no species: a mixed conifer stand of the interior West is ponderosa
+    # pine, Douglas-fir and white fir, drawn here in equal shares (seeded)
+    species = np.random.default_rng(7).choice(["PIPO", "PSME", "ABCO"], size=len(ref))
+    fkw = {"understory": 200.0}
+    if estimate:
+        est = vegetation_not_listed(real_pts, real_res, species)
+        print(f"   measured on the tile (what its crowns leave out): {est['unlisted_patches']} "
+              f"patches over 2 m in no crown covering {est['unlisted_cover']:.1%} of it, tops "
+              f"{est['unlisted_height']:.1f} +- {est['unlisted_height_sd']:.1f} m -> "
+              f"{est['unlisted']:.0f} unlisted trees/ha; shrub cover of the open ground "
+              f"{est['shrub_cover']:.1%} -> {est['understory']:.0f} shrubs/ha")
+        fkw = {k: est[k] for k in ("unlisted", "unlisted_height", "unlisted_height_sd",
+                                   "understory")}
+    fkw.update(forest or {})
+    sims, times = {}, {}
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         inv = d / "inventory.csv"
-        # a 2 m-tall tree is ground-level in lidR's crowns; the stand starts at 2 m. The
-        # tile names no species: a mixed conifer stand of the interior West is ponderosa
-        # pine, Douglas-fir and white fir, drawn here in equal shares (seeded)
-        species = np.random.default_rng(7).choice(["PIPO", "PSME", "ABCO"], size=len(ref))
         write_tree_table(inv, {"x": ref[:, 0], "y": ref[:, 1], "height": np.maximum(ref[:, 2], 2),
                                "crown_radius": radii, "crown_dx": offsets[:, 0],
                                "crown_dy": offsets[:, 1], "species": species})
-        cfg = ForestConfig(relief=0.0, margin=5.0, understory=200.0, crs="EPSG:26912")
+        cfg = ForestConfig(relief=0.0, margin=5.0, crs="EPSG:26912", **fkw)
         t0 = time.perf_counter()
         bundle = build_forest(cfg, inventory=inv, seed=1)
         n_tri = sum(len(o.mesh.triangles) for o in bundle.render_scene.objects)
         write_forest(bundle, d / "scene")
+        del bundle
         t_scene = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        run_lidar_capture(str(d / "scene"),
-                          LidarCaptureConfig(density=real["first returns per m2"]),
-                          d / "survey")
-        t_survey = time.perf_counter() - t0
-        sim_pts, _ = read_las(d / "survey" / "points.laz")
-        keep = ((sim_pts["x"] >= xy[:, 0].min()) & (sim_pts["x"] <= xy[:, 0].max())
-                & (sim_pts["y"] >= xy[:, 1].min()) & (sim_pts["y"] <= xy[:, 1].max()))
-        if np.all(real_pts["return_number"] == 1):  # the tile keeps first returns only
-            keep &= sim_pts["return_number"] == 1
-        sim_pts = {k: v[keep] for k, v in sim_pts.items()}
-        sim_res = reconstruct_points(sim_pts)
         truth = read_tree_table(d / "scene" / "trees.csv")
-        sim_ref = np.column_stack([truth["x"], truth["y"], truth["height"]])
-        sim = _survey_figures(sim_pts, sim_res, sim_ref, area)
-    print(f"   simulation against reality (stand of {len(ref)} trees grown {t_scene:.0f} s, "
-          f"{n_tri / 1e6:.1f} M triangles, flown {t_survey:.0f} s by riegl-lms-q560 at "
-          f"{real['first returns per m2']:.2f} pulses/m2; the same 90 x 90 m; first returns "
-          "only, as the real tile keeps):")
-    print(f"   {'':32s} {'real':>9s} {'simulated':>10s}")
+        # scored against the trees the inventory lists, as the tile is against its crowns
+        listed = np.asarray(truth["listed"]) > 0
+        sim_ref = np.column_stack([truth["x"], truth["y"], truth["height"]])[listed]
+        for name, rx in receivers.items():
+            t0 = time.perf_counter()
+            ccfg = LidarCaptureConfig(density=real["first returns per m2"], **rx)
+            run_lidar_capture(str(d / "scene"), ccfg, d / name)
+            times[name] = time.perf_counter() - t0
+            sim_pts, _ = read_las(d / name / "points.laz")
+            keep = ((sim_pts["x"] >= xy[:, 0].min()) & (sim_pts["x"] <= xy[:, 0].max())
+                    & (sim_pts["y"] >= xy[:, 1].min()) & (sim_pts["y"] <= xy[:, 1].max()))
+            if np.all(real_pts["return_number"] == 1):  # the tile keeps first returns only
+                keep &= sim_pts["return_number"] == 1
+            sim_pts = {k: v[keep] for k, v in sim_pts.items()}
+            sims[name] = _survey_figures(sim_pts, reconstruct_points(sim_pts), sim_ref, area)
+    flown = "; ".join(f"{n}: " + (", ".join(f"{k} {v}" for k, v in rx.items()) or "the preset's")
+                      + f", {times[n]:.0f} s" for n, rx in receivers.items())
+    print(f"   simulation against reality: a stand of {int(listed.sum())} listed trees + "
+          f"{int((~listed).sum())} unlisted, shrubs {cfg.understory:.0f}/ha (grown "
+          f"{t_scene:.0f} s, {n_tri / 1e6:.1f} M triangles), flown at "
+          f"{real['first returns per m2']:.2f} pulses/m2 by riegl-lms-q560 unless said "
+          f"({flown}); the same 90 x 90 m; first returns only, as the real tile keeps:")
+    print(f"   {'':32s} {'real':>9s}" + "".join(f" {n:>10s}" for n in sims))
     for k in real:
-        print(f"   {k:32s} {real[k]:9.3f} {sim[k]:10.3f}")
+        print(f"   {k:32s} {real[k]:9.3f}" + "".join(f" {s[k]:10.3f}" for s in sims.values()))
+    return real, sims
 
 
 def main():

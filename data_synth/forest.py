@@ -3,7 +3,9 @@
 A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
 ``crown_radius``, ``crown_dx``/``crown_dy`` (the crown's centre from the stem), ``species``:
 :func:`core.trees_io.read_tree_table`) or is procedural
-(density, species mix, height distribution, understory; seeded). Each tree is grown on its
+(density, species mix, height distribution, understory; seeded); an inventory's stand can
+also grow the trees it does not list (``unlisted``: small trees in its gaps, from their own
+seeded generator). Each tree is grown on its
 own (:func:`procgen.trees.grow_tree`; or, with ``variants``, one of a few individuals per
 species), scaled to its height and crown, given its own needle clusters in metres
 (conifers), turned about its stem and stood on the terrain so that its top is exactly at
@@ -17,7 +19,8 @@ inventory's coordinates. ``world = local + origin``.
 Every triangle carries a part (:data:`acquire.lidar.labels.PARTS`): ground (or road), trunk,
 branch, leaf, understory, building. Each tree is two objects (``treeNNNNN.wood``: trunk and
 branches, ``treeNNNNN.leaf``) sharing the object id ``NNNNN`` (1-based, the row of
-``trees.csv``); the ground is object 0, the understory and buildings the ids after the trees.
+``trees.csv``; the unlisted trees after the listed ones); the ground is object 0, the
+understory and buildings the ids after the trees.
 
 A forest scene spec is a scene TOML with a ``[forest]`` table (the fields of
 :class:`ForestConfig`, and ``inventory = "FILE.csv"`` relative to the spec)::
@@ -101,6 +104,15 @@ class ForestConfig(Config):
                               help="standard deviation of tree heights")
     understory: float = option(300.0, unit="1/ha", range="[0, 20000]",
                                help="shrubs per hectare (0.5-2.5 m tall)")
+    unlisted: float = option(0.0, unit="1/ha", range="[0, 5000]",
+                             help="an inventory's stand: trees per hectare it does not list "
+                                  "(small trees its survey or segmentation missed), grown "
+                                  "where no listed crown reaches, of its species")
+    unlisted_height: float = option(8.0, unit="m", range="[2, 120]",
+                                    help="mean height of the unlisted trees")
+    unlisted_height_sd: float = option(4.0, unit="m", range="[0, 50]",
+                                       help="standard deviation of the unlisted trees' "
+                                            "heights (at least 2 m each)")
     relief: float = option(2.0, unit="m", range="[0, 200]",
                            help="terrain height standard deviation")
     terrain_res: float = option(1.0, unit="m", range="(0, 20]",
@@ -127,7 +139,8 @@ class ForestBundle(SceneBundle):
     ----------
     trees : dict of (n,) arrays
         ``tree_id``, ``x``, ``y``, ``z_ground``, ``height``, ``crown_radius``, ``dbh``,
-        ``species``.
+        ``species``, ``listed`` (1: the inventory's or the procedural stand's; 0: an
+        unlisted tree, ``ForestConfig.unlisted``).
     dtm : Raster
         The terrain's heights on its grid (exact: the ground mesh is this grid).
     inventory_path : Path or None
@@ -256,13 +269,29 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     objects, meshes = [], {}
     ground_parts = _ground(cfg, dtm_local, rng, objects, meshes)
     crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes)
-    if cfg.understory > 0:
-        _understory(cfg, dtm_local, lo - origin[:2], hi - origin[:2], rng, objects, meshes,
-                    object_id=n + 1)
-    del ground_parts
     trees = {"tree_id": np.arange(1, n + 1), "x": t["x"], "y": t["y"],
              "z_ground": zg + origin[2], "height": t["height"], "crown_radius": crowns,
-             "dbh": dbhs, "species": np.asarray(t["species"], str)}
+             "dbh": dbhs, "species": np.asarray(t["species"], str),
+             "listed": np.ones(n, np.int64)}
+    if inventory is not None and cfg.unlisted > 0:
+        # their own generator: the listed trees and the understory stay as they were
+        urng = np.random.default_rng([seed, 1])
+        u = _unlisted_trees(cfg, t, crowns, lo, hi, urng)
+        m = len(u["x"])
+        if m:
+            uxl, uyl = u["x"] - origin[0], u["y"] - origin[1]
+            uzg = terrain_height(dtm_local, uxl, uyl)
+            ucr, udbh = _trees(cfg, u, uxl, uyl, uzg, urng, objects, meshes, first_id=n + 1)
+            new = {"tree_id": np.arange(n + 1, n + m + 1), "x": u["x"], "y": u["y"],
+                   "z_ground": uzg + origin[2], "height": u["height"], "crown_radius": ucr,
+                   "dbh": udbh, "species": u["species"], "listed": np.zeros(m, np.int64)}
+            trees = {k: np.concatenate([trees[k], new[k]]) for k in trees}
+        log.info("%d unlisted trees grown in the inventory's gaps (%.0f/ha asked)", m,
+                 cfg.unlisted)
+    if cfg.understory > 0:
+        _understory(cfg, dtm_local, lo - origin[:2], hi - origin[:2], rng, objects, meshes,
+                    object_id=len(trees["x"]) + 1)
+    del ground_parts
     dtm = Raster(dtm_local.values + origin[2], x0=dtm_local.x0 + origin[0],
                  y0=dtm_local.y0 + origin[1], res=dtm_local.res, crs_wkt=_crs_wkt(cfg.crs))
     spec = spec if spec is not None else forest_spec(cfg, seed=seed, name=name)
@@ -311,7 +340,46 @@ def _ground(cfg, dtm: Raster, rng, objects, meshes):
     return parts
 
 
-def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
+def _unlisted_trees(cfg, t, crowns, lo, hi, rng) -> dict:
+    """Trees an inventory does not list, in inventory coordinates: ``cfg.unlisted`` per
+    hectare of the stand's extent ``lo``-``hi``, each stem where no listed crown (its
+    centre, stem + ``crown_dx/dy``, and radius ``crowns``) reaches and at least its own
+    crown radius from the other unlisted stems (a tree the survey missed stands in the
+    open: under a listed crown it would be that crown's). Species drawn from the listed
+    trees', heights normal (``unlisted_height``, ``unlisted_height_sd``, at least 2 m),
+    crown radii from the species' proportion. As many as fit in 100 throws each."""
+    m = int(rng.poisson(cfg.unlisted * float(np.prod(hi - lo)) / 1e4))
+    cx, cy = np.array(t["x"], float), np.array(t["y"], float)
+    if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
+        cx = cx + np.nan_to_num(np.asarray(t["crown_dx"], float))
+        cy = cy + np.nan_to_num(np.asarray(t["crown_dy"], float))
+    listed = np.column_stack([cx, cy])
+    sp_all = np.asarray(t["species"], str)
+    xs, ys, hs, rs, sps = [], [], [], [], []
+    for _ in range(m):
+        sp = species_for(str(sp_all[rng.integers(len(sp_all))])) if len(sp_all) else \
+            species_for("GENC")
+        h = max(float(rng.normal(cfg.unlisted_height, cfg.unlisted_height_sd)), 2.0)
+        r = sp.crown_width * h * rng.uniform(0.85, 1.15)
+        for _ in range(100):
+            p = rng.uniform(lo, hi)
+            if np.any(np.sum((listed - p) ** 2, axis=1) < crowns ** 2):
+                continue
+            if xs and np.any(np.hypot(np.array(xs) - p[0], np.array(ys) - p[1])
+                             < np.maximum(np.array(rs), r)):
+                continue
+            xs.append(p[0])
+            ys.append(p[1])
+            hs.append(h)
+            rs.append(r)
+            sps.append(sp.code)
+            break
+    return {"x": np.array(xs), "y": np.array(ys), "height": np.array(hs),
+            "species": np.array(sps, str), "crown_radius": np.array(rs), "dbh": None,
+            "crown_dx": None, "crown_dy": None}
+
+
+def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
     n = len(xl)
     models = {}
     crowns, dbhs = np.empty(n), np.full(n, np.nan)
@@ -349,8 +417,8 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes):
         foliage = MATERIALS["needle" if sp.form == "conifer" else "leaf"]
         for suffix, sel, mat in (("wood", wood, MATERIALS["wood"]), ("leaf", ~wood, foliage)):
             if np.any(sel):
-                _add(objects, meshes, f"tree{k + 1:05d}.{suffix}", V, F[sel], lut[P[sel]], mat,
-                     k + 1)
+                _add(objects, meshes, f"tree{k + first_id:05d}.{suffix}", V, F[sel],
+                     lut[P[sel]], mat, k + first_id)
     return crowns, dbhs
 
 
@@ -477,7 +545,8 @@ def write_forest(bundle: ForestBundle, out_dir) -> Path:
                            labels=lab, names=dict(enumerate(PARTS)))
         tr = bundle.trees
         write_tree_table(tmp / "trees.csv", {k: tr[k] for k in (
-            "tree_id", "x", "y", "z_ground", "height", "crown_radius", "dbh", "species")})
+            "tree_id", "x", "y", "z_ground", "height", "crown_radius", "dbh", "species",
+            "listed")})
         write_raster(tmp / "dtm.tif", bundle.dtm)
         write_json(tmp / "materials.json", {
             "origin": bundle.origin.tolist(),

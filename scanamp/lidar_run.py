@@ -225,6 +225,7 @@ def _report(sv: _Survey, summaries: list, seconds: float) -> dict:
                         "pulse_width_ns": rx.pulse_width_ns, "bin_ns": rx.bin_ns,
                         "max_returns": rx.max_returns,
                         "min_separation_m": rx.min_separation_m,
+                        "detection": rx.detection,
                         "range_noise_law": "sigma_R = sigma_pulse / sqrt(SNR)",
                         "sigma_pulse_m": rx.sigma_m, "noise_energy": rx.noise_energy,
                         "threshold_energy": rx.threshold},

@@ -95,6 +95,19 @@ def test_density_plans_the_strips(scene, tmp_path):
     assert r["density_first_per_m2"] == pytest.approx(100, rel=0.05)
 
 
+def test_density_under_the_middle_of_one_strip(scene, tmp_path):
+    """A 60 m block under one 250 m swath of a polygon scanner: its pulses fall
+    uniformly in angle, so the middle of the swath is 5 % denser than its mean
+    (tan 22.5 deg / 22.5 deg in radians); the plan allows for it."""
+    out = tmp_path / "n"
+    assert main(["capture", "lidar", str(scene), "--preset", "riegl-lms-q560",
+                 "--footprint-samples", "1", "--altitude", "300", "--density", "4",
+                 "--out", str(out)]) == 0
+    r = json.loads((out / "report.json").read_text())
+    assert r["plan"]["legs"] == 1
+    assert r["density_first_per_m2"] == pytest.approx(4.0, rel=0.02)
+
+
 def test_terrestrial_stations_go_to_e57_with_pose_and_grid(scene, tmp_path):
     from core.e57_io import read_e57
 

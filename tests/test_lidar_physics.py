@@ -3,6 +3,8 @@ intensity (radar equation), range noise (the SNR law), a gap between two leaves.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from acquire.lidar.presets import get_preset
 from acquire.lidar.simulate import LidarWorld, Scanner, fire
 from acquire.render import Material, RenderScene, SceneObject
 from core.meshes import make_mesh
+from core.validate import InputError
 
 RHO = 0.4
 NM = 1550.0
@@ -163,3 +166,30 @@ def test_a_window_returns_its_own_echo_and_the_room_behind_it():
     e = fire(_world(_ground(), opaque), _scanner(), np.array([[0.0, 0.0, 100.0]]),
              np.array([[0.0, 0.0, -1.0]]), rng=np.random.default_rng(0))
     assert e["part"].tolist() == [PARTS.index("building")]
+
+
+@pytest.mark.parametrize("detection,kept", [("waveform", 102.0), ("discrete", 100.0)])
+def test_two_echoes_within_the_minimum_separation(detection, kept):
+    """A weak echo 2 m before a strong one, 3 m minimum separation: a waveform receiver
+    keeps the stronger, a discrete one the earlier (its detector is then blind); 4 m apart
+    both keep both."""
+    from acquire.lidar.waveform import detect_echoes
+
+    rx = dataclasses.replace(_scanner(min_separation_m=3.0).receiver, detection=detection)
+    e = detect_echoes(np.array([[100.0, 102.0]]), np.array([[1e-5, 4e-5]]), rx)
+    assert e["range"] == pytest.approx([kept], abs=0.01)
+    assert e["number_of_returns"].tolist() == [1]
+    e = detect_echoes(np.array([[100.0, 104.0]]), np.array([[1e-5, 4e-5]]), rx)
+    assert e["range"] == pytest.approx([100.0, 104.0], abs=0.01)
+    assert e["return_number"].tolist() == [1, 2]
+
+
+def test_the_discrete_preset_and_override():
+    s = Scanner.from_preset(get_preset("leica-als50-ii"))
+    assert (s.receiver.detection, s.receiver.min_separation_m, s.receiver.max_returns) == (
+        "discrete", 2.7, 4)
+    s = _scanner(detection="discrete", max_returns=4)
+    assert s.receiver.detection == "discrete"
+    assert s.receiver.min_separation_m == pytest.approx(0.6, abs=0.01)   # 4 ns in range
+    with pytest.raises(InputError):
+        _scanner(detection="analogue")

@@ -345,3 +345,34 @@ def test_an_inventory_crown_offset_moves_that_crown_only(tmp_path):
     assert shift[0] > 0.15 and abs(shift[1]) < 0.3 * shift[0]   # towards +x
     assert b1[:, 0].max() - 10 > a1[:, 0].max() - 10 + 0.3       # reaching further there
     np.testing.assert_array_equal(a2, b2)                         # an empty offset: none
+
+
+def test_unlisted_trees_grow_in_the_gaps_and_leave_the_listed_alone(tmp_path):
+    from data_synth.forest import ForestConfig, build_forest
+
+    inv = tmp_path / "inv.csv"
+    inv.write_text("x,y,height,crown_radius,crown_dx,crown_dy,species\n"
+                   "10,10,14,4.0,1.0,0,PIAB\n30,12,12,3.0,,,PIAB\n20,30,16,5.0,0,-1.5,FASY\n")
+    plain = build_forest(ForestConfig(relief=0.0, margin=2.0, understory=50.0, variants=1),
+                         inventory=inv, seed=4)
+    cfg = ForestConfig(relief=0.0, margin=2.0, understory=50.0, variants=1, unlisted=300.0,
+                       unlisted_height=6.0, unlisted_height_sd=2.0)
+    b = build_forest(cfg, inventory=inv, seed=4)
+    t = b.trees
+    new = t["listed"] == 0
+    m = int(new.sum())
+    assert m >= 5 and t["listed"][:3].tolist() == [1, 1, 1]
+    assert t["tree_id"].tolist() == list(range(1, 4 + m))
+    assert np.all(t["height"][new] >= 2.0) and set(t["species"][new]) <= {"PIAB", "FASY"}
+    # each unlisted stem stands where no listed crown (centre = stem + offset) reaches
+    centre = np.array([[11.0, 10.0], [30.0, 12.0], [20.0, 28.5]])
+    d = np.hypot(t["x"][new, None] - centre[:, 0], t["y"][new, None] - centre[:, 1])
+    assert np.all(d >= np.array([4.0, 3.0, 5.0]))
+    # the listed trees and the shrubs are the same triangles as without them
+    objs = {o.name: o for o in b.render_scene.objects}
+    for o in plain.render_scene.objects:
+        np.testing.assert_array_equal(np.asarray(o.mesh.vertices),
+                                      np.asarray(objs[o.name].mesh.vertices))
+    ids = {o.object_id for o in b.render_scene.objects if o.name.startswith("tree")}
+    assert ids == set(range(1, 4 + m))
+    assert objs["understory"].object_id == 4 + m

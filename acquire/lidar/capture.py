@@ -39,7 +39,8 @@ class LidarCaptureConfig(Config):
     """Everything ``scanamp capture lidar`` reads: scanner, platform, plan, files."""
 
     preset: str = option("riegl-lms-q560", help="scanner preset: riegl-lms-q560, "
-                         "riegl-vq-880g, riegl-vz-400, velodyne-vlp16, livox-avia")
+                         "riegl-vq-880g, riegl-vz-400, velodyne-vlp16, livox-avia, "
+                         "leica-als50-ii")
     platform: str | None = option(None, help="airplane, multicopter, vehicle or tripod "
                                   "(default: the preset's)")
     density: float | None = option(None, unit="pts/m2", range="(0, inf)",
@@ -67,7 +68,10 @@ class LidarCaptureConfig(Config):
                                      help="returns per pulse (default: the preset's)")
     min_separation: float | None = option(None, unit="m", range="[0, inf)",
                                           help="echoes closer than this are one (default: "
-                                          "the pulse's width in range)")
+                                          "the preset's, else the pulse's width in range)")
+    detection: str | None = option(None, help="the receiver's echo detection: waveform "
+                                   "(of two close echoes the stronger is kept) or discrete "
+                                   "(the earlier, then a dead time) (default: the preset's)")
     stations: int = option(1, range="[1, 1000]", help="terrestrial stations (a grid)")
     angular_step: float = option(0.2, unit="deg", range="(0, 10]",
                                  help="terrestrial angular step between points and lines")
@@ -149,7 +153,7 @@ def make_scanner(config: LidarCaptureConfig, preset: ScannerPreset,
                                divergence_mrad=config.divergence,
                                footprint_samples=config.footprint_samples,
                                bin_ns=config.bin_ns, min_separation_m=config.min_separation,
-                               max_returns=config.max_returns)
+                               max_returns=config.max_returns, detection=config.detection)
 
 
 def nominal_range(plan: SurveyPlan) -> float:

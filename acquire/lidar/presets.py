@@ -9,7 +9,7 @@ assumption said so in ``notes``, usually the one HELIOS++ uses for the same scan
 >>> get_preset("riegl-lms-q560").pattern
 'polygon'
 >>> sorted(PRESETS)[:2]
-['livox-avia', 'riegl-lms-q560']
+['leica-als50-ii', 'livox-avia']
 """
 
 from __future__ import annotations
@@ -61,6 +61,13 @@ class ScannerPreset:
     pulse_width_ns : float
         Emitted pulse, full width at half maximum.
     max_returns : int
+    detection : {'waveform', 'discrete'}
+        The receiver (:mod:`acquire.lidar.waveform`): a digitised waveform decomposed
+        into echoes (of two close echoes the stronger is kept), or an analogue detector
+        triggering on each echo in time with a dead time (the earlier is kept).
+    min_separation_m : float
+        Echoes closer in range than this are one; 0: the pulse's width in range
+        (``c * pulse_width / 2``), what a waveform's decomposition resolves.
     channels_deg : tuple of float
         Elevation of each beam of a multi-beam (spinning) scanner, degrees.
     prism_hz : (float, float)
@@ -87,6 +94,8 @@ class ScannerPreset:
     min_range_m: float
     pulse_width_ns: float
     max_returns: int
+    detection: str = "waveform"
+    min_separation_m: float = 0.0
     channels_deg: tuple = ()
     prism_hz: tuple = ()
     head_rate_deg_s: float = 0.0
@@ -157,6 +166,24 @@ PRESETS: dict[str, ScannerPreset] = {p.name: p for p in (
                  "HELIOS++ scanners_als.xml livox_mid-70: Risley prism rates -77.7 / "
                  "121.6 Hz (the Avia's rosette)"),
         notes="elliptical 4.9 x 0.52 mrad beam given its geometric mean 1.6 mrad"),
+    ScannerPreset(
+        name="leica-als50-ii", model="Leica ALS50-II", platform="airplane",
+        pattern="oscillating", pulse_rates_hz=(20e3, 60e3, 150e3), wavelength_nm=1064.0,
+        divergence_mrad=0.22, fov_deg=(-37.5, 37.5), scan_rate_hz=(1.0, 90.0),
+        precision_m=0.05, precision_range_m=1000.0, max_range_m=4000.0,
+        reference_reflectance=0.2, min_range_m=200.0, pulse_width_ns=10.0, max_returns=4,
+        detection="discrete", min_separation_m=2.7,
+        sources=("NERC-ARF wiki, Sensors/LeicaLIDAR (the ALS50-II they flew from 2009): "
+                 "1064 nm, 0.22 mrad, 75 deg FOV; two banks of 4 timing cards, so up to 4 "
+                 "returns per pulse; a minimum time between returns, so two returns must "
+                 "be at least 2.7 m apart",
+                 "HELIOS++ scanners_als.xml leica_als50-ii: 20/60/150 kHz, 10 ns pulse, "
+                 "oscillating mirror, +/-37.5 deg, 0-90 Hz, accuracy 0.05 m, 4 returns "
+                 "('vertical discrimination distance approx. 3.5 m')"),
+        notes="discrete-return receiver (first, second, third, fourth echo in time); the "
+              "minimum separation is the operator's 2.7 m (HELIOS++ says about 3.5 m); "
+              "the maximum range (4000 m at 20 %) and the precision's reference range "
+              "(1000 m) are assumptions, not datasheet figures"),
 )}
 
 

@@ -82,7 +82,8 @@ class Scanner:
                     scan_rate: float | None = None, divergence_mrad: float | None = None,
                     footprint_samples: int = 5, bin_ns: float = 0.5,
                     min_separation_m: float | None = None,
-                    max_returns: int | None = None) -> Scanner:
+                    max_returns: int | None = None,
+                    detection: str | None = None) -> Scanner:
         """The preset's scanner, with any of its settings changed."""
         prr = float(pulse_rate or preset.pulse_rate_hz)
         if prr <= 0:
@@ -98,12 +99,13 @@ class Scanner:
         snr_ref = (sigma / preset.precision_m) ** 2
         e_ref = preset.reference_reflectance / preset.precision_range_m ** 2
         fwhm_m = SPEED_OF_LIGHT * preset.pulse_width_ns * 1e-9 / 2.0
+        if min_separation_m is None:
+            min_separation_m = preset.min_separation_m or fwhm_m
         rx = Receiver(pulse_width_ns=preset.pulse_width_ns, bin_ns=float(bin_ns),
                       threshold=preset.reference_reflectance / preset.max_range_m ** 2,
-                      noise_energy=e_ref / snr_ref,
-                      min_separation_m=float(min_separation_m if min_separation_m is not None
-                                             else fwhm_m),
-                      max_returns=int(max_returns or preset.max_returns))
+                      noise_energy=e_ref / snr_ref, min_separation_m=float(min_separation_m),
+                      max_returns=int(max_returns or preset.max_returns),
+                      detection=str(detection or preset.detection))
         return cls(preset, pattern, prr, div * 1e-3, int(footprint_samples), rx,
                    float(preset.wavelength_nm), float(preset.min_range_m))
 

@@ -9,9 +9,18 @@ Lambertian target, per unit of emitted energy and receiver constants)::
 The waveform is the emitted Gaussian pulse (full width at half maximum ``pulse_width``)
 delayed by each ``2 R_i / c`` and scaled by ``E_i``, summed, and sampled in bins of
 ``bin_ns``. Echoes are its local maxima above the detection threshold, placed by
-Gaussian (log-parabolic) interpolation of the three samples about the peak; echoes
-closer than ``min_separation`` to a stronger one are dropped, and the first
-``max_returns`` in time are kept. Each sub-ray belongs to the nearest echo within
+Gaussian (log-parabolic) interpolation of the three samples about the peak. Two
+receivers (``detection``) differ in which of two echoes closer than ``min_separation``
+survives:
+
+- ``"waveform"`` (a digitised waveform decomposed afterwards: RIEGL's full-waveform
+  scanners): the stronger, wherever it lies;
+- ``"discrete"`` (an analogue detector that triggers on each echo in time, then stays
+  blind for a dead time: the 4-return receivers of Leica's ALS50/ALS60 and Optech's
+  ALTM 3100): the earlier, however weak, and everything within ``min_separation``
+  after it is lost.
+
+Then the first ``max_returns`` in time are kept. Each sub-ray belongs to the nearest echo within
 ``max(min_separation, 4 sigma)``; an echo's energy (its intensity) is the sum of its
 sub-rays' energies, and its truth (object, part, true point) is that of the sub-ray
 contributing most at its peak.
@@ -36,7 +45,12 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-__all__ = ["Receiver", "detect_echoes", "SPEED_OF_LIGHT", "FWHM_TO_SIGMA"]
+from core.validate import InputError
+
+__all__ = ["Receiver", "detect_echoes", "SPEED_OF_LIGHT", "FWHM_TO_SIGMA", "DETECTIONS"]
+
+#: Echo detection by the receiver (see the module's docstring).
+DETECTIONS = ("waveform", "discrete")
 
 SPEED_OF_LIGHT = 299_792_458.0
 #: A Gaussian's full width at half maximum over its standard deviation.
@@ -60,8 +74,11 @@ class Receiver:
     noise_energy : float
         ``E_noise`` of the SNR (echo energy over it).
     min_separation_m : float
-        Echoes closer in range than this are one (the stronger kept).
+        Echoes closer in range than this are one (the stronger kept, or with
+        ``detection="discrete"`` the earlier).
     max_returns : int
+    detection : {'waveform', 'discrete'}
+        Which of two echoes closer than ``min_separation_m`` is kept (see above).
     """
 
     pulse_width_ns: float
@@ -70,6 +87,12 @@ class Receiver:
     noise_energy: float
     min_separation_m: float
     max_returns: int
+    detection: str = "waveform"
+
+    def __post_init__(self):
+        if self.detection not in DETECTIONS:
+            raise InputError(f"expected one of {', '.join(DETECTIONS)}, got "
+                             f"{self.detection!r}", field="detection")
 
     @property
     def sigma_m(self) -> float:
@@ -110,7 +133,7 @@ def detect_echoes(ranges: np.ndarray, energies: np.ndarray, rx: Receiver):
     _echo_kernel(np.ascontiguousarray(ranges, np.float64),
                  np.ascontiguousarray(energies, np.float64), sig_b, dr, thr_amp,
                  float(rx.min_separation_m), max(float(rx.min_separation_m), 4.0 * rx.sigma_m),
-                 m, count, rng_, energy, sub)
+                 m, rx.detection == "discrete", count, rng_, energy, sub)
     keep = np.arange(m)[None, :] < count[:, None]
     pulse = np.broadcast_to(np.arange(n)[:, None], (n, m))[keep]
     rank = np.broadcast_to(np.arange(1, m + 1, dtype=np.uint8)[None, :], (n, m))[keep]
@@ -120,8 +143,9 @@ def detect_echoes(ranges: np.ndarray, energies: np.ndarray, rx: Receiver):
 
 
 @nb.njit(cache=True)
-def _peaks(buf, nb_, thr, r0, dr, min_sep, max_ret, out_r):
-    """Accepted echo ranges of one waveform (sorted), their count."""
+def _peaks(buf, nb_, thr, r0, dr, min_sep, max_ret, in_time, out_r):
+    """Accepted echo ranges of one waveform (sorted), their count. ``in_time``: a
+    discrete receiver (the earlier of two close echoes wins), else the stronger."""
     cand_a = np.empty(_MAX_PEAKS)
     cand_r = np.empty(_MAX_PEAKS)
     nc = 0
@@ -139,7 +163,8 @@ def _peaks(buf, nb_, thr, r0, dr, min_sep, max_ret, out_r):
                 cand_a[nc] = b
                 cand_r[nc] = r0 + (j + delta) * dr
                 nc += 1
-    order = np.argsort(-cand_a[:nc])
+    # candidates are found in time order; a waveform receiver weighs them by strength
+    order = np.arange(nc) if in_time else np.argsort(-cand_a[:nc])
     acc = np.empty(_MAX_PEAKS)
     na = 0
     for q in order:
@@ -210,7 +235,7 @@ def _mode(cr, ce, nc, sig_r):
 
 
 @nb.njit(cache=True)
-def _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, echo_r):
+def _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, in_time, echo_r):
     """Render the clusters' Gaussians into a sampled waveform and find its echoes."""
     K = int(np.ceil(4.0 * sig_b))
     norm = 1.0 / (sig_b * np.sqrt(2 * np.pi))
@@ -229,11 +254,11 @@ def _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, echo_r):
             buf[j] += g
             g *= a
             a *= c
-    return _peaks(buf, nb_, thr_amp, r0, dr, min_sep, max_ret, echo_r)
+    return _peaks(buf, nb_, thr_amp, r0, dr, min_sep, max_ret, in_time, echo_r)
 
 
 @nb.njit(cache=True, parallel=True)
-def _echo_kernel(R, E, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret,
+def _echo_kernel(R, E, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret, in_time,
                  count, rng_, energy, sub):
     n, s = R.shape
     nchunk = min(n, 64)
@@ -245,11 +270,12 @@ def _echo_kernel(R, E, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret,
         best, e_sum = np.empty(max_ret), np.empty(max_ret)
         for p in range(c * n // nchunk, (c + 1) * n // nchunk):
             _pulse_echoes(R[p], E[p], sig_b, dr, thr_amp, min_sep, assign_dist, max_ret,
-                          idx, r, e, cr, ce, echo_r, best, e_sum, p, count, rng_, energy, sub)
+                          in_time, idx, r, e, cr, ce, echo_r, best, e_sum, p, count, rng_,
+                          energy, sub)
 
 
 @nb.njit(cache=True)
-def _pulse_echoes(Rp, Ep, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret,
+def _pulse_echoes(Rp, Ep, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret, in_time,
                   idx, r, e, cr, ce, echo_r, best, e_sum, p, count, rng_, energy, sub):
     """One pulse's echoes into row ``p`` of the outputs."""
     nv = 0
@@ -272,7 +298,8 @@ def _pulse_echoes(Rp, Ep, sig_b, dr, thr_amp, min_sep, assign_dist, max_ret,
         echo_r[0] = x
         na = 1
     else:
-        na = _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, echo_r)
+        na = _waveform_peaks(cr, ce, nc, sig_b, dr, thr_amp, min_sep, max_ret, in_time,
+                             echo_r)
     best[:na] = -1.0
     e_sum[:na] = 0.0
     for q in range(nv):
