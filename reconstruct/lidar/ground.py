@@ -89,6 +89,16 @@ class GroundOptions(Config):
     densify_offset: float = option(0.1, unit="m", range="[0, 1]",
                                    help="TIN densification: a point this close to a triangle's "
                                         "plane joins whatever its angle (the range noise)")
+    densify_slope_gain: float = option(0.0, range="[0, 2]",
+                                       help="TIN densification: degrees added to densify_angle "
+                                            "per degree of the triangle's slope (0: a fixed "
+                                            "angle; raises steep, rough terrain's ground but also "
+                                            "low vegetation, see docs/lidar.md)")
+    densify_local: bool = option(False,
+                                 help="TIN densification: a point also joins when within the "
+                                      "angle of its nearest corner's own plane (the mean of "
+                                      "that corner's triangles), so that convex terrain keeps "
+                                      "its crests; also takes low vegetation, see docs/lidar.md")
     densify_passes: int = option(50, range="[1, 500]", help="densification passes at most")
     water_radius: float = option(3.0, unit="m", range="[0, 50]",
                                  help="water: a last return whose neighbours within this "
@@ -137,7 +147,8 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
         seeds |= _hull(p, out)  # the seeds' TIN spans all of the cloth's ground
         out = densify_tin(p, seeds, eligible, angle=o.densify_angle,
                           distance=o.densify_distance, offset=o.densify_offset,
-                          passes=o.densify_passes)
+                          passes=o.densify_passes, slope_gain=o.densify_slope_gain,
+                          local=o.densify_local)
     return out
 
 
@@ -190,7 +201,8 @@ def _hull(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
                 angle: float = 6.0, distance: float = 1.4, offset: float = 0.1,
-                passes: int = 50) -> np.ndarray:
+                passes: int = 50, slope_gain: float = 0.0, local: bool = False
+                ) -> np.ndarray:
     """Axelsson's progressive TIN densification from ``seeds``.
 
     A point of ``eligible`` inside a triangle of the current ground joins the ground when
@@ -198,7 +210,14 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     ``atan(|d| / r) < angle``, ``r`` the horizontal distance to the triangle's nearest
     corner, or when ``|d| < offset`` (close to a corner the angle measures the range
     noise, not the terrain); all such points join at once, then the triangulation is
-    redone, ``passes`` times at most or until none joins.
+    redone, ``passes`` times at most or until none joins. With ``slope_gain`` the angle
+    of a triangle sloping ``s`` degrees is ``angle + slope_gain * s`` (89 at most): a
+    terrain slope term, as TerraScan's guidance ties its angles to the terrain's. With
+    ``local`` the angle test also passes when the point is within the angle of its nearest
+    corner's own plane (the area-weighted mean of that corner's triangles' normals): on a
+    convex crest the triangle's plane runs from the ground found so far to a seed beyond
+    the crest, well below it, while the corner's plane follows the slope where the ground
+    ends; a shrub stands above both.
 
     Parameters
     ----------
@@ -208,6 +227,9 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         Degrees.
     distance, offset : float
         Metres.
+    slope_gain : float
+        Degrees of angle per degree of the triangle's slope.
+    local : bool
 
     Returns
     -------
@@ -236,12 +258,35 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         normal /= np.linalg.norm(normal, axis=1)[:, None]
         d = np.abs(np.einsum("ij,ij->i", p[cand] - corners[:, 0], normal))
-        r = np.linalg.norm(q[cand][:, None] - q[k], axis=2).min(axis=1)
-        join = (d < distance) & ((d < tan_max * r) | (d < offset))
+        rc = np.linalg.norm(q[cand][:, None] - q[k], axis=2)
+        r = rc.min(axis=1)
+        d_angle = d
+        if local:
+            vn = _vertex_normals(p[gi], tri.simplices)
+            near = tri.simplices[s, np.argmin(rc, axis=1)]
+            dl = np.abs(np.einsum("ij,ij->i", p[cand] - p[gi[near]], vn[near]))
+            d_angle = np.minimum(d, dl)
+        tan_a = tan_max
+        if slope_gain > 0:
+            slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
+            tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
+        join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
         if not np.any(join):
             break
         g[cand[join]] = True
     return g
+
+
+def _vertex_normals(v: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    """(n, 3) unit upward normals of the vertices ``v`` of a TIN: the area-weighted mean of
+    their triangles' normals."""
+    c = v[simplices]
+    tn = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])  # |tn| = twice the area
+    tn *= np.where(tn[:, 2] < 0, -1.0, 1.0)[:, None]
+    vn = np.zeros((len(v), 3))
+    for j in range(3):
+        np.add.at(vn, simplices[:, j], tn)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
 def delaunay_2d(xy: np.ndarray):
