@@ -55,7 +55,8 @@ import numpy as np
 from core.config import Config, option
 from core.validate import check_array
 
-__all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "delaunay_2d"]
+__all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "delaunay_2d",
+           "trim_above_lower_surface"]
 
 log = logging.getLogger(__name__)
 
@@ -89,16 +90,22 @@ class GroundOptions(Config):
     densify_offset: float = option(0.1, unit="m", range="[0, 1]",
                                    help="TIN densification: a point this close to a triangle's "
                                         "plane joins whatever its angle (the range noise)")
-    densify_slope_gain: float = option(0.0, range="[0, 2]",
+    densify_slope_gain: float = option(0.5, range="[0, 2]",
                                        help="TIN densification: degrees added to densify_angle "
                                             "per degree of the triangle's slope (0: a fixed "
-                                            "angle; raises steep, rough terrain's ground but also "
-                                            "low vegetation, see docs/lidar.md)")
-    densify_local: bool = option(False,
+                                            "angle)")
+    densify_local: bool = option(True,
                                  help="TIN densification: a point also joins when within the "
                                       "angle of its nearest corner's own plane (the mean of "
                                       "that corner's triangles), so that convex terrain keeps "
-                                      "its crests; also takes low vegetation, see docs/lidar.md")
+                                      "its crests")
+    lower_offset: float = option(0.1, unit="m", range="[0, 1]",
+                                 help="after densification, a ground point more than this above "
+                                      "the robust lower surface of its ground neighbours is "
+                                      "not ground (low vegetation; 0: off)")
+    lower_neighbours: int = option(15, range="[6, 100]",
+                                   help="the ground neighbours that surface (a quadratic) is "
+                                        "fitted to")
     densify_passes: int = option(50, range="[1, 500]", help="densification passes at most")
     water_radius: float = option(3.0, unit="m", range="[0, 50]",
                                  help="water: a last return whose neighbours within this "
@@ -149,6 +156,9 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                           distance=o.densify_distance, offset=o.densify_offset,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
                           local=o.densify_local)
+        if o.lower_offset > 0:
+            out = trim_above_lower_surface(p, out, offset=o.lower_offset,
+                                           neighbours=o.lower_neighbours)
     return out
 
 
@@ -274,6 +284,51 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         if not np.any(join):
             break
         g[cand[join]] = True
+    return g
+
+
+def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float = 0.1,
+                             neighbours: int = 15, iterations: int = 4) -> np.ndarray:
+    """``ground`` without the points more than ``offset`` above their neighbours' lower
+    surface.
+
+    For every ground point a quadratic ``z(dx, dy)`` is fitted to its ``neighbours``
+    nearest other ground points by weighted least squares, reweighted ``iterations``
+    times with the asymmetric weights of Kraus and Pfeifer's robust interpolation (1998,
+    "Determination of terrain models in wooded areas with airborne laser scanner data",
+    ISPRS J. 53(4), 193-203): 1 at most 0.05 m above the fit, falling linearly to 0 at
+    0.3 m, so that a layer of low vegetation over the ground pulls the fit no more than
+    the ground under it. A point more than ``offset`` above its fit is dropped. A
+    quadratic follows the terrain's bulges and crests, which a plane through the
+    neighbours cuts below (an up-spike filter with a plane eroded every convex top).
+
+    Returns
+    -------
+    (n,) bool
+    """
+    from scipy.spatial import cKDTree
+
+    g = np.asarray(ground, bool).copy()
+    gi = np.flatnonzero(g)
+    if len(gi) < 7:
+        return g
+    q = p[gi]
+    xy = q[:, :2] - q[:, :2].mean(axis=0)
+    k = min(int(neighbours), len(gi) - 1)
+    nb = cKDTree(xy).query(xy, k + 1)[1][:, 1:]  # the point itself left out
+    dx = xy[nb] - xy[:, None]
+    z = q[nb, 2]
+    a = np.stack([np.ones_like(dx[..., 0]), dx[..., 0], dx[..., 1], dx[..., 0] ** 2,
+                  dx[..., 0] * dx[..., 1], dx[..., 1] ** 2], axis=-1)
+    w = np.ones(z.shape)
+    ridge = 1e-6 * np.eye(6)
+    for _ in range(int(iterations)):
+        aw = a * w[..., None]
+        coef = np.linalg.solve(np.einsum("nki,nkj->nij", aw, a) + ridge,
+                               np.einsum("nki,nk->ni", aw, z)[..., None])[..., 0]
+        e = z - np.einsum("nki,ni->nk", a, coef)
+        w = np.clip((0.3 - e) / 0.25, 0.0, 1.0)
+    g[gi[q[:, 2] - coef[:, 0] > offset]] = False
     return g
 
 
