@@ -1,6 +1,6 @@
 """Ground classification: a cloth, then a progressive TIN densification; water apart.
 
-Three steps, each after a published method with its authors' usual settings:
+Four steps, each after a published method:
 
 1. **Candidates.** Only last returns reach the ground (a pulse that returned again later
    went through), so by default the others are never ground (LAStools' ``lasground`` does
@@ -33,7 +33,14 @@ Three steps, each after a published method with its authors' usual settings:
    apart on a rough floor). Repeated until no point joins. The angle makes the test strict
    near ground already found (a point 0.2 m above the plane 1 m from a ground point is
    11 deg off) and lenient far from it; measured from the triangle's plane, it follows
-   slopes.
+   slopes. Two terms follow steep, rough and convex terrain (``densify_slope_gain``: the
+   angle grows 0.5 degree per degree of the triangle's slope; ``densify_local``: the
+   angle may also be measured from the nearest corner's own plane, which follows a crest
+   where the triangle's plane cuts below it).
+4. **Lower surface.** Those terms take in low vegetation too, so a ground point more than
+   ``lower_offset`` (0.1 m) above a robust quadratic through its 15 nearest ground
+   neighbours (Kraus and Pfeifer's asymmetric weights) is not ground
+   (:func:`trim_above_lower_surface`).
 
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
