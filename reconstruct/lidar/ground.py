@@ -10,7 +10,7 @@ Four steps, each after a published method:
    are never that flat, and a level clearing or forest gap is narrower (on a perfectly
    level simulated stand, a 6 m disc called a fifth of the ground water). Water is not
    ground (ASPRS class 9). Water's other cue, few returns in the near infrared, is not
-   used: the lake of lidR's ``Topography.laz`` returns 0.96 of the tile's median pulse
+   used: the lake of lidR's ``Topography.laz`` returns 0.95 of the tile's median pulse
    density (:func:`find_water`).
 2. **Seeds: the cloth simulation filter** (CSF) of Zhang, Qi, Wan, Wang, Xie, Wang and Yan
    (2016), "An easy-to-use airborne LiDAR data filtering method based on cloth simulation",
