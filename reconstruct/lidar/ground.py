@@ -1,13 +1,17 @@
 """Ground classification: a cloth, then a progressive TIN densification; water apart.
 
-Three steps, each after a published method with its authors' usual settings:
+Four steps, each after a published method:
 
 1. **Candidates.** Only last returns reach the ground (a pulse that returned again later
    went through), so by default the others are never ground (LAStools' ``lasground`` does
-   the same). **Water** is set apart: a last return whose neighbours within
-   ``water_radius`` (3 m) all lie within ``water_flatness`` (0.1 m) of each other lies on a
-   horizontal plane -- a lake or a pond; forest floor, slopes and shrubs are never that flat
-   over a 6 m disc. Water is not ground (ASPRS class 9).
+   the same). **Water** is set apart: a last return inside a disc of ``water_radius``
+   (15 m) whose last returns all lie within ``water_flatness`` (0.1 m) of each other lies
+   on a horizontal plane tens of metres across -- a lake; forest floor, slopes and shrubs
+   are never that flat, and a level clearing or forest gap is narrower (on a perfectly
+   level simulated stand, a 6 m disc called a fifth of the ground water). Water is not
+   ground (ASPRS class 9). Water's other cue, few returns in the near infrared, is not
+   used: the lake of lidR's ``Topography.laz`` returns 0.95 of the tile's median pulse
+   density (:func:`find_water`).
 2. **Seeds: the cloth simulation filter** (CSF) of Zhang, Qi, Wan, Wang, Xie, Wang and Yan
    (2016), "An easy-to-use airborne LiDAR data filtering method based on cloth simulation",
    Remote Sensing 8(6), 501 (doi:10.3390/rs8060501): the cloud is turned upside down and a
@@ -33,7 +37,14 @@ Three steps, each after a published method with its authors' usual settings:
    apart on a rough floor). Repeated until no point joins. The angle makes the test strict
    near ground already found (a point 0.2 m above the plane 1 m from a ground point is
    11 deg off) and lenient far from it; measured from the triangle's plane, it follows
-   slopes.
+   slopes. Two terms follow steep, rough and convex terrain (``densify_slope_gain``: the
+   angle grows 0.5 degree per degree of the triangle's slope; ``densify_local``: the
+   angle may also be measured from the nearest corner's own plane, which follows a crest
+   where the triangle's plane cuts below it).
+4. **Lower surface.** Those terms take in low vegetation too, so a ground point more than
+   ``lower_offset`` (0.1 m) above a robust quadratic through its 15 nearest ground
+   neighbours (Kraus and Pfeifer's asymmetric weights) is not ground
+   (:func:`trim_above_lower_surface`).
 
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
@@ -55,7 +66,8 @@ import numpy as np
 from core.config import Config, option
 from core.validate import check_array
 
-__all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "delaunay_2d"]
+__all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "delaunay_2d",
+           "trim_above_lower_surface"]
 
 log = logging.getLogger(__name__)
 
@@ -89,10 +101,28 @@ class GroundOptions(Config):
     densify_offset: float = option(0.1, unit="m", range="[0, 1]",
                                    help="TIN densification: a point this close to a triangle's "
                                         "plane joins whatever its angle (the range noise)")
+    densify_slope_gain: float = option(0.5, range="[0, 2]",
+                                       help="TIN densification: degrees added to densify_angle "
+                                            "per degree of the triangle's slope (0: a fixed "
+                                            "angle)")
+    densify_local: bool = option(True,
+                                 help="TIN densification: a point also joins when within the "
+                                      "angle of its nearest corner's own plane (the mean of "
+                                      "that corner's triangles), so that convex terrain keeps "
+                                      "its crests")
+    lower_offset: float = option(0.1, unit="m", range="[0, 1]",
+                                 help="after densification, a ground point more than this above "
+                                      "the robust lower surface of its ground neighbours is "
+                                      "not ground (low vegetation; 0: off)")
+    lower_neighbours: int = option(15, range="[6, 100]",
+                                   help="the ground neighbours that surface (a quadratic) is "
+                                        "fitted to")
     densify_passes: int = option(50, range="[1, 500]", help="densification passes at most")
-    water_radius: float = option(3.0, unit="m", range="[0, 50]",
-                                 help="water: a last return whose neighbours within this "
-                                      "radius are all level is water, not ground (0: off)")
+    water_radius: float = option(15.0, unit="m", range="[0, 100]",
+                                 help="water: a last return inside a disc of this radius whose "
+                                      "last returns are all level is water, not ground: a lake "
+                                      "is level over tens of metres, a clearing or forest gap "
+                                      "over less (0: off)")
     water_flatness: float = option(0.1, unit="m", range="(0, 1]",
                                    help="water: the height range that counts as level")
 
@@ -137,7 +167,11 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
         seeds |= _hull(p, out)  # the seeds' TIN spans all of the cloth's ground
         out = densify_tin(p, seeds, eligible, angle=o.densify_angle,
                           distance=o.densify_distance, offset=o.densify_offset,
-                          passes=o.densify_passes)
+                          passes=o.densify_passes, slope_gain=o.densify_slope_gain,
+                          local=o.densify_local)
+        if o.lower_offset > 0:
+            out = trim_above_lower_surface(p, out, offset=o.lower_offset,
+                                           neighbours=o.lower_neighbours)
     return out
 
 
@@ -190,7 +224,8 @@ def _hull(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
                 angle: float = 6.0, distance: float = 1.4, offset: float = 0.1,
-                passes: int = 50) -> np.ndarray:
+                passes: int = 50, slope_gain: float = 0.0, local: bool = False
+                ) -> np.ndarray:
     """Axelsson's progressive TIN densification from ``seeds``.
 
     A point of ``eligible`` inside a triangle of the current ground joins the ground when
@@ -198,7 +233,14 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     ``atan(|d| / r) < angle``, ``r`` the horizontal distance to the triangle's nearest
     corner, or when ``|d| < offset`` (close to a corner the angle measures the range
     noise, not the terrain); all such points join at once, then the triangulation is
-    redone, ``passes`` times at most or until none joins.
+    redone, ``passes`` times at most or until none joins. With ``slope_gain`` the angle
+    of a triangle sloping ``s`` degrees is ``angle + slope_gain * s`` (89 at most): a
+    terrain slope term, as TerraScan's guidance ties its angles to the terrain's. With
+    ``local`` the angle test also passes when the point is within the angle of its nearest
+    corner's own plane (the area-weighted mean of that corner's triangles' normals): on a
+    convex crest the triangle's plane runs from the ground found so far to a seed beyond
+    the crest, well below it, while the corner's plane follows the slope where the ground
+    ends; a shrub stands above both.
 
     Parameters
     ----------
@@ -208,6 +250,9 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         Degrees.
     distance, offset : float
         Metres.
+    slope_gain : float
+        Degrees of angle per degree of the triangle's slope.
+    local : bool
 
     Returns
     -------
@@ -236,12 +281,80 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         normal /= np.linalg.norm(normal, axis=1)[:, None]
         d = np.abs(np.einsum("ij,ij->i", p[cand] - corners[:, 0], normal))
-        r = np.linalg.norm(q[cand][:, None] - q[k], axis=2).min(axis=1)
-        join = (d < distance) & ((d < tan_max * r) | (d < offset))
+        rc = np.linalg.norm(q[cand][:, None] - q[k], axis=2)
+        r = rc.min(axis=1)
+        d_angle = d
+        if local:
+            vn = _vertex_normals(p[gi], tri.simplices)
+            near = tri.simplices[s, np.argmin(rc, axis=1)]
+            dl = np.abs(np.einsum("ij,ij->i", p[cand] - p[gi[near]], vn[near]))
+            d_angle = np.minimum(d, dl)
+        tan_a = tan_max
+        if slope_gain > 0:
+            slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
+            tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
+        join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
         if not np.any(join):
             break
         g[cand[join]] = True
     return g
+
+
+def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float = 0.1,
+                             neighbours: int = 15, iterations: int = 4) -> np.ndarray:
+    """``ground`` without the points more than ``offset`` above their neighbours' lower
+    surface.
+
+    For every ground point a quadratic ``z(dx, dy)`` is fitted to its ``neighbours``
+    nearest other ground points by weighted least squares, reweighted ``iterations``
+    times with the asymmetric weights of Kraus and Pfeifer's robust interpolation (1998,
+    "Determination of terrain models in wooded areas with airborne laser scanner data",
+    ISPRS J. 53(4), 193-203): 1 at most 0.05 m above the fit, falling linearly to 0 at
+    0.3 m, so that a layer of low vegetation over the ground pulls the fit no more than
+    the ground under it. A point more than ``offset`` above its fit is dropped. A
+    quadratic follows the terrain's bulges and crests, which a plane through the
+    neighbours cuts below (an up-spike filter with a plane eroded every convex top).
+
+    Returns
+    -------
+    (n,) bool
+    """
+    from scipy.spatial import cKDTree
+
+    g = np.asarray(ground, bool).copy()
+    gi = np.flatnonzero(g)
+    if len(gi) < 7:
+        return g
+    q = p[gi]
+    xy = q[:, :2] - q[:, :2].mean(axis=0)
+    k = min(int(neighbours), len(gi) - 1)
+    nb = cKDTree(xy).query(xy, k + 1)[1][:, 1:]  # the point itself left out
+    dx = xy[nb] - xy[:, None]
+    z = q[nb, 2]
+    a = np.stack([np.ones_like(dx[..., 0]), dx[..., 0], dx[..., 1], dx[..., 0] ** 2,
+                  dx[..., 0] * dx[..., 1], dx[..., 1] ** 2], axis=-1)
+    w = np.ones(z.shape)
+    ridge = 1e-6 * np.eye(6)
+    for _ in range(int(iterations)):
+        aw = a * w[..., None]
+        coef = np.linalg.solve(np.einsum("nki,nkj->nij", aw, a) + ridge,
+                               np.einsum("nki,nk->ni", aw, z)[..., None])[..., 0]
+        e = z - np.einsum("nki,ni->nk", a, coef)
+        w = np.clip((0.3 - e) / 0.25, 0.0, 1.0)
+    g[gi[q[:, 2] - coef[:, 0] > offset]] = False
+    return g
+
+
+def _vertex_normals(v: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    """(n, 3) unit upward normals of the vertices ``v`` of a TIN: the area-weighted mean of
+    their triangles' normals."""
+    c = v[simplices]
+    tn = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])  # |tn| = twice the area
+    tn *= np.where(tn[:, 2] < 0, -1.0, 1.0)[:, None]
+    vn = np.zeros((len(v), 3))
+    for j in range(3):
+        np.add.at(vn, simplices[:, j], tn)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
 def delaunay_2d(xy: np.ndarray):
@@ -270,30 +383,56 @@ def delaunay_2d(xy: np.ndarray):
     return tri
 
 
-def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 3.0,
+def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
                flatness: float = 0.1) -> np.ndarray:
-    """Points of ``eligible`` whose eligible neighbours within ``radius`` are level.
+    """Points of ``eligible`` inside a level disc of ``radius``: a lake's surface.
 
-    A point is water when at least 3 eligible points (itself included) lie within
-    ``radius`` metres of it horizontally and their heights span less than ``flatness``.
+    The eligible points are binned in square cells (1 m, or ``radius / 3`` when smaller).
+    A disc is the cells whose centres lie within ``radius`` of a cell's centre; it is level
+    when it holds at least 3 eligible points and their heights span less than
+    ``flatness``. Discs lie within the points' bounding box (beyond it the ground is
+    unknown; a lake's corners at a tile's corner are missed). A point is water when its
+    cell lies in a level disc -- the morphological opening of the level ground by the
+    disc, so that a lake is found up to its shore while a level patch narrower than the
+    disc (a clearing, a forest gap, a stream) is not. Empty cells break nothing: water
+    returns few pulses, and its voids are no ground.
 
     Returns
     -------
     (n,) bool
     """
-    from scipy.spatial import cKDTree
+    from scipy import ndimage
+    from scipy.signal import fftconvolve
 
     idx = np.flatnonzero(eligible)
     out = np.zeros(len(p), bool)
-    if len(idx) < 3:
+    if len(idx) < 3 or radius <= 0:
         return out
-    xy = p[idx, :2] - p[idx, :2].mean(axis=0)
+    cell = min(1.0, radius / 3)
+    pad = int(np.ceil(radius / cell))
+    ij = np.floor((p[idx, :2] - p[idx, :2].min(axis=0)) / cell).astype(np.int64) + pad
+    shape = tuple(ij.max(axis=0) + pad + 1)
+    at = (ij[:, 0], ij[:, 1])
     z = p[idx, 2]
-    nbrs = cKDTree(xy).query_ball_point(xy, radius)
-    count = np.fromiter((len(n) for n in nbrs), np.int64, len(nbrs))
-    flat = np.concatenate(nbrs).astype(np.int64)
-    start = np.r_[0, np.cumsum(count)[:-1]]
-    zmax = np.maximum.reduceat(z[flat], start)
-    zmin = np.minimum.reduceat(z[flat], start)
-    out[idx[(count >= 3) & (zmax - zmin < flatness)]] = True
+    zmax = np.full(shape, -np.inf)
+    zmin = np.full(shape, np.inf)
+    count = np.zeros(shape)
+    np.maximum.at(zmax, at, z)
+    np.minimum.at(zmin, at, z)
+    np.add.at(count, at, 1.0)
+    k = np.arange(-pad, pad + 1) * cell
+    disc = k[:, None] ** 2 + k[None, :] ** 2 <= radius ** 2
+    top = ndimage.maximum_filter(zmax, footprint=disc, mode="constant", cval=-np.inf)
+    low = ndimage.minimum_filter(zmin, footprint=disc, mode="constant", cval=np.inf)
+    n = fftconvolve(count, disc.astype(np.float64), mode="same")  # points per disc
+    level = (n > 2.5) & (top - low < flatness)  # centres of level discs (empty ones too)
+    # a disc must lie within the points' bounds: beyond them the ground is unknown, and
+    # half a disc at a tile's edge would take a strip as narrow as a clearing
+    ext = np.ptp(p[idx, :2], axis=0)
+    for a in (0, 1):
+        c = (np.arange(shape[a]) - pad + 0.5) * cell
+        inside = (c >= radius - cell / 2) & (c <= ext[a] - radius + cell / 2)
+        level &= inside[:, None] if a == 0 else inside[None, :]
+    wet = ndimage.binary_dilation(level, structure=disc)
+    out[idx[wet[at]]] = True
     return out
