@@ -201,3 +201,28 @@ def test_ring_pairs_close_the_loop():
     pairs = ring_pairs([f"{i:02d}" for i in range(10)], 2)
     assert ("00", "09") in pairs and ("00", "08") in pairs and ("01", "09") in pairs
     assert len(pairs) == 20 and len(set(pairs)) == 20
+
+
+def test_a_view_held_by_one_neighbour_is_named_weak(plain):
+    """The fixture's ring: every view shares points with at least two others; with the
+    points of all but one neighbour of a view deleted, that view is named."""
+    import pycolmap
+
+    from reconstruct.sfm.escalate import weakly_tied
+
+    rec = pycolmap.Reconstruction(str(plain[1] / "sparse" / "0"))
+    assert weakly_tied(rec) == []
+    assert len(weakly_tied(rec, min_points=10 ** 9)) == rec.num_reg_images()
+    ids = {im.name: im.image_id for im in rec.images.values()}
+    shared = {}
+    for pid, p in rec.points3D.items():
+        seen = {e.image_id for e in p.track.elements}
+        if ids["0005.png"] in seen:
+            for other in seen - {ids["0005.png"]}:
+                shared.setdefault(other, []).append(pid)
+    keep = max(shared, key=lambda k: len(shared[k]))
+    for other, pids in shared.items():
+        for pid in pids:
+            if other != keep and rec.exists_point3D(pid):
+                rec.delete_point3D(pid)
+    assert "0005.png" in weakly_tied(rec)

@@ -25,15 +25,21 @@ stops as soon as every view is in:
 6. **Re-localization**: the views still out are registered against the finished model
    with permissive absolute-pose settings (:data:`RELOCALIZE`); a model that was merged
    or grew so gets a second bundle adjustment (:func:`refine`: the points triangulated
-   again from every verified match, a Huber loss). A model the relaxed mapper built in
-   one piece has had its global bundle adjustment already.
-7. **Restarts when the ring was joined**: a ring the mapper built as several models and
-   the merge joined is weakly determined at its joins (a long lens barely tells a turn
-   from a shift, and few points tie the views across a join): from the same features,
-   the matching's verification seed alone moved the dino's mean rotation error between
-   1.2 and 6.2 degrees at the same reprojection error. Steps 2-6 then run again with
-   :attr:`EscalationOptions.restarts` other seeds and the model whose cameras best
-   explain every run's verified matches (:func:`epipolar_consistency`) is kept.
+   again from every verified match, a Huber loss, in rounds whose largest reprojection
+   error shrinks from 32 to 4 px, so that the matches across a merge's kinked joins are
+   admitted and pull it straight instead of being dropped as outliers). A model the
+   relaxed mapper built in one piece has had its global bundle adjustment already.
+7. **Restarts when the ring is weak**: joined from models, short of views, or with a
+   view tied to one neighbour only (:func:`weakly_tied`). A ring the mapper built as
+   several models and the merge joined is weakly determined at its joins (a long lens
+   barely tells a turn from a shift, and few points tie the views across a join): from
+   the same features, the matching's verification seed alone moved the dino's mean
+   rotation error between 1.2 and 6.2 degrees at the same reprojection error. Steps 2-6
+   then run again with :attr:`EscalationOptions.restarts` other seeds; the runs' verified
+   matches are pooled (:func:`pool_matches`: a weak link verified by one seed only ties
+   every run's ring),
+   each run's model is refined again on them, and the model whose cameras best explain
+   the pooled matches (:func:`epipolar_consistency`) is kept.
 
 Every step is a pycolmap call; nothing is learned, nothing is downloaded. The report says
 which steps ran, what each registered and how long it took.
@@ -57,7 +63,7 @@ from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colma
 
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
-           "epipolar_consistency", "pool_matches", "refine"]
+           "epipolar_consistency", "pool_matches", "refine", "weakly_tied"]
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +97,8 @@ class EscalationOptions:
         Exhaustive matching up to this many images.
     restarts : int
         When the relaxed mapper broke the set into models that had to be merged (a ring
-        joined at weak links), the matching's verification, the mapping, the merge and the
+        joined at weak links), left views out, or left a view tied to one neighbour only
+        (:func:`weakly_tied`), the matching's verification, the mapping, the merge and the
         second bundle adjustment run again with this many other seeds, and the model most
         consistent with every run's verified matches is kept (:func:`epipolar_consistency`).
         The joins are weakly determined: on the dino ring three seeds gave mean rotation
@@ -254,20 +261,25 @@ def escalate(database: Path, image_dir: Path, names: Sequence[str], groups: Sequ
                                 "focal_prior": prior, "seconds": time.perf_counter() - t})
         runs = [_solve(features, int(opts.seed), image_dir, names, opts, esc, work,
                        Path(database), dict(state), report["steps"])]
-        if runs[0]["merged"] and esc.restarts > 0:
+        weak = weakly_tied(runs[0]["best"]) if runs[0]["best"] is not None else []
+        if esc.restarts > 0 and (runs[0]["merged"] or runs[0]["n"] < len(names) or weak):
             for k in range(1, esc.restarts + 1):
                 runs.append(_solve(features, int(opts.seed) + k, image_dir, names, opts, esc,
                                    work, Path(database), dict(state), []))
             if esc.pool_restarts:
                 _pool_and_refine(runs, Path(database), image_dir, work, esc, report["steps"])
             chosen = _choose(runs)
-            log.info("escalation: the ring was joined from models; %d runs (seeds %s), "
+            log.info("escalation: %d runs (seeds %s), "
                      "epipolar consistency %s px^2, kept seed %d", len(runs),
                      [r["seed"] for r in runs],
                      [round(r.get("consistency", float("nan")), 3) for r in runs],
                      runs[chosen]["seed"])
             report["steps"].append({
-                "step": "restarts (the ring was joined from models)",
+                "step": "restarts with other seeds",
+                "because": ("the ring was joined from models" if runs[0]["merged"] else
+                            f"{runs[0]['n']} of {len(names)} views registered"
+                            if runs[0]["n"] < len(names) else
+                            "views tied to one other view only: " + ", ".join(weak)),
                 "runs": [{"seed": r["seed"], "registered": r["n"],
                           "epipolar_consistency_px2": r.get("consistency"),
                           "seconds": r["seconds"]} for r in runs],
@@ -386,6 +398,25 @@ def _pool_and_refine(runs: list, default_db: Path, image_dir, work: Path,
     steps.append({"step": "matches of the restarts pooled, each model refined on them",
                   "runs": len(usable), "pairs_from_other_runs": replaced,
                   "seconds": time.perf_counter() - t})
+
+
+def weakly_tied(rec, min_points: int = 15) -> list[str]:
+    """The registered views that share at least ``min_points`` 3-D points with fewer than
+    two other views: a ring open at that view (the dino's view 6 with seed 1: 29 points
+    with view 5, none with view 7), held by one neighbour only."""
+    names = {i: rec.images[i].name for i in rec.reg_image_ids()}
+    shared: dict[tuple[int, int], int] = {}
+    for p in rec.points3D.values():
+        ids = sorted({e.image_id for e in p.track.elements})
+        for k, a in enumerate(ids):
+            for b in ids[k + 1:]:
+                shared[(a, b)] = shared.get((a, b), 0) + 1
+    ties = dict.fromkeys(names, 0)
+    for (a, b), n in shared.items():
+        if n >= min_points:
+            ties[a] += 1
+            ties[b] += 1
+    return sorted(names[i] for i, n in ties.items() if n < 2)
 
 
 def _choose(runs: list) -> int:
