@@ -113,7 +113,6 @@ def test_the_refinement_straightens_a_kinked_join(plain, tmp_path):
     ring's joins they did not: docs/sfm.md.)"""
     import pycolmap
 
-    from reconstruct.sfm.colmap import _quiet_colmap
     from reconstruct.sfm.escalate import refine
 
     folder, out, _ = plain
@@ -135,8 +134,7 @@ def test_the_refinement_straightens_a_kinked_join(plain, tmp_path):
                                                 -1, 1))) for n in want)
 
     assert worst_deg(rec) > 7.9
-    with _quiet_colmap(2):
-        rec = refine(rec, out / "colmap" / "database.db", folder, tmp_path / "refine")
+    rec = refine(rec, out / "colmap" / "database.db", folder, tmp_path / "refine")
     assert worst_deg(rec) < 0.3, worst_deg(rec)
     assert rec.num_points3D() > 0.8 * truth.num_points3D()
     worst_px = max(rec.points3D[p.point3D_id].error for im in rec.images.values()
