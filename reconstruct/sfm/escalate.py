@@ -261,8 +261,12 @@ def escalate(database: Path, image_dir: Path, names: Sequence[str], groups: Sequ
                                 "focal_prior": prior, "seconds": time.perf_counter() - t})
         runs = [_solve(features, int(opts.seed), image_dir, names, opts, esc, work,
                        Path(database), dict(state), report["steps"])]
-        weak = weakly_tied(runs[0]["best"]) if runs[0]["best"] is not None else []
-        if esc.restarts > 0 and (runs[0]["merged"] or runs[0]["n"] < len(names) or weak):
+        # restarts only for a model of the stronger steps (none: nothing to improve on,
+        # e.g. photos without camera motion)
+        own = runs[0]["best"] is not None and runs[0]["db"] != Path(database)
+        weak = weakly_tied(runs[0]["best"]) if own else []
+        if esc.restarts > 0 and (runs[0]["merged"]
+                                 or (own and (runs[0]["n"] < len(names) or weak))):
             for k in range(1, esc.restarts + 1):
                 runs.append(_solve(features, int(opts.seed) + k, image_dir, names, opts, esc,
                                    work, Path(database), dict(state), []))
