@@ -454,3 +454,99 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
             N[y, x, 0] = best[2]
             N[y, x, 1] = best[3]
             N[y, x, 2] = best[4]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, dmin, dmax, ref, wts,
+               stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom,
+               sdepth, max_reproj, perturb):
+    """One red-black half-sweep of the second pass over the holes of a depth map.
+
+    Each pixel of this colour where ``hole`` is set tries, in each of the 8 directions,
+    the plane of the nearest ``seedable`` pixel (a confirmed depth, or a hole filled by an
+    earlier sweep) within ``reach`` pixels, carried to its own ray, then two perturbations
+    of its best plane (depth and normal, normal alone); it keeps the cheapest against
+    every source, with geometric consistency when ``geom`` > 0. No plane is drawn at
+    random: a hole only takes a surface its confirmed neighbours lie on. Seeds are read
+    from the snapshot ``D0``, ``N0`` (taken before the sweep), so rows run in parallel
+    and the result does not depend on the number of threads."""
+    h, w = D.shape
+    ns = ks.shape[0]
+    every = (1 << ns) - 1
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(2 * max(ns, 1))
+        hb = np.empty((3, 3, 3))
+        nrm = np.empty(3)
+        best = np.empty(5)
+        for x in range((y + colour) % 2, w, 2):
+            if not hole[y, x]:
+                continue
+            s0 = stats[y, x, 0]
+            ma = stats[y, x, 1] / s0
+            if stats[y, x, 2] / s0 - ma * ma < min_var:
+                continue
+            best[0] = C[y, x]
+            best[1] = D[y, x]
+            best[2] = N[y, x, 0]
+            best[3] = N[y, x, 1]
+            best[4] = N[y, x, 2]
+            rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
+            ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
+            rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+            for dirn in range(8):
+                dx = (1, -1, 0, 0, 1, 1, -1, -1)[dirn]
+                dy = (0, 0, 1, -1, 1, -1, 1, -1)[dirn]
+                for dist in range(1, reach + 1):
+                    qx = x + dx * dist
+                    qy = y + dy * dist
+                    if qx < 0 or qy < 0 or qx >= w or qy >= h:
+                        break
+                    if not seedable[qy, qx]:
+                        continue
+                    m0 = N0[qy, qx, 0]
+                    m1 = N0[qy, qx, 1]
+                    m2 = N0[qy, qx, 2]
+                    qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
+                    qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
+                    qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
+                    d = D0[qy, qx]
+                    den = m0 * rx + m1 * ry + m2 * rz
+                    if abs(den) > 1e-9:
+                        dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
+                        if dd > 0 and abs(dd - d) < 0.1 * d:
+                            d = dd
+                    if dmin <= d <= dmax:
+                        _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats,
+                                           src, sizes, kinv, kr, ks, rs, ts, hm, radius, step,
+                                           min_var, top_k, geom, sdepth, max_reproj, every),
+                                     d, m0, m1, m2, best)
+                    break
+            if best[1] <= 0.0:
+                continue  # no seed reached this pixel
+            pix = x * 65536 + y
+            for trial in range(2):
+                base = 40 + 4 * trial
+                d = best[1]
+                if trial == 0:
+                    u = _uniform(seed, pix, it, base)
+                    d = 1.0 / (1.0 / d * (1.0 + perturb * (2.0 * u - 1.0)))
+                _random_normal(seed, x, y, it, base + 1, kinv, nrm)
+                m0 = best[2] + perturb * 2.0 * nrm[0]
+                m1 = best[3] + perturb * 2.0 * nrm[1]
+                m2 = best[4] + perturb * 2.0 * nrm[2]
+                ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+                m0 /= ln
+                m1 /= ln
+                m2 /= ln
+                if m0 * rx + m1 * ry + m2 * rz > 0 or d < dmin or d > dmax:
+                    continue
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                   top_k, geom, sdepth, max_reproj, every),
+                             d, m0, m1, m2, best)
+            C[y, x] = best[0]
+            D[y, x] = best[1]
+            N[y, x, 0] = best[2]
+            N[y, x, 1] = best[3]
+            N[y, x, 2] = best[4]
