@@ -284,15 +284,17 @@ def test_active_sources_are_the_cheapest_and_find_the_same_plane():
 
 
 def test_the_second_pass_fills_holes_on_confirmed_surfaces_only():
-    """Every view's true depth of the plane, with two holes punched in view 0: one on the
-    plane as every view sees it, one where view 0 sees something no other view does (its
-    image there is noise). The second pass gives the first the plane's depth, within
-    0.5 %, and the second nothing; the depths around both are left as they were."""
+    """Every view's true depth of the plane, with three holes punched in view 0: one on
+    the plane as every view sees it, one where view 0 sees something no other view does
+    (its image there is noise), and a strip along the image's edge. The second pass gives
+    the first the plane's depth, within 0.5 %, the second nothing where its windows see
+    only the noise, and the strip (seeds on one side only: the edge of a surface)
+    nothing; every other depth is left as it was."""
     from reconstruct.mvs.patchmatch import DepthMap, PatchMatchOptions, fill_holes
 
     opt = PatchMatchOptions(max_image_size=128, seed=3)
     views = _plane_setup(4, opt)
-    views[0].gray[20:44, 70:94] = np.random.default_rng(7).random((24, 24)) * 0.8 + 0.1
+    views[0].gray[24:38, 74:88] = np.random.default_rng(7).random((14, 14)) * 0.8 + 0.1
     maps = []
     for v in views:
         n = v.camera.cam_from_world[:3, :3] @ np.array([0, 0, 1.0])
@@ -301,20 +303,25 @@ def test_the_second_pass_fills_holes_on_confirmed_surfaces_only():
         nrm = np.broadcast_to(n, d.shape + (3,)).astype(np.float32).copy()
         maps.append(DepthMap(d, nrm, np.full(d.shape, 0.9, np.float32), [], d.copy()))
     truth = maps[0].depth.copy()
-    on, off = np.zeros(truth.shape, bool), np.zeros(truth.shape, bool)
+    on, off, strip = (np.zeros(truth.shape, bool) for _ in range(3))
     on[50:64, 30:44] = True  # on the plane
-    off[20:44, 70:94] = True  # the noise
-    maps[0].depth[on | off] = 0.0
-    maps[0].normal[on | off] = 0.0
+    off[24:38, 74:88] = True  # the noise
+    strip[:, 10:16] = True  # the edge of the surface (nothing to its left)
+    strip_left = np.zeros_like(strip)
+    strip_left[:, :10] = True
+    holes = on | off | strip | strip_left
+    maps[0].depth[holes] = 0.0
+    maps[0].normal[holes] = 0.0
     sources = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]
     out, stats = fill_holes(views, sources, maps, opt)
     got = out[0].depth
     assert (got[on] > 0).all()
     assert np.abs(got[on] - truth[on]).max() < 0.005 * truth[on].min()
     inner_off = np.zeros_like(off)
-    inner_off[24:40, 74:90] = True  # farther than the window's radius from the plane
-    assert not (got[inner_off] > 0).any() and (got[off] > 0).mean() < 0.2
-    assert np.array_equal(got[~(on | off)], maps[0].depth[~(on | off)])
+    inner_off[29:33, 79:83] = True  # farther than the window's radius from the plane
+    assert not (got[inner_off] > 0).any() and (got[off] > 0).mean() < 0.5
+    assert not (got[strip] > 0).any()
+    assert np.array_equal(got[~holes], maps[0].depth[~holes])
     assert stats["filled"] == int(((got > 0) & (maps[0].depth <= 0)).sum())
 
 

@@ -457,9 +457,9 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, dmin, dmax, ref, wts,
-               stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom,
-               sdepth, max_reproj, perturb):
+def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dirs, dmin, dmax,
+               ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+               top_k, geom, sdepth, max_reproj, perturb):
     """One red-black half-sweep of the second pass over the holes of a depth map.
 
     Each pixel of this colour where ``hole`` is set tries, in each of the 8 directions,
@@ -467,7 +467,9 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, dmin, d
     earlier sweep) within ``reach`` pixels, carried to its own ray, then two perturbations
     of its best plane (depth and normal, normal alone); it keeps the cheapest against
     every source, with geometric consistency when ``geom`` > 0. No plane is drawn at
-    random: a hole only takes a surface its confirmed neighbours lie on. Seeds are read
+    random: a hole only takes a surface its confirmed neighbours lie on, and only when
+    they surround it (seeds in at least ``min_dirs`` of the 8 directions: an edge of a
+    surface, where seeds lie on one side only, is left as it was). Seeds are read
     from the snapshot ``D0``, ``N0`` (taken before the sweep), so rows run in parallel
     and the result does not depend on the number of threads."""
     h, w = D.shape
@@ -479,6 +481,8 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, dmin, d
         hb = np.empty((3, 3, 3))
         nrm = np.empty(3)
         best = np.empty(5)
+        qs = np.empty((8, 2), np.int64)  # each direction's seed pixel (-1: none)
+        tried = np.empty((8, 4))  # the seed planes tried: depth, normal
         for x in range((y + colour) % 2, w, 2):
             if not hole[y, x]:
                 continue
@@ -494,34 +498,60 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, dmin, d
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
             ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
             rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+            found = 0
             for dirn in range(8):
                 dx = (1, -1, 0, 0, 1, 1, -1, -1)[dirn]
                 dy = (0, 0, 1, -1, 1, -1, 1, -1)[dirn]
+                qs[dirn, 0] = -1
                 for dist in range(1, reach + 1):
                     qx = x + dx * dist
                     qy = y + dy * dist
                     if qx < 0 or qy < 0 or qx >= w or qy >= h:
                         break
-                    if not seedable[qy, qx]:
-                        continue
-                    m0 = N0[qy, qx, 0]
-                    m1 = N0[qy, qx, 1]
-                    m2 = N0[qy, qx, 2]
-                    qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
-                    qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
-                    qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
-                    d = D0[qy, qx]
-                    den = m0 * rx + m1 * ry + m2 * rz
-                    if abs(den) > 1e-9:
-                        dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
-                        if dd > 0 and abs(dd - d) < 0.1 * d:
-                            d = dd
-                    if dmin <= d <= dmax:
-                        _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats,
-                                           src, sizes, kinv, kr, ks, rs, ts, hm, radius, step,
-                                           min_var, top_k, geom, sdepth, max_reproj, every),
-                                     d, m0, m1, m2, best)
-                    break
+                    if seedable[qy, qx]:
+                        qs[dirn, 0] = qx
+                        qs[dirn, 1] = qy
+                        found += 1
+                        break
+            if found < min_dirs:
+                continue
+            ntried = 0
+            for dirn in range(8):
+                qx = qs[dirn, 0]
+                qy = qs[dirn, 1]
+                if qx < 0:
+                    continue
+                m0 = N0[qy, qx, 0]
+                m1 = N0[qy, qx, 1]
+                m2 = N0[qy, qx, 2]
+                qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
+                qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
+                qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
+                d = D0[qy, qx]
+                den = m0 * rx + m1 * ry + m2 * rz
+                if abs(den) > 1e-9:
+                    dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
+                    if dd > 0 and abs(dd - d) < 0.1 * d:
+                        d = dd
+                if d < dmin or d > dmax:
+                    continue
+                same = False
+                for j in range(ntried):
+                    if (abs(tried[j, 0] - d) < 1e-3 * d and tried[j, 1] * m0 + tried[j, 2] * m1
+                            + tried[j, 3] * m2 > 0.999):
+                        same = True
+                        break
+                if same:
+                    continue
+                tried[ntried, 0] = d
+                tried[ntried, 1] = m0
+                tried[ntried, 2] = m1
+                tried[ntried, 3] = m2
+                ntried += 1
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                   top_k, geom, sdepth, max_reproj, every),
+                             d, m0, m1, m2, best)
             if best[1] <= 0.0:
                 continue  # no seed reached this pixel
             pix = x * 65536 + y
