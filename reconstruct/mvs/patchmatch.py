@@ -13,7 +13,13 @@ The method is Gipuma/ACMM's, on the CPU (the kernels are
    the ``top_k`` best source views (``iterations``);
 4. then, with every view's depth map from step 3, ``geom_iterations`` more iterations
    add geometric consistency: the forward-backward reprojection error through each
-   source's depth map.
+   source's depth map;
+5. a second pass over the holes of confirmed surfaces (``holes``, :func:`fill_holes`, as
+   COLMAP's and OpenMVS's geometric-consistency passes): pixels without a depth that
+   another view confirms, surrounded by confirmed ones, try only their confirmed
+   neighbours' planes, scored with geometric consistency against every view's final
+   depth map, and keep one only below a stricter cost (``holes.max_cost``, against
+   ``holes.top_k`` views).
 
 A pixel keeps its depth when its final cost is below ``max_cost``; its confidence is
 ``1 - cost`` (the mean NCC of its best views, less the geometric penalty).
@@ -43,7 +49,7 @@ log = logging.getLogger(__name__)
 class HoleOptions(Config):
     """Options of the second PatchMatch pass over the holes of confirmed surfaces."""
 
-    iterations: int = option(2, range="[0, 20]",
+    iterations: int = option(1, range="[0, 20]",
                              help="iterations of the second pass over the holes of confirmed "
                                   "surfaces (0: no second pass)")
     radius: int = option(8, unit="px", range="[1, 64]",
@@ -295,8 +301,9 @@ def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
         out, st = fill_holes(views, sources, out, opt, fusion)
         timings["holes"] = time.perf_counter() - t
         timings["holes_cpu"] = time.process_time() - cpu
-        log.info("PatchMatch holes: %d hole pixels, %d given a depth (%.1f s)", st["holes"],
-                 st["filled"], timings["holes"])
+        log.info("PatchMatch holes: %d hole pixels, %d given a depth, %d unconfirmed depths "
+                 "replaced (%.1f s)", st["holes"], st["filled"], st["replaced"],
+                 timings["holes"])
     return out, timings
 
 
@@ -367,8 +374,9 @@ def fill_holes(views: Sequence[View], sources: Sequence[Sequence[int]],
     confirmed depth within ``holes.radius`` pixels. Its candidate planes are only those
     of the confirmed depths around it (no random plane), scored photometrically and by
     the reprojection error through every source's depth map; the depths it gets then go
-    through fusion's checks like every other. Returns the maps and the count of holes
-    and of holes given a depth.
+    through fusion's checks like every other. Returns the maps and the counts of hole
+    pixels, of those given a depth where they had none (``filled``) and of those whose
+    unconfirmed depth was replaced (``replaced``).
     """
     import cv2
 
@@ -379,7 +387,7 @@ def fill_holes(views: Sequence[View], sources: Sequence[Sequence[int]],
     cams = [v.camera for v in views]
     confirmed = confirmed_depths(cams, [m.depth for m in maps], [m.normal for m in maps],
                                  _neighbours(sources), fusion)
-    out, stats = [], {"holes": 0, "filled": 0}
+    out, stats = [], {"holes": 0, "filled": 0, "replaced": 0}
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     for i in track(range(len(views)), "PatchMatch (holes)", total=len(views)):
         conf = confirmed[i]
@@ -389,5 +397,8 @@ def fill_holes(views: Sequence[View], sources: Sequence[Sequence[int]],
             continue
         out.append(_fill_view(i, views, sources[i], opt, maps, hole, conf))
         stats["holes"] += int(hole.sum())
-        stats["filled"] += int((hole & (out[-1].depth > 0) & (maps[i].depth <= 0)).sum())
+        got = hole & (out[-1].depth > 0)
+        stats["filled"] += int((got & (maps[i].depth <= 0)).sum())
+        stats["replaced"] += int((got & (maps[i].depth > 0)
+                                  & (out[-1].depth != maps[i].depth)).sum())
     return out, stats
