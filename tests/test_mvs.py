@@ -325,6 +325,30 @@ def test_the_second_pass_fills_holes_on_confirmed_surfaces_only():
     assert stats["filled"] == int(((got > 0) & (maps[0].depth <= 0)).sum())
 
 
+def test_confirmed_depths_are_what_fusion_keeps_before_erosion():
+    """The compiled agreement test (the second pass's "confirmed") against fusion's own, on
+    depths and normals perturbed so that about half of them agree."""
+    from reconstruct.mvs.fusion import FusionOptions, confirmed_depths, fuse_points
+
+    cams, _ = _plane_views(n=4)
+    rng = np.random.default_rng(4)
+    depths, normals = [], []
+    for c in cams:
+        d = _true_depth(c) * (1 + rng.uniform(-0.015, 0.015, (c.height, c.width)))
+        d[rng.random(d.shape) < 0.1] = 0.0
+        n = c.cam_from_world[:3, :3] @ np.array([0, 0, 1.0])
+        n = (-n if n[2] > 0 else n) + rng.normal(0, 0.25, (c.height, c.width, 3))
+        depths.append(d.astype(np.float32))
+        normals.append((n / np.linalg.norm(n, axis=2, keepdims=True)).astype(np.float32))
+    nb = [[j for j in range(4) if j != i] for i in range(4)]
+    opt = FusionOptions(edge_erosion=0, min_views=2)
+    want = fuse_points(cams, depths, normals, [np.zeros(d.shape + (3,), np.uint8)
+                                               for d in depths], nb, opt).masks
+    got = confirmed_depths(cams, depths, normals, nb, opt)
+    for g, m in zip(got, want, strict=True):
+        assert 0.2 < m.mean() < 0.8 and (g != m).mean() < 1e-3
+
+
 def test_fusion_keeps_what_views_agree_on():
     from reconstruct.mvs.fusion import FusionOptions, fuse_points
 

@@ -580,3 +580,59 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
             N[y, x, 0] = best[2]
             N[y, x, 1] = best[3]
             N[y, x, 2] = best[4]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, ocfw,
+                 depth_tol, max_reproj, cos_max):
+    """``count[y, x] += 1`` where another view's depth map agrees with this view's depth at
+    (x, y): the test of :func:`reconstruct.mvs.fusion.fuse_points` with a relative depth
+    tolerance. The point of (x, y) falls on the other view's nearest pixel; that pixel's
+    depth gives back a point that must reproject within ``max_reproj`` px of (x, y), at a
+    depth within ``depth_tol`` (relative to the other view's), with normals (camera
+    frames; ``wfc``, ``cfw``: world_from_cam, cam_from_world 4x4) within ``cos_max``."""
+    h, w = depth.shape
+    oh, ow = odepth.shape
+    for y in nb.prange(h):
+        for x in range(w):
+            z = depth[y, x]
+            if z <= 0.0:
+                continue
+            p0 = (x - k[0, 2]) / k[0, 0] * z
+            p1 = (y - k[1, 2]) / k[1, 1] * z
+            X0 = wfc[0, 0] * p0 + wfc[0, 1] * p1 + wfc[0, 2] * z + wfc[0, 3]
+            X1 = wfc[1, 0] * p0 + wfc[1, 1] * p1 + wfc[1, 2] * z + wfc[1, 3]
+            X2 = wfc[2, 0] * p0 + wfc[2, 1] * p1 + wfc[2, 2] * z + wfc[2, 3]
+            Y0 = ocfw[0, 0] * X0 + ocfw[0, 1] * X1 + ocfw[0, 2] * X2 + ocfw[0, 3]
+            Y1 = ocfw[1, 0] * X0 + ocfw[1, 1] * X1 + ocfw[1, 2] * X2 + ocfw[1, 3]
+            Y2 = ocfw[2, 0] * X0 + ocfw[2, 1] * X1 + ocfw[2, 2] * X2 + ocfw[2, 3]
+            if Y2 <= 1e-12:
+                continue
+            uo = int(np.rint(ok[0, 0] * Y0 / Y2 + ok[0, 2]))
+            vo = int(np.rint(ok[1, 1] * Y1 / Y2 + ok[1, 2]))
+            if uo < 0 or vo < 0 or uo >= ow or vo >= oh:
+                continue
+            d = odepth[vo, uo]
+            if d <= 0.0 or abs(Y2 - d) / d > depth_tol:
+                continue
+            q0 = (uo - ok[0, 2]) / ok[0, 0] * d
+            q1 = (vo - ok[1, 2]) / ok[1, 1] * d
+            W0 = owfc[0, 0] * q0 + owfc[0, 1] * q1 + owfc[0, 2] * d + owfc[0, 3]
+            W1 = owfc[1, 0] * q0 + owfc[1, 1] * q1 + owfc[1, 2] * d + owfc[1, 3]
+            W2 = owfc[2, 0] * q0 + owfc[2, 1] * q1 + owfc[2, 2] * d + owfc[2, 3]
+            Z0 = cfw[0, 0] * W0 + cfw[0, 1] * W1 + cfw[0, 2] * W2 + cfw[0, 3]
+            Z1 = cfw[1, 0] * W0 + cfw[1, 1] * W1 + cfw[1, 2] * W2 + cfw[1, 3]
+            Z2 = max(cfw[2, 0] * W0 + cfw[2, 1] * W1 + cfw[2, 2] * W2 + cfw[2, 3], 1e-12)
+            eu = k[0, 0] * Z0 / Z2 + k[0, 2] - x
+            ev = k[1, 1] * Z1 / Z2 + k[1, 2] - y
+            if eu * eu + ev * ev > max_reproj * max_reproj:
+                continue
+            c = 0.0  # the normals' cosine, in the world frame
+            for r in range(3):
+                a = (wfc[r, 0] * normal[y, x, 0] + wfc[r, 1] * normal[y, x, 1]
+                     + wfc[r, 2] * normal[y, x, 2])
+                b = (owfc[r, 0] * onormal[vo, uo, 0] + owfc[r, 1] * onormal[vo, uo, 1]
+                     + owfc[r, 2] * onormal[vo, uo, 2])
+                c += a * b
+            if c >= cos_max:
+                count[y, x] += 1

@@ -200,6 +200,20 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     opt = options or FusionOptions()
     cos_max = np.cos(np.radians(opt.max_normal_deg))
     out = []
+    if opt.disparity_tol == 0:  # the same test, compiled
+        from reconstruct.mvs import _patchmatch_kernels as pk
+
+        for i, cam in enumerate(cameras):
+            count = np.zeros(depths[i].shape, np.int32)
+            for j in neighbours[i]:
+                if j != i:
+                    o = cameras[j]
+                    pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
+                                    cam.cam_from_world, depths[j], normals[j], o.K,
+                                    o.world_from_cam, o.cam_from_world, opt.depth_tol,
+                                    opt.max_reprojection, cos_max)
+            out.append(count >= opt.min_views)
+        return out
     for i, cam in enumerate(cameras):
         u, v, pc = _backproject(cam, depths[i])
         R_wc = cam.world_from_cam[:3, :3]
