@@ -457,8 +457,8 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
-def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dirs, dmin, dmax,
-               ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dirs, spread,
+               dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
                top_k, geom, sdepth, max_reproj, perturb):
     """One red-black half-sweep of the second pass over the holes of a depth map.
 
@@ -483,6 +483,7 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
         best = np.empty(5)
         qs = np.empty((8, 2), np.int64)  # each direction's seed pixel (-1: none)
         tried = np.empty((8, 4))  # the seed planes tried: depth, normal
+        sd = np.empty(8)  # each direction's seed depth on this pixel's ray (-1: none)
         for x in range((y + colour) % 2, w, 2):
             if not hole[y, x]:
                 continue
@@ -515,10 +516,12 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                         break
             if found < min_dirs:
                 continue
-            ntried = 0
+            lo = 1e30
+            hi = 0.0
             for dirn in range(8):
                 qx = qs[dirn, 0]
                 qy = qs[dirn, 1]
+                sd[dirn] = -1.0
                 if qx < 0:
                     continue
                 m0 = N0[qy, qx, 0]
@@ -533,8 +536,21 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                     dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
                     if dd > 0 and abs(dd - d) < 0.1 * d:
                         d = dd
+                sd[dirn] = d
+                lo = min(lo, d)
+                hi = max(hi, d)
+            if hi > lo * (1.0 + spread):
+                continue
+            ntried = 0
+            for dirn in range(8):
+                d = sd[dirn]
                 if d < dmin or d > dmax:
                     continue
+                qx = qs[dirn, 0]
+                qy = qs[dirn, 1]
+                m0 = N0[qy, qx, 0]
+                m1 = N0[qy, qx, 1]
+                m2 = N0[qy, qx, 2]
                 same = False
                 for j in range(ntried):
                     if (abs(tried[j, 0] - d) < 1e-3 * d and tried[j, 1] * m0 + tried[j, 2] * m1

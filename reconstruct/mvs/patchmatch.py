@@ -60,6 +60,10 @@ class HoleOptions(Config):
                            help="a hole is re-estimated only when confirmed depths lie within "
                                 "the radius in at least this many of the 8 directions (it is "
                                 "surrounded: not the edge of a surface)")
+    max_spread: float = option(0.03, range="[0, inf)",
+                               help="a hole is re-estimated only when its seeds lie on one "
+                                    "surface: their planes give its ray depths within this "
+                                    "fraction of each other (else it is an occlusion)")
     top_k: int = option(2, range="[1, 16]",
                         help="a hole's cost is the mean of its top_k best source views (a "
                              "hole's depth must be seen by more views than a first depth)")
@@ -353,7 +357,7 @@ def _fill_view(i: int, views: Sequence[View], sources: Sequence[int], opt: Patch
         for colour in (0, 1):
             # seeds and holes are disjoint: the seeds' planes are never written
             pk.fill_holes(colour, it, seed, hole8, seed8, D, N, D, N, C, opt.holes.radius,
-                          opt.holes.min_dirs, *args, perturb)
+                          opt.holes.min_dirs, opt.holes.max_spread, *args, perturb)
     new = hole & (C < opt.holes.max_cost) & (D > 0)
     depth = np.where(new, D, m.depth).astype(np.float32)
     normal = np.where(new[..., None], N, m.normal).astype(np.float32)
