@@ -458,8 +458,8 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dirs, spread,
-               dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
-               top_k, geom, sdepth, max_reproj, perturb):
+               dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step,
+               min_var, top_k, geom, sdepth, max_reproj, perturb):
     """One red-black half-sweep of the second pass over the holes of a depth map.
 
     Each pixel of this colour where ``hole`` is set tries, in each of the 8 directions,

@@ -328,7 +328,6 @@ def _fill_view(i: int, views: Sequence[View], sources: Sequence[int], opt: Patch
     v, m = views[i], maps[i]
     cam = v.camera
     dmin, dmax = v.depth_range
-    h, w = cam.height, cam.width
     kr = cam.K
     kinv = np.linalg.inv(kr)
     src, _, sizes = _stack(views, sources)
@@ -375,12 +374,13 @@ def fill_holes(views: Sequence[View], sources: Sequence[Sequence[int]],
     A view's depth is confirmed where fusion would keep it (at least ``fusion.min_views``
     other views' maps agree, :func:`reconstruct.mvs.fusion.confirmed_depths`). A hole is a
     pixel without a confirmed depth (none, or one no other view agrees with) that has a
-    confirmed depth within ``holes.radius`` pixels. Its candidate planes are only those
-    of the confirmed depths around it (no random plane), scored photometrically and by
-    the reprojection error through every source's depth map; the depths it gets then go
-    through fusion's checks like every other. Returns the maps and the counts of hole
-    pixels, of those given a depth where they had none (``filled``) and of those whose
-    unconfirmed depth was replaced (``replaced``).
+    confirmed depth within ``holes.radius`` pixels; it is re-estimated when confirmed
+    depths surround it (``holes.min_dirs``) on one surface (``holes.max_spread``). Its
+    candidate planes are only those of the confirmed depths around it (no random plane),
+    scored photometrically and by the reprojection error through every source's depth
+    map; the depths it gets then go through fusion's checks like every other. Returns the
+    maps and the counts of hole pixels, of those given a depth where they had none
+    (``filled``) and of those whose unconfirmed depth was replaced (``replaced``).
     """
     import cv2
 
