@@ -16,10 +16,10 @@ The method is Gipuma/ACMM's, on the CPU (the kernels are
    source's depth map;
 5. a second pass over the holes of confirmed surfaces (``holes``, :func:`fill_holes`, as
    COLMAP's and OpenMVS's geometric-consistency passes): pixels without a depth that
-   another view confirms, surrounded by confirmed ones, try only their confirmed
-   neighbours' planes, scored with geometric consistency against every view's final
-   depth map, and keep one only below a stricter cost (``holes.max_cost``, against
-   ``holes.top_k`` views).
+   another view confirms, surrounded by confirmed depths of one surface, try only
+   those neighbours' planes, scored with geometric consistency against every view's
+   final depth map, and keep one only below a stricter cost (``holes.max_cost``,
+   against ``holes.top_k`` views).
 
 A pixel keeps its depth when its final cost is below ``max_cost``; its confidence is
 ``1 - cost`` (the mean NCC of its best views, less the geometric penalty).
