@@ -454,3 +454,201 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
             N[y, x, 0] = best[2]
             N[y, x, 1] = best[3]
             N[y, x, 2] = best[4]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dirs, spread,
+               dmin, dmax, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius, step,
+               min_var, top_k, geom, sdepth, max_reproj, perturb):
+    """One red-black half-sweep of the second pass over the holes of a depth map.
+
+    Each pixel of this colour where ``hole`` is set tries, in each of the 8 directions,
+    the plane of the nearest ``seedable`` pixel (a confirmed depth, or a hole filled by an
+    earlier sweep) within ``reach`` pixels, carried to its own ray, then two perturbations
+    of its best plane (depth and normal, normal alone); it keeps the cheapest against
+    every source, with geometric consistency when ``geom`` > 0. No plane is drawn at
+    random: a hole only takes a surface its confirmed neighbours lie on, and only when
+    they surround it (seeds in at least ``min_dirs`` of the 8 directions: an edge of a
+    surface, where seeds lie on one side only, is left as it was). Seeds are read
+    from the snapshot ``D0``, ``N0`` (taken before the sweep), so rows run in parallel
+    and the result does not depend on the number of threads."""
+    h, w = D.shape
+    ns = ks.shape[0]
+    every = (1 << ns) - 1
+    for k in nb.prange(h):
+        y = _row(k, h)
+        scratch = np.empty(2 * max(ns, 1))
+        hb = np.empty((3, 3, 3))
+        nrm = np.empty(3)
+        best = np.empty(5)
+        qs = np.empty((8, 2), np.int64)  # each direction's seed pixel (-1: none)
+        tried = np.empty((8, 4))  # the seed planes tried: depth, normal
+        sd = np.empty(8)  # each direction's seed depth on this pixel's ray (-1: none)
+        for x in range((y + colour) % 2, w, 2):
+            if not hole[y, x]:
+                continue
+            s0 = stats[y, x, 0]
+            ma = stats[y, x, 1] / s0
+            if stats[y, x, 2] / s0 - ma * ma < min_var:
+                continue
+            best[0] = C[y, x]
+            best[1] = D[y, x]
+            best[2] = N[y, x, 0]
+            best[3] = N[y, x, 1]
+            best[4] = N[y, x, 2]
+            rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
+            ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
+            rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
+            found = 0
+            for dirn in range(8):
+                dx = (1, -1, 0, 0, 1, 1, -1, -1)[dirn]
+                dy = (0, 0, 1, -1, 1, -1, 1, -1)[dirn]
+                qs[dirn, 0] = -1
+                for dist in range(1, reach + 1):
+                    qx = x + dx * dist
+                    qy = y + dy * dist
+                    if qx < 0 or qy < 0 or qx >= w or qy >= h:
+                        break
+                    if seedable[qy, qx]:
+                        qs[dirn, 0] = qx
+                        qs[dirn, 1] = qy
+                        found += 1
+                        break
+            if found < min_dirs:
+                continue
+            lo = 1e30
+            hi = 0.0
+            for dirn in range(8):
+                qx = qs[dirn, 0]
+                qy = qs[dirn, 1]
+                sd[dirn] = -1.0
+                if qx < 0:
+                    continue
+                m0 = N0[qy, qx, 0]
+                m1 = N0[qy, qx, 1]
+                m2 = N0[qy, qx, 2]
+                qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
+                qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
+                qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
+                d = D0[qy, qx]
+                den = m0 * rx + m1 * ry + m2 * rz
+                if abs(den) > 1e-9:
+                    dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
+                    if dd > 0 and abs(dd - d) < 0.1 * d:
+                        d = dd
+                sd[dirn] = d
+                lo = min(lo, d)
+                hi = max(hi, d)
+            if hi > lo * (1.0 + spread):
+                continue
+            ntried = 0
+            for dirn in range(8):
+                d = sd[dirn]
+                if d < dmin or d > dmax:
+                    continue
+                qx = qs[dirn, 0]
+                qy = qs[dirn, 1]
+                m0 = N0[qy, qx, 0]
+                m1 = N0[qy, qx, 1]
+                m2 = N0[qy, qx, 2]
+                same = False
+                for j in range(ntried):
+                    if (abs(tried[j, 0] - d) < 1e-3 * d and tried[j, 1] * m0 + tried[j, 2] * m1
+                            + tried[j, 3] * m2 > 0.999):
+                        same = True
+                        break
+                if same:
+                    continue
+                tried[ntried, 0] = d
+                tried[ntried, 1] = m0
+                tried[ntried, 2] = m1
+                tried[ntried, 3] = m2
+                ntried += 1
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                   top_k, geom, sdepth, max_reproj, every),
+                             d, m0, m1, m2, best)
+            if best[1] <= 0.0:
+                continue  # no seed reached this pixel
+            pix = x * 65536 + y
+            for trial in range(2):
+                base = 40 + 4 * trial
+                d = best[1]
+                if trial == 0:
+                    u = _uniform(seed, pix, it, base)
+                    d = 1.0 / (1.0 / d * (1.0 + perturb * (2.0 * u - 1.0)))
+                _random_normal(seed, x, y, it, base + 1, kinv, nrm)
+                m0 = best[2] + perturb * 2.0 * nrm[0]
+                m1 = best[3] + perturb * 2.0 * nrm[1]
+                m2 = best[4] + perturb * 2.0 * nrm[2]
+                ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+                m0 /= ln
+                m1 /= ln
+                m2 /= ln
+                if m0 * rx + m1 * ry + m2 * rz > 0 or d < dmin or d > dmax:
+                    continue
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                                   top_k, geom, sdepth, max_reproj, every),
+                             d, m0, m1, m2, best)
+            C[y, x] = best[0]
+            D[y, x] = best[1]
+            N[y, x, 0] = best[2]
+            N[y, x, 1] = best[3]
+            N[y, x, 2] = best[4]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, ocfw,
+                 depth_tol, max_reproj, cos_max):
+    """``count[y, x] += 1`` where another view's depth map agrees with this view's depth at
+    (x, y): the test of :func:`reconstruct.mvs.fusion.fuse_points` with a relative depth
+    tolerance. The point of (x, y) falls on the other view's nearest pixel; that pixel's
+    depth gives back a point that must reproject within ``max_reproj`` px of (x, y), at a
+    depth within ``depth_tol`` (relative to the other view's), with normals (camera
+    frames; ``wfc``, ``cfw``: world_from_cam, cam_from_world 4x4) within ``cos_max``."""
+    h, w = depth.shape
+    oh, ow = odepth.shape
+    for y in nb.prange(h):
+        for x in range(w):
+            z = depth[y, x]
+            if z <= 0.0:
+                continue
+            p0 = (x - k[0, 2]) / k[0, 0] * z
+            p1 = (y - k[1, 2]) / k[1, 1] * z
+            X0 = wfc[0, 0] * p0 + wfc[0, 1] * p1 + wfc[0, 2] * z + wfc[0, 3]
+            X1 = wfc[1, 0] * p0 + wfc[1, 1] * p1 + wfc[1, 2] * z + wfc[1, 3]
+            X2 = wfc[2, 0] * p0 + wfc[2, 1] * p1 + wfc[2, 2] * z + wfc[2, 3]
+            Y0 = ocfw[0, 0] * X0 + ocfw[0, 1] * X1 + ocfw[0, 2] * X2 + ocfw[0, 3]
+            Y1 = ocfw[1, 0] * X0 + ocfw[1, 1] * X1 + ocfw[1, 2] * X2 + ocfw[1, 3]
+            Y2 = ocfw[2, 0] * X0 + ocfw[2, 1] * X1 + ocfw[2, 2] * X2 + ocfw[2, 3]
+            if Y2 <= 1e-12:
+                continue
+            uo = int(np.rint(ok[0, 0] * Y0 / Y2 + ok[0, 2]))
+            vo = int(np.rint(ok[1, 1] * Y1 / Y2 + ok[1, 2]))
+            if uo < 0 or vo < 0 or uo >= ow or vo >= oh:
+                continue
+            d = odepth[vo, uo]
+            if d <= 0.0 or abs(Y2 - d) / d > depth_tol:
+                continue
+            q0 = (uo - ok[0, 2]) / ok[0, 0] * d
+            q1 = (vo - ok[1, 2]) / ok[1, 1] * d
+            W0 = owfc[0, 0] * q0 + owfc[0, 1] * q1 + owfc[0, 2] * d + owfc[0, 3]
+            W1 = owfc[1, 0] * q0 + owfc[1, 1] * q1 + owfc[1, 2] * d + owfc[1, 3]
+            W2 = owfc[2, 0] * q0 + owfc[2, 1] * q1 + owfc[2, 2] * d + owfc[2, 3]
+            Z0 = cfw[0, 0] * W0 + cfw[0, 1] * W1 + cfw[0, 2] * W2 + cfw[0, 3]
+            Z1 = cfw[1, 0] * W0 + cfw[1, 1] * W1 + cfw[1, 2] * W2 + cfw[1, 3]
+            Z2 = max(cfw[2, 0] * W0 + cfw[2, 1] * W1 + cfw[2, 2] * W2 + cfw[2, 3], 1e-12)
+            eu = k[0, 0] * Z0 / Z2 + k[0, 2] - x
+            ev = k[1, 1] * Z1 / Z2 + k[1, 2] - y
+            if eu * eu + ev * ev > max_reproj * max_reproj:
+                continue
+            c = 0.0  # the normals' cosine, in the world frame
+            for r in range(3):
+                a = (wfc[r, 0] * normal[y, x, 0] + wfc[r, 1] * normal[y, x, 1]
+                     + wfc[r, 2] * normal[y, x, 2])
+                b = (owfc[r, 0] * onormal[vo, uo, 0] + owfc[r, 1] * onormal[vo, uo, 1]
+                     + owfc[r, 2] * onormal[vo, uo, 2])
+                c += a * b
+            if c >= cos_max:
+                count[y, x] += 1

@@ -29,7 +29,7 @@ from core.config import Config, option
 from core.progress import track
 
 __all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface", "depth_edges",
-           "depth_per_pixel"]
+           "depth_per_pixel", "confirmed_depths"]
 
 log = logging.getLogger(__name__)
 
@@ -190,6 +190,45 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
 
     return FusedPoints(cat(P, 3), cat(Nn, 3), cat(Cc, 3),
                        np.concatenate(V) if V else np.zeros(0, np.int32), masks)
+
+
+def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
+                     normals: Sequence[np.ndarray], neighbours: Sequence[Sequence[int]],
+                     options: FusionOptions | None = None) -> list[np.ndarray]:
+    """(H, W) bool per view: the depths :func:`fuse_points` would keep before its edge
+    erosion (at least ``min_views`` of the view's ``neighbours`` agree with them)."""
+    opt = options or FusionOptions()
+    cos_max = np.cos(np.radians(opt.max_normal_deg))
+    out = []
+    if opt.disparity_tol == 0:  # the same test, compiled
+        from reconstruct.mvs import _patchmatch_kernels as pk
+
+        for i, cam in enumerate(cameras):
+            count = np.zeros(depths[i].shape, np.int32)
+            for j in neighbours[i]:
+                if j != i:
+                    o = cameras[j]
+                    pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
+                                    cam.cam_from_world, depths[j], normals[j], o.K,
+                                    o.world_from_cam, o.cam_from_world, opt.depth_tol,
+                                    opt.max_reprojection, cos_max)
+            out.append(count >= opt.min_views)
+        return out
+    for i, cam in enumerate(cameras):
+        u, v, pc = _backproject(cam, depths[i])
+        R_wc = cam.world_from_cam[:3, :3]
+        X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
+        n_ref = normals[i][v, u].astype(np.float64) @ R_wc.T
+        count = np.zeros(len(u), np.int32)
+        for j in neighbours[i]:
+            if j != i:
+                count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j], opt,
+                                cos_max)
+        mask = np.zeros(depths[i].shape, bool)
+        keep = count >= opt.min_views
+        mask[v[keep], u[keep]] = True
+        out.append(mask)
+    return out
 
 
 def _pixels(cam: Camera, X: np.ndarray):

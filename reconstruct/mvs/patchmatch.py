@@ -13,7 +13,13 @@ The method is Gipuma/ACMM's, on the CPU (the kernels are
    the ``top_k`` best source views (``iterations``);
 4. then, with every view's depth map from step 3, ``geom_iterations`` more iterations
    add geometric consistency: the forward-backward reprojection error through each
-   source's depth map.
+   source's depth map;
+5. a second pass over the holes of confirmed surfaces (``holes``, :func:`fill_holes`, as
+   COLMAP's and OpenMVS's geometric-consistency passes): pixels without a depth that
+   another view confirms, surrounded by confirmed depths of one surface, try only
+   those neighbours' planes, scored with geometric consistency against every view's
+   final depth map, and keep one only below a stricter cost (``holes.max_cost``,
+   against ``holes.top_k`` views).
 
 A pixel keeps its depth when its final cost is below ``max_cost``; its confidence is
 ``1 - cost`` (the mean NCC of its best views, less the geometric penalty).
@@ -33,10 +39,36 @@ from acquire.camera import Camera
 from core.config import Config, option
 from core.progress import track
 
-__all__ = ["PatchMatchOptions", "View", "DepthMap", "prepare_views", "depth_range",
-           "patchmatch"]
+__all__ = ["PatchMatchOptions", "HoleOptions", "View", "DepthMap", "prepare_views",
+           "depth_range", "patchmatch", "fill_holes"]
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class HoleOptions(Config):
+    """Options of the second PatchMatch pass over the holes of confirmed surfaces."""
+
+    iterations: int = option(1, range="[0, 20]",
+                             help="iterations of the second pass over the holes of confirmed "
+                                  "surfaces (0: no second pass)")
+    radius: int = option(8, unit="px", range="[1, 64]",
+                         help="a pixel without a confirmed depth is a hole when a confirmed "
+                              "depth lies within this many pixels; its seeds are the nearest "
+                              "confirmed depths in the 8 directions within this distance")
+    min_dirs: int = option(5, range="[1, 8]",
+                           help="a hole is re-estimated only when confirmed depths lie within "
+                                "the radius in at least this many of the 8 directions (it is "
+                                "surrounded: not the edge of a surface)")
+    max_spread: float = option(0.03, range="[0, inf)",
+                               help="a hole is re-estimated only when its seeds lie on one "
+                                    "surface: their planes give its ray depths within this "
+                                    "fraction of each other (else it is an occlusion)")
+    top_k: int = option(2, range="[1, 16]",
+                        help="a hole's cost is the mean of its top_k best source views (a "
+                             "hole's depth must be seen by more views than a first depth)")
+    max_cost: float = option(0.5, range="(0, 2]",
+                             help="a hole keeps its new depth when its cost is below this")
 
 
 @dataclass
@@ -84,6 +116,8 @@ class PatchMatchOptions(Config):
     max_angle_deg: float = option(45.0, unit="deg", range="(0, 90]",
                                   help="largest useful triangulation angle with a source")
     seed: int = option(0, range="[0, inf)", help="seed of the random planes")
+    holes: HoleOptions = option(default_factory=HoleOptions,
+                                help="the second pass over the holes of confirmed surfaces")
 
 
 @dataclass
@@ -238,7 +272,8 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
 
 
 def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
-               options: PatchMatchOptions | None = None) -> tuple[list[DepthMap], dict]:
+               options: PatchMatchOptions | None = None,
+               fusion=None) -> tuple[list[DepthMap], dict]:
     """Depth, normal and confidence maps of every view, and timings.
 
     Parameters
@@ -248,6 +283,9 @@ def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
     sources : sequence of sequence of int
         Source views of each view (indices into ``views``); a view without sources, or
         without a depth range, gets an empty map.
+    fusion : FusionOptions, optional
+        The fusion's agreement tests, which say which depths are confirmed for the second
+        pass over the holes (:func:`fill_holes`; ``options.holes.iterations`` > 0).
     """
     opt = options or PatchMatchOptions()
     t = time.perf_counter()
@@ -262,4 +300,109 @@ def patchmatch(views: Sequence[View], sources: Sequence[Sequence[int]],
     for i in track(range(len(views)), "PatchMatch (geometric)", total=len(views)):
         out.append(_run_view(i, views, sources[i], opt, first[i], first))
     timings["geometric"] = time.perf_counter() - t
+    if opt.holes.iterations > 0:
+        t, cpu = time.perf_counter(), time.process_time()
+        out, st = fill_holes(views, sources, out, opt, fusion)
+        timings["holes"] = time.perf_counter() - t
+        timings["holes_cpu"] = time.process_time() - cpu
+        log.info("PatchMatch holes: %d hole pixels, %d given a depth, %d unconfirmed depths "
+                 "replaced (%.1f s)", st["holes"], st["filled"], st["replaced"],
+                 timings["holes"])
     return out, timings
+
+
+def _neighbours(sources: Sequence[Sequence[int]]) -> list[list[int]]:
+    """Each view's sources and the views it is a source of (fusion's neighbours)."""
+    return [sorted(set(s) | {j for j, ss in enumerate(sources) if i in ss})
+            for i, s in enumerate(sources)]
+
+
+def _fill_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
+               maps: Sequence[DepthMap], hole: np.ndarray, seeds: np.ndarray) -> DepthMap:
+    """View i's map with its ``hole`` pixels re-estimated from the planes of its ``seeds``
+    (:func:`reconstruct.mvs._patchmatch_kernels.fill_holes`), scored with geometric
+    consistency against the other views' final depth maps. A hole keeps its new plane
+    when its cost is below ``holes.max_cost``, else what it had."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+
+    v, m = views[i], maps[i]
+    cam = v.camera
+    dmin, dmax = v.depth_range
+    kr = cam.K
+    kinv = np.linalg.inv(kr)
+    src, _, sizes = _stack(views, sources)
+    sdepth = np.zeros_like(src)
+    for k, j in enumerate(sources):
+        c = views[j].camera
+        sdepth[k, :c.height, :c.width] = maps[j].depth
+    ks = np.stack([views[j].camera.K for j in sources])
+    rel = [_relative(cam, views[j].camera) for j in sources]
+    rs = np.stack([r for r, _ in rel])
+    ts = np.stack([t for _, t in rel])
+    wts, stats = pk.bilateral_weights(v.gray, opt.window_radius, opt.window_step,
+                                      opt.sigma_color, float(opt.window_radius))
+    D = np.where(hole, 0.0, m.depth).astype(np.float64)
+    N = np.where(hole[..., None], 0.0, m.normal).astype(np.float64)
+    C = np.where(hole, np.inf, 1.0 - m.confidence).astype(np.float64)
+    hole8 = hole.astype(np.uint8)
+    seed8 = seeds.astype(np.uint8)
+    seed = (opt.seed * 1_000_003 + i) * 7 + 5
+    args = (dmin, dmax, v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
+            homography_parts(kr, ks, rs, ts), opt.window_radius, opt.window_step,
+            opt.min_texture ** 2, opt.holes.top_k, max(opt.geom_weight, 1e-3), sdepth,
+            opt.max_reprojection)
+    for it in range(opt.holes.iterations):
+        perturb = max(0.05 * 0.5 ** it, 0.01)
+        for colour in (0, 1):
+            # seeds and holes are disjoint: the seeds' planes are never written
+            pk.fill_holes(colour, it, seed, hole8, seed8, D, N, D, N, C, opt.holes.radius,
+                          opt.holes.min_dirs, opt.holes.max_spread, *args, perturb)
+    new = hole & (C < opt.holes.max_cost) & (D > 0)
+    depth = np.where(new, D, m.depth).astype(np.float32)
+    normal = np.where(new[..., None], N, m.normal).astype(np.float32)
+    conf = np.where(new, np.clip(1.0 - C, 0.0, 1.0), m.confidence).astype(np.float32)
+    raw = np.where(new, D, m.raw_depth if m.raw_depth is not None else m.depth)
+    return DepthMap(depth, normal, conf, m.sources, raw.astype(np.float32))
+
+
+def fill_holes(views: Sequence[View], sources: Sequence[Sequence[int]],
+               maps: Sequence[DepthMap], options: PatchMatchOptions | None = None,
+               fusion=None) -> tuple[list[DepthMap], dict]:
+    """The second pass: the holes of confirmed surfaces re-estimated, as COLMAP's and
+    OpenMVS's geometric-consistency passes do.
+
+    A view's depth is confirmed where fusion would keep it (at least ``fusion.min_views``
+    other views' maps agree, :func:`reconstruct.mvs.fusion.confirmed_depths`). A hole is a
+    pixel without a confirmed depth (none, or one no other view agrees with) that has a
+    confirmed depth within ``holes.radius`` pixels; it is re-estimated when confirmed
+    depths surround it (``holes.min_dirs``) on one surface (``holes.max_spread``). Its
+    candidate planes are only those of the confirmed depths around it (no random plane),
+    scored photometrically and by the reprojection error through every source's depth
+    map; the depths it gets then go through fusion's checks like every other. Returns the
+    maps and the counts of hole pixels, of those given a depth where they had none
+    (``filled``) and of those whose unconfirmed depth was replaced (``replaced``).
+    """
+    import cv2
+
+    from reconstruct.mvs.fusion import confirmed_depths
+
+    opt = options or PatchMatchOptions()
+    r = opt.holes.radius
+    cams = [v.camera for v in views]
+    confirmed = confirmed_depths(cams, [m.depth for m in maps], [m.normal for m in maps],
+                                 _neighbours(sources), fusion)
+    out, stats = [], {"holes": 0, "filled": 0, "replaced": 0}
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    for i in track(range(len(views)), "PatchMatch (holes)", total=len(views)):
+        conf = confirmed[i]
+        hole = ~conf & (cv2.dilate(conf.astype(np.uint8), kernel) > 0)
+        if not sources[i] or not hole.any() or views[i].depth_range[1] <= 0:
+            out.append(maps[i])
+            continue
+        out.append(_fill_view(i, views, sources[i], opt, maps, hole, conf))
+        stats["holes"] += int(hole.sum())
+        got = hole & (out[-1].depth > 0)
+        stats["filled"] += int((got & (maps[i].depth <= 0)).sum())
+        stats["replaced"] += int((got & (maps[i].depth > 0)
+                                  & (out[-1].depth != maps[i].depth)).sum())
+    return out, stats

@@ -145,7 +145,7 @@ def depth_stage(names: Sequence[str], images: Sequence[np.ndarray],
     timings = {"prepare": time.perf_counter() - t}
     t = time.perf_counter()
     cpu = time.process_time()
-    maps, pm_t = patchmatch(views, sources, po)
+    maps, pm_t = patchmatch(views, sources, po, opt.fusion)
     timings["depth_maps"] = time.perf_counter() - t
     cpu = time.process_time() - cpu
     timings.update({f"depth_maps_{k}": v for k, v in pm_t.items()})
