@@ -372,8 +372,10 @@ def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs,
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats, src, sizes,
           kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom, sdepth, max_reproj,
-          perturb):
-    """One red-black half-sweep: propagation from the four directions, then refinement.
+          perturb, random_plane):
+    """One red-black half-sweep: propagation from the four directions, then refinement
+    (a perturbed depth and normal, a perturbed normal, and with ``random_plane`` a random
+    plane).
 
     With ``full`` every plane is scored against every source. Otherwise a pixel's planes
     are scored only against its active sources ``S[y, x]`` (the bits of the ``nact``
@@ -451,7 +453,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                 own = bm
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
-            for trial in range(3):
+            for trial in range(3 if random_plane else 2):
                 bd = best[1]
                 b0 = best[2]
                 b1 = best[3]

@@ -62,6 +62,10 @@ class PatchMatchOptions(Config):
     full_iterations: int = option(1, range="[1, 20]",
                                   help="photometric iterations that score every plane "
                                        "against every source view")
+    random_iterations: int = option(1, range="[0, 20]",
+                                    help="photometric iterations whose refinement also "
+                                         "tries a random plane per pixel (after the first "
+                                         "it wins for under 0.5 % of the pixels)")
     window_radius: int = option(4, unit="px", range="[1, 15]", help="matching window radius")
     window_step: int = option(2, unit="px", range="[1, 5]",
                               help="the window is sampled every window_step pixels")
@@ -228,7 +232,7 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
         full = nact == 0 or (init is None and it < opt.full_iterations)
         for colour in (0, 1):
             pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, S, nact, full, dmin, dmax,
-                     *args, perturb)
+                     *args, perturb, init is None and it < opt.random_iterations)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)
