@@ -443,6 +443,9 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                         d = dd
                 if d < dmin or d > dmax:
                     continue
+                if (abs(d - best[1]) < 1e-3 * best[1]
+                        and m0 * best[2] + m1 * best[3] + m2 * best[4] > 0.9995):
+                    continue  # the plane this pixel has (within 0.1 % and 1.8 degrees)
                 mask = every if full else own | S[qy, qx]
                 if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
                                       sizes, kinv, kr, ks, rs, ts, hm, min_var, top_k, geom,
