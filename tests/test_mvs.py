@@ -284,6 +284,30 @@ def test_the_window_cost_agrees_with_a_direct_warp_sample_by_sample():
     assert 40 < bad < 360  # both kinds of window were tried
 
 
+def test_half_resolution_planes_start_the_full_resolution_iterations():
+    """coarse_iterations: the half-resolution views see a world point at the same place
+    (pixel centres: (u + 0.5) / 2 - 0.5), and one full-resolution iteration from their
+    upsampled planes recovers the plane as the random start's four do."""
+    from reconstruct.mvs.patchmatch import PatchMatchOptions, _half, patchmatch
+
+    opt = PatchMatchOptions(max_image_size=128, coarse_iterations=3, iterations=1,
+                            geom_iterations=0, seed=3)
+    views = _plane_setup(3, opt)
+    half = _half(views, [0, 2])
+    assert half[1] is views[1] and half[0].gray.shape == (48, 64)
+    X = np.random.default_rng(5).uniform(-0.5, 0.5, (20, 3)) * (1, 1, 0)
+    for j in (0, 2):
+        full_px, _ = views[j].camera.project(X)
+        half_px, _ = half[j].camera.project(X)
+        np.testing.assert_allclose(half_px, (full_px + 0.5) / 2 - 0.5, atol=1e-9)
+    ref = patchmatch(views, [[1, 2], [0, 2], [0, 1]], opt)[0][0]
+    truth = _true_depth(views[0].camera)
+    inner = np.zeros_like(truth, bool)
+    inner[8:-8, 8:-8] = True
+    good = inner & (ref.depth > 0) & (np.abs(ref.depth - truth) < 0.005 * truth)
+    assert good.sum() > 0.8 * inner.sum()
+
+
 def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     """A pixel's active sources are the views whose single-view cost of its plane is the
     lowest (the kernel's bits against each source scored alone); scoring the later
