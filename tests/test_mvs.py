@@ -225,6 +225,89 @@ def test_the_interleaved_row_order_visits_every_row_once():
             assert max(order[: h // 2]) > 0.9 * h
 
 
+def test_the_window_cost_agrees_with_a_direct_warp_sample_by_sample():
+    """The kernel's cost of a plane (reference window read once, bounds tested at the
+    window's four corners) against a direct implementation: each sample warped by the
+    full homography K_s (R + t n^T / dp) K_r^-1, tested on its own, sampled bilinearly,
+    and the weighted NCC; planes tilted enough that many windows leave the source."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+    from reconstruct.mvs.patchmatch import PatchMatchOptions, _relative, homography_parts
+
+    opt = PatchMatchOptions(max_image_size=128)
+    ref, src = _plane_setup(2, opt)
+    cam, sc = ref.camera, src.camera
+    kinv = np.linalg.inv(cam.K)
+    R, t = _relative(cam, sc)
+    hm = homography_parts(cam.K, sc.K[None], R[None], t[None])
+    wts, stats = pk.bilateral_weights(ref.gray, 4, 2, 0.2, 4.0)
+    sizes = np.array([[sc.width, sc.height]])
+    img = src.gray
+    h, w = ref.gray.shape
+    win, xs, ys = np.empty(50), np.empty(5, np.int64), np.empty(5, np.int64)
+    truth = _true_depth(cam)
+    rng = np.random.default_rng(4)
+    bad = 0
+    for _ in range(400):
+        x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+        d = truth[y, x] * rng.uniform(0.7, 1.3)
+        ray = kinv @ (x, y, 1.0)
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        n = -n if n @ ray > 0 else n
+        pk._window(x, y, ref.gray, wts, 4, 2, win, xs, ys)
+        got = pk._view_cost(x, y, d, *n, 0, stats, src.gray[None], sizes, kinv, hm,
+                            opt.min_texture ** 2, win, xs, ys)
+        H = sc.K @ (R + np.outer(t, n) / (d * (n @ ray))) @ kinv
+        samples = []  # (weight, reference grey, source grey); None: off the source
+        for k, (yy, xx) in enumerate(np.ndindex(5, 5)):
+            yy, xx = min(max(y - 4 + 2 * yy, 0), h - 1), min(max(x - 4 + 2 * xx, 0), w - 1)
+            p = H @ (xx, yy, 1.0)
+            u, v = p[:2] / p[2]
+            if p[2] <= 1e-12 or not (0 <= u <= sc.width - 1.001 and 0 <= v <= sc.height - 1.001):
+                samples = None
+                break
+            x0, y0 = int(u), int(v)
+            fx, fy = u - x0, v - y0
+            b = ((img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx) * (1 - fy)
+                 + (img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx) * fy)
+            samples.append((wts[y, x, k], ref.gray[yy, xx], b))
+        want = 2.0
+        if samples is not None:
+            wt, a, b = np.array(samples).T
+            ma, mb = wt @ a / wt.sum(), wt @ b / wt.sum()
+            va, vb = wt @ a ** 2 / wt.sum() - ma ** 2, wt @ b ** 2 / wt.sum() - mb ** 2
+            if min(va, vb) >= opt.min_texture ** 2:
+                want = 1.0 - np.clip((wt @ (a * b) / wt.sum() - ma * mb) / np.sqrt(va * vb),
+                                     -1, 1)
+        bad += want == 2.0
+        assert got == pytest.approx(want, abs=2e-4), (x, y, d, n)
+    assert 40 < bad < 360  # both kinds of window were tried
+
+
+def test_half_resolution_planes_start_the_full_resolution_iterations():
+    """coarse_iterations: the half-resolution views see a world point at the same place
+    (pixel centres: (u + 0.5) / 2 - 0.5), and one full-resolution iteration from their
+    upsampled planes recovers the plane as the random start's four do."""
+    from reconstruct.mvs.patchmatch import PatchMatchOptions, _half, patchmatch
+
+    opt = PatchMatchOptions(max_image_size=128, coarse_iterations=3, iterations=1,
+                            geom_iterations=0, seed=3)
+    views = _plane_setup(3, opt)
+    half = _half(views, [0, 2])
+    assert half[1] is views[1] and half[0].gray.shape == (48, 64)
+    X = np.random.default_rng(5).uniform(-0.5, 0.5, (20, 3)) * (1, 1, 0)
+    for j in (0, 2):
+        full_px, _ = views[j].camera.project(X)
+        half_px, _ = half[j].camera.project(X)
+        np.testing.assert_allclose(half_px, (full_px + 0.5) / 2 - 0.5, atol=1e-9)
+    ref = patchmatch(views, [[1, 2], [0, 2], [0, 1]], opt)[0][0]
+    truth = _true_depth(views[0].camera)
+    inner = np.zeros_like(truth, bool)
+    inner[8:-8, 8:-8] = True
+    good = inner & (ref.depth > 0) & (np.abs(ref.depth - truth) < 0.005 * truth)
+    assert good.sum() > 0.8 * inner.sum()
+
+
 def test_active_sources_are_the_cheapest_and_find_the_same_plane():
     """A pixel's active sources are the views whose single-view cost of its plane is the
     lowest (the kernel's bits against each source scored alone); scoring the later

@@ -91,26 +91,36 @@ def bilateral_weights(ref, radius, step, sigma_color, sigma_space):
     return wts, stats
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
-def _bilinear(img, hs, ws, u, v):
-    if u < 0.0 or v < 0.0 or u > ws - 1.001 or v > hs - 1.001:
-        return -1.0
-    x0 = int(u)
-    y0 = int(v)
-    fx = u - x0
-    fy = v - y0
-    a = img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx
-    b = img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx
-    return a * (1 - fy) + b * fy
+@nb.njit(cache=True, inline="always")
+def _window(x, y, ref, wts, radius, step, win, xs, ys):
+    """The reference window of (x, y), once per pixel for all the planes it tries: its
+    sample columns ``xs`` and rows ``ys`` (clamped at the border), and per sample (row by
+    row) its weight ``win[k]`` and weighted grey level ``win[n + k]``."""
+    h, w = ref.shape
+    m = 2 * (radius // step) + 1
+    n = m * m
+    for i in range(m):
+        xs[i] = min(max(x - radius + i * step, 0), w - 1)
+        ys[i] = min(max(y - radius + i * step, 0), h - 1)
+    k = 0
+    for j in range(m):
+        for i in range(m):
+            wt = wts[y, x, k]
+            win[k] = wt
+            win[n + k] = wt * ref[ys[j], xs[i]]
+            k += 1
 
 
 @nb.njit(cache=True, fastmath=True)
-def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius, step,
-               min_var, hb):
-    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s.
+def _view_cost(x, y, d, n0, n1, n2, s, stats, src, sizes, kinv, hm, min_var, win, xs, ys):
+    """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s; the
+    reference window from :func:`_window`.
 
     ``hm[s]`` = (K_s R K_r^-1 row by row, K_s t): the plane's homography
-    K_s (R + t n^T / dp) K_r^-1 is then K_s R K_r^-1 + (K_s t) (n^T K_r^-1) / dp."""
+    K_s (R + t n^T / dp) K_r^-1 is then K_s R K_r^-1 + (K_s t) (n^T K_r^-1) / dp.
+    The window is a rectangle of the reference and the homography is projective, so
+    when its four corners land inside the source in front of it, every sample does:
+    the samples are then read without a test each."""
     s0 = stats[y, x, 0]
     ma = stats[y, x, 1] / s0
     va = stats[y, x, 2] / s0 - ma * ma
@@ -126,42 +136,62 @@ def _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, ra
     g0 = (n0 * kinv[0, 0] + n1 * kinv[1, 0] + n2 * kinv[2, 0]) / dp
     g1 = (n0 * kinv[0, 1] + n1 * kinv[1, 1] + n2 * kinv[2, 1]) / dp
     g2 = (n0 * kinv[0, 2] + n1 * kinv[1, 2] + n2 * kinv[2, 2]) / dp
-    m = hm[s]
-    H = hb[2]
-    for r in range(3):
-        e = m[9 + r]
-        H[r, 0] = m[3 * r] + e * g0
-        H[r, 1] = m[3 * r + 1] + e * g1
-        H[r, 2] = m[3 * r + 2] + e * g2
-    hs = sizes[s, 1]
-    ws = sizes[s, 0]
-    h, w = ref.shape
+    e0 = hm[s, 9]
+    e1 = hm[s, 10]
+    e2 = hm[s, 11]
+    h00 = hm[s, 0] + e0 * g0
+    h01 = hm[s, 1] + e0 * g1
+    h02 = hm[s, 2] + e0 * g2
+    h10 = hm[s, 3] + e1 * g0
+    h11 = hm[s, 4] + e1 * g1
+    h12 = hm[s, 5] + e1 * g2
+    h20 = hm[s, 6] + e2 * g0
+    h21 = hm[s, 7] + e2 * g1
+    h22 = hm[s, 8] + e2 * g2
+    umax = sizes[s, 0] - 1.001
+    vmax = sizes[s, 1] - 1.001
+    m = xs.shape[0]
+    for c in range(4):
+        cx = xs[0] if c < 2 else xs[m - 1]
+        cy = ys[0] if c % 2 == 0 else ys[m - 1]
+        zz = h20 * cx + h21 * cy + h22
+        if zz <= 1e-12:
+            return _BAD
+        u = (h00 * cx + h01 * cy + h02) / zz
+        v = (h10 * cx + h11 * cy + h12) / zz
+        if u < 0.0 or v < 0.0 or u > umax or v > vmax:
+            return _BAD
     img = src[s]
+    n = m * m
     sb = 0.0
     sbb = 0.0
     sab = 0.0
     k = 0
-    for j in range(-radius, radius + 1, step):
-        yy = min(max(y + j, 0), h - 1)
-        # the row's homogeneous coordinates, stepped along x (clamped at the border)
-        pu = H[0, 1] * yy + H[0, 2]
-        pv = H[1, 1] * yy + H[1, 2]
-        pz = H[2, 1] * yy + H[2, 2]
-        for i in range(-radius, radius + 1, step):
-            xx = min(max(x + i, 0), w - 1)
-            zz = H[2, 0] * xx + pz
-            if zz <= 1e-12:
-                return _BAD
-            iz = 1.0 / zz
-            u = (H[0, 0] * xx + pu) * iz
-            v = (H[1, 0] * xx + pv) * iz
-            b = _bilinear(img, hs, ws, u, v)
-            if b < 0.0:
-                return _BAD
-            wt = wts[y, x, k]
-            sb += wt * b
-            sbb += wt * b * b
-            sab += wt * ref[yy, xx] * b
+    for j in range(m):
+        yy = ys[j]
+        pu = h01 * yy + h02
+        pv = h11 * yy + h12
+        pz = h21 * yy + h22
+        for i in range(m):
+            xx = xs[i]
+            iz = 1.0 / (h20 * xx + pz)
+            u = (h00 * xx + pu) * iz
+            v = (h10 * xx + pv) * iz
+            x0 = int(u)
+            y0 = int(v)
+            fx = u - x0
+            fy = v - y0
+            p00 = img[y0, x0]
+            p01 = img[y0, x0 + 1]
+            p10 = img[y0 + 1, x0]
+            p11 = img[y0 + 1, x0 + 1]
+            a = p00 + fx * (p01 - p00)
+            b = a + fy * (p10 + fx * (p11 - p10) - a)
+            wt = win[k]
+            wb = wt * b
+            sb += wb
+            sbb += wb * b
+            sab += win[n + k] * b
             k += 1
     mb = sb / s0
     vb = sbb / s0 - mb * mb
@@ -212,8 +242,8 @@ def _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes, max_err):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
-          hm, radius, step, min_var, top_k, geom, sdepth, max_reproj, mask):
+def _cost(x, y, d, n0, n1, n2, scratch, win, xs, ys, stats, src, sizes, kinv, kr, ks, rs, ts,
+          hm, min_var, top_k, geom, sdepth, max_reproj, mask):
     """Multi-view cost: the mean of the top_k cheapest source views among those whose bit
     is set in ``mask`` (the others count as unmatched, cost 2). ``scratch[:ns]`` keeps
     each source's cost, in source order."""
@@ -222,8 +252,8 @@ def _cost(x, y, d, n0, n1, n2, scratch, hb, ref, wts, stats, src, sizes, kinv, k
         if not (mask >> s) & 1:
             scratch[s] = _BAD + geom * max_reproj
             continue
-        c = _view_cost(x, y, d, n0, n1, n2, s, ref, wts, stats, src, sizes, kinv, hm, radius,
-                       step, min_var, hb)
+        c = _view_cost(x, y, d, n0, n1, n2, s, stats, src, sizes, kinv, hm, min_var, win, xs,
+                       ys)
         if geom > 0.0:
             c += geom * _reproj_error(x, y, d, s, kinv, kr, ks, rs, ts, sdepth, sizes,
                                       max_reproj)
@@ -327,19 +357,25 @@ def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs,
     for k in nb.prange(h):
         y = _row(k, h)
         scratch = np.empty(2 * max(ns, 1))
-        hb = np.empty((3, 3, 3))
+        m = 2 * (radius // step) + 1
+        win = np.empty(2 * m * m)
+        xs = np.empty(m, np.int64)
+        ys = np.empty(m, np.int64)
         for x in range(w):
-            C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, hb,
-                            ref, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm, radius,
-                            step, min_var, top_k, geom, sdepth, max_reproj, every)
+            _window(x, y, ref, wts, radius, step, win, xs, ys)
+            C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, win,
+                            xs, ys, stats, src, sizes, kinv, kr, ks, rs, ts, hm, min_var,
+                            top_k, geom, sdepth, max_reproj, every)
             S[y, x] = _best_sources(scratch, ns, nact)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats, src, sizes,
           kinv, kr, ks, rs, ts, hm, radius, step, min_var, top_k, geom, sdepth, max_reproj,
-          perturb):
-    """One red-black half-sweep: propagation from the four directions, then refinement.
+          perturb, random_plane):
+    """One red-black half-sweep: propagation from the four directions, then refinement
+    (a perturbed depth and normal, a perturbed normal, and with ``random_plane`` a random
+    plane).
 
     With ``full`` every plane is scored against every source. Otherwise a pixel's planes
     are scored only against its active sources ``S[y, x]`` (the bits of the ``nact``
@@ -355,7 +391,10 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
     for k in nb.prange(h):
         y = _row(k, h)
         scratch = np.empty(2 * max(ns, 1))
-        hb = np.empty((3, 3, 3))
+        m = 2 * (radius // step) + 1
+        win = np.empty(2 * m * m)
+        xs = np.empty(m, np.int64)
+        ys = np.empty(m, np.int64)
         nrm = np.empty(3)
         best = np.empty(5)  # cost, depth, normal of the best plane so far
         for x in range((y + colour) % 2, w, 2):
@@ -363,6 +402,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
             ma = stats[y, x, 1] / s0
             if stats[y, x, 2] / s0 - ma * ma < min_var:
                 continue  # a textureless window: every plane costs the same
+            _window(x, y, ref, wts, radius, step, win, xs, ys)
             best[0] = C[y, x]
             best[1] = D[y, x]
             best[2] = N[y, x, 0]
@@ -403,17 +443,20 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                         d = dd
                 if d < dmin or d > dmax:
                     continue
+                if (abs(d - best[1]) < 1e-3 * best[1]
+                        and m0 * best[2] + m1 * best[3] + m2 * best[4] > 0.9995):
+                    continue  # the plane this pixel has (within 0.1 % and 1.8 degrees)
                 mask = every if full else own | S[qy, qx]
-                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
-                                      top_k, geom, sdepth, max_reproj, mask),
+                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
+                                      sizes, kinv, kr, ks, rs, ts, hm, min_var, top_k, geom,
+                                      sdepth, max_reproj, mask),
                                 d, m0, m1, m2, best):
                     bm = _best_sources(scratch, ns, nact)
             if not full:
                 own = bm
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
-            for trial in range(3):
+            for trial in range(3 if random_plane else 2):
                 bd = best[1]
                 b0 = best[2]
                 b1 = best[3]
@@ -443,9 +486,9 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                         continue
                 if d < dmin or d > dmax:
                     continue
-                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                      sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
-                                      top_k, geom, sdepth, max_reproj, own),
+                if _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
+                                      sizes, kinv, kr, ks, rs, ts, hm, min_var, top_k, geom,
+                                      sdepth, max_reproj, own),
                                 d, m0, m1, m2, best):
                     bm = _best_sources(scratch, ns, nact)
             S[y, x] = bm

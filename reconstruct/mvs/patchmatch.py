@@ -8,7 +8,8 @@ The method is Gipuma/ACMM's, on the CPU (the kernels are
 2. each view gets its source views (:func:`reconstruct.mvs.dense.select_neighbors`: shared
    sparse points at a useful triangulation angle) and a depth range (its sparse points'
    depths, widened);
-3. planes are initialised at random in that range and improved by red-black
+3. planes are initialised at random in that range (or, with ``coarse_iterations``, by
+   that many iterations of step 3 at half resolution, upsampled) and improved by red-black
    propagation and random refinement against a bilateral-weighted NCC aggregated over
    the ``top_k`` best source views (``iterations``);
 4. then, with every view's depth map from step 3, ``geom_iterations`` more iterations
@@ -30,7 +31,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -82,7 +83,12 @@ class PatchMatchOptions(Config):
     top_k: int = option(1, range="[1, 16]",
                         help="the cost of a plane is the mean of its top_k best source "
                              "views")
-    iterations: int = option(3, range="[1, 20]", help="photometric iterations")
+    iterations: int = option(3, range="[1, 20]",
+                             help="photometric iterations (at full resolution)")
+    coarse_iterations: int = option(0, range="[0, 20]",
+                                    help="photometric iterations at half resolution whose "
+                                         "planes, upsampled, start the full-resolution "
+                                         "ones (0: those start from random planes)")
     geom_iterations: int = option(2, range="[0, 20]",
                                   help="iterations with geometric consistency")
     active_sources: int = option(3, range="[0, 16]",
@@ -94,6 +100,10 @@ class PatchMatchOptions(Config):
     full_iterations: int = option(1, range="[1, 20]",
                                   help="photometric iterations that score every plane "
                                        "against every source view")
+    random_iterations: int = option(1, range="[0, 20]",
+                                    help="photometric iterations whose refinement also "
+                                         "tries a random plane per pixel (after the first "
+                                         "it wins for under 0.5 % of the pixels)")
     window_radius: int = option(4, unit="px", range="[1, 15]", help="matching window radius")
     window_step: int = option(2, unit="px", range="[1, 5]",
                               help="the window is sampled every window_step pixels")
@@ -215,6 +225,20 @@ def _stack(views: Sequence[View], idx: Sequence[int], maps=None):
     return img, dep, sizes
 
 
+def _half(views: Sequence[View], idx: Sequence[int]) -> list[View]:
+    """``views`` with those of ``idx`` at half resolution (area), cameras to match."""
+    out = list(views)
+    for j in idx:
+        c = views[j].camera
+        w, h = (c.width + 1) // 2, (c.height + 1) // 2
+        sx, sy = w / c.width, h / c.height
+        gray = cv2.resize(views[j].gray, (w, h), interpolation=cv2.INTER_AREA)
+        cam = Camera(w, h, c.fx * sx, c.fy * sy, (c.cx + 0.5) * sx - 0.5,
+                     (c.cy + 0.5) * sy - 0.5, np.zeros(5), c.cam_from_world)
+        out[j] = View(views[j].name, gray, views[j].color, cam, views[j].depth_range)
+    return out
+
+
 def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
               init: DepthMap | None, maps) -> DepthMap:
     from reconstruct.mvs import _patchmatch_kernels as pk
@@ -241,7 +265,16 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     D = np.zeros((h, w))
     N = np.zeros((h, w, 3))
     C = np.zeros((h, w))
-    if init is None:
+    coarse = init is None and opt.coarse_iterations > 0
+    if coarse:  # planes from half resolution, each pixel taking its coarse pixel's
+        small = _run_view(i, _half(views, [i, *sources]), sources,
+                          replace(opt, iterations=opt.coarse_iterations, coarse_iterations=0),
+                          None, None)
+        D[:] = cv2.resize(small.raw_depth, (w, h), interpolation=cv2.INTER_NEAREST)
+        N[:] = cv2.resize(small.normal, (w, h), interpolation=cv2.INTER_NEAREST)
+        N[np.linalg.norm(N, axis=2) < 0.5] = (0.0, 0.0, -1.0)
+        iters, p0 = opt.iterations, 0.05
+    elif init is None:
         pk.initialise(D, N, dmin, dmax, kinv, seed)
         iters, p0 = opt.iterations, 0.25
     else:
@@ -259,10 +292,11 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     pk.final_costs(D, N, C, S, nact, *args)
     for it in range(iters):
         perturb = max(p0 * 0.5 ** it, 0.01)
-        full = nact == 0 or (init is None and it < opt.full_iterations)
+        full = nact == 0 or (init is None and not coarse and it < opt.full_iterations)
         for colour in (0, 1):
             pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, S, nact, full, dmin, dmax,
-                     *args, perturb)
+                     *args, perturb,
+                     init is None and not coarse and it < opt.random_iterations)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)
