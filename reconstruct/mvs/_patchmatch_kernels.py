@@ -521,7 +521,10 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
     for k in nb.prange(h):
         y = _row(k, h)
         scratch = np.empty(2 * max(ns, 1))
-        hb = np.empty((3, 3, 3))
+        m = 2 * (radius // step) + 1
+        win = np.empty(2 * m * m)
+        xs = np.empty(m, np.int64)
+        ys = np.empty(m, np.int64)
         nrm = np.empty(3)
         best = np.empty(5)
         qs = np.empty((8, 2), np.int64)  # each direction's seed pixel (-1: none)
@@ -534,6 +537,7 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
             ma = stats[y, x, 1] / s0
             if stats[y, x, 2] / s0 - ma * ma < min_var:
                 continue
+            _window(x, y, ref, wts, radius, step, win, xs, ys)
             best[0] = C[y, x]
             best[1] = D[y, x]
             best[2] = N[y, x, 0]
@@ -607,8 +611,8 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                 tried[ntried, 2] = m1
                 tried[ntried, 3] = m2
                 ntried += 1
-                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, min_var,
                                    top_k, geom, sdepth, max_reproj, every),
                              d, m0, m1, m2, best)
             if best[1] <= 0.0:
@@ -630,8 +634,8 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                 m2 /= ln
                 if m0 * rx + m1 * ry + m2 * rz > 0 or d < dmin or d > dmax:
                     continue
-                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, hb, ref, wts, stats, src,
-                                   sizes, kinv, kr, ks, rs, ts, hm, radius, step, min_var,
+                _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
+                                   sizes, kinv, kr, ks, rs, ts, hm, min_var,
                                    top_k, geom, sdepth, max_reproj, every),
                              d, m0, m1, m2, best)
             C[y, x] = best[0]

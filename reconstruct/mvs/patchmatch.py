@@ -239,6 +239,25 @@ def _half(views: Sequence[View], idx: Sequence[int]) -> list[View]:
     return out
 
 
+def _view_geometry(i: int, views: Sequence[View], sources: Sequence[int],
+                   opt: PatchMatchOptions):
+    """What the kernels need of view i and its sources: K, K^-1, the sources' K, the
+    relative rotations and translations, the window weights and statistics, and the
+    homographies' per-source parts."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+
+    v = views[i]
+    kr = v.camera.K
+    kinv = np.linalg.inv(kr)
+    ks = np.stack([views[j].camera.K for j in sources])
+    rel = [_relative(v.camera, views[j].camera) for j in sources]
+    rs = np.stack([r for r, _ in rel])
+    ts = np.stack([t for _, t in rel])
+    wts, stats = pk.bilateral_weights(v.gray, opt.window_radius, opt.window_step,
+                                      opt.sigma_color, float(opt.window_radius))
+    return kr, kinv, ks, rs, ts, wts, stats, homography_parts(kr, ks, rs, ts)
+
+
 def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchMatchOptions,
               init: DepthMap | None, maps) -> DepthMap:
     from reconstruct.mvs import _patchmatch_kernels as pk
@@ -250,15 +269,8 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     if not sources or dmax <= 0:
         zero = np.zeros((h, w), np.float32)
         return DepthMap(zero, np.zeros((h, w, 3), np.float32), zero, [], zero)
-    kr = cam.K
-    kinv = np.linalg.inv(kr)
+    kr, kinv, ks, rs, ts, wts, stats, hm = _view_geometry(i, views, sources, opt)
     src, sdepth, sizes = _stack(views, sources, maps)
-    ks = np.stack([views[j].camera.K for j in sources])
-    rel = [_relative(cam, views[j].camera) for j in sources]
-    rs = np.stack([r for r, _ in rel])
-    ts = np.stack([t for _, t in rel])
-    wts, stats = pk.bilateral_weights(v.gray, opt.window_radius, opt.window_step,
-                                      opt.sigma_color, float(opt.window_radius))
     geom = opt.geom_weight if maps is not None else 0.0
     min_var = opt.min_texture ** 2
     seed = opt.seed * 1_000_003 + i
@@ -283,7 +295,6 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
         bad = np.linalg.norm(N, axis=2) < 0.5
         N[bad] = (0.0, 0.0, -1.0)
         iters, p0 = opt.geom_iterations, 0.05
-    hm = homography_parts(kr, ks, rs, ts)
     args = (v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts, hm,
             opt.window_radius, opt.window_step, min_var, opt.top_k, geom, sdepth,
             opt.max_reprojection)
@@ -360,21 +371,13 @@ def _fill_view(i: int, views: Sequence[View], sources: Sequence[int], opt: Patch
     from reconstruct.mvs import _patchmatch_kernels as pk
 
     v, m = views[i], maps[i]
-    cam = v.camera
     dmin, dmax = v.depth_range
-    kr = cam.K
-    kinv = np.linalg.inv(kr)
+    kr, kinv, ks, rs, ts, wts, stats, hm = _view_geometry(i, views, sources, opt)
     src, _, sizes = _stack(views, sources)
     sdepth = np.zeros_like(src)
     for k, j in enumerate(sources):
         c = views[j].camera
         sdepth[k, :c.height, :c.width] = maps[j].depth
-    ks = np.stack([views[j].camera.K for j in sources])
-    rel = [_relative(cam, views[j].camera) for j in sources]
-    rs = np.stack([r for r, _ in rel])
-    ts = np.stack([t for _, t in rel])
-    wts, stats = pk.bilateral_weights(v.gray, opt.window_radius, opt.window_step,
-                                      opt.sigma_color, float(opt.window_radius))
     D = np.where(hole, 0.0, m.depth).astype(np.float64)
     N = np.where(hole[..., None], 0.0, m.normal).astype(np.float64)
     C = np.where(hole, np.inf, 1.0 - m.confidence).astype(np.float64)
@@ -382,7 +385,7 @@ def _fill_view(i: int, views: Sequence[View], sources: Sequence[int], opt: Patch
     seed8 = seeds.astype(np.uint8)
     seed = (opt.seed * 1_000_003 + i) * 7 + 5
     args = (dmin, dmax, v.gray, wts, stats, src, sizes, kinv, kr, ks, rs, ts,
-            homography_parts(kr, ks, rs, ts), opt.window_radius, opt.window_step,
+            hm, opt.window_radius, opt.window_step,
             opt.min_texture ** 2, opt.holes.top_k, max(opt.geom_weight, 1e-3), sdepth,
             opt.max_reprojection)
     for it in range(opt.holes.iterations):
