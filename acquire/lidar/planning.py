@@ -19,7 +19,7 @@ line rate makes the spacing along the track equal to the one across it,
 >>> p = plan_strips(np.array([[0, 0], [1000, 600]]), 0.0, get_preset("riegl-lms-q560"),
 ...                 platform="airplane", altitude=500.0, overlap=0.3, density=4.0)
 >>> round(p.speed, 1), p.pulse_rate, len(p.legs)
-(72.9, 100000.0, 2)
+(73.6, 100000.0, 2)
 """
 
 from __future__ import annotations
