@@ -111,6 +111,16 @@ def _window(x, y, ref, wts, radius, step, win, xs, ys):
             k += 1
 
 
+@nb.njit(cache=True, inline="always")
+def _row_buffers(ns, radius, step):
+    """A thread's buffers for one row: the per-source costs (twice: a copy to sort) and
+    the reference window of :func:`_window` (weights and weighted grey levels, sample
+    columns and rows)."""
+    m = 2 * (radius // step) + 1
+    return (np.empty(2 * max(ns, 1)), np.empty(2 * m * m), np.empty(m, np.int64),
+            np.empty(m, np.int64))
+
+
 @nb.njit(cache=True, fastmath=True)
 def _view_cost(x, y, d, n0, n1, n2, s, stats, src, sizes, kinv, hm, min_var, win, xs, ys):
     """1 - bilateral NCC of the plane (d, n) at (x, y) against source view s; the
@@ -356,11 +366,7 @@ def final_costs(D, N, C, S, nact, ref, wts, stats, src, sizes, kinv, kr, ks, rs,
     every = (1 << ns) - 1
     for k in nb.prange(h):
         y = _row(k, h)
-        scratch = np.empty(2 * max(ns, 1))
-        m = 2 * (radius // step) + 1
-        win = np.empty(2 * m * m)
-        xs = np.empty(m, np.int64)
-        ys = np.empty(m, np.int64)
+        scratch, win, xs, ys = _row_buffers(ns, radius, step)
         for x in range(w):
             _window(x, y, ref, wts, radius, step, win, xs, ys)
             C[y, x] = _cost(x, y, D[y, x], N[y, x, 0], N[y, x, 1], N[y, x, 2], scratch, win,
@@ -390,11 +396,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
     idmax = 1.0 / dmax
     for k in nb.prange(h):
         y = _row(k, h)
-        scratch = np.empty(2 * max(ns, 1))
-        m = 2 * (radius // step) + 1
-        win = np.empty(2 * m * m)
-        xs = np.empty(m, np.int64)
-        ys = np.empty(m, np.int64)
+        scratch, win, xs, ys = _row_buffers(ns, radius, step)
         nrm = np.empty(3)
         best = np.empty(5)  # cost, depth, normal of the best plane so far
         for x in range((y + colour) % 2, w, 2):
@@ -520,11 +522,7 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
     every = (1 << ns) - 1
     for k in nb.prange(h):
         y = _row(k, h)
-        scratch = np.empty(2 * max(ns, 1))
-        m = 2 * (radius // step) + 1
-        win = np.empty(2 * m * m)
-        xs = np.empty(m, np.int64)
-        ys = np.empty(m, np.int64)
+        scratch, win, xs, ys = _row_buffers(ns, radius, step)
         nrm = np.empty(3)
         best = np.empty(5)
         qs = np.empty((8, 2), np.int64)  # each direction's seed pixel (-1: none)
