@@ -340,6 +340,63 @@ def _random_normal(seed, x, y, it, draw, kinv, out):
     out[2] = n2
 
 
+@nb.njit(cache=True, inline="always")
+def _load(best, C, D, N, y, x):
+    """``best`` = (cost, depth, normal) of pixel (x, y)."""
+    best[0] = C[y, x]
+    best[1] = D[y, x]
+    best[2] = N[y, x, 0]
+    best[3] = N[y, x, 1]
+    best[4] = N[y, x, 2]
+
+
+@nb.njit(cache=True, inline="always")
+def _store(best, C, D, N, y, x):
+    """Pixel (x, y) takes the plane and cost in ``best``."""
+    C[y, x] = best[0]
+    D[y, x] = best[1]
+    N[y, x, 0] = best[2]
+    N[y, x, 1] = best[3]
+    N[y, x, 2] = best[4]
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _carried(D, N, qx, qy, kinv, rx, ry, rz):
+    """The depth at which the plane of pixel (qx, qy) meets the ray (rx, ry, rz) of
+    another pixel; the neighbour's own depth when the ray nearly parallels the plane or
+    the carried depth is not within 10 % of it."""
+    m0 = N[qy, qx, 0]
+    m1 = N[qy, qx, 1]
+    m2 = N[qy, qx, 2]
+    qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
+    qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
+    qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
+    d = D[qy, qx]
+    den = m0 * rx + m1 * ry + m2 * rz
+    if abs(den) > 1e-9:
+        dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
+        if dd > 0 and abs(dd - d) < 0.1 * d:
+            return dd
+    return d
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _perturbed(best, perturb, depth_too, seed, pix, x, y, it, base, kinv, nrm):
+    """The plane in ``best`` perturbed for refinement: its normal by ``2 perturb`` times
+    a random unit vector (draw ``base + 1``), renormalised, and with ``depth_too`` its
+    inverse depth by up to ``perturb`` relative (draw ``base``)."""
+    d = best[1]
+    if depth_too:
+        u = _uniform(seed, pix, it, base)
+        d = 1.0 / (1.0 / d * (1.0 + perturb * (2.0 * u - 1.0)))
+    _random_normal(seed, x, y, it, base + 1, kinv, nrm)
+    m0 = best[2] + perturb * 2.0 * nrm[0]
+    m1 = best[3] + perturb * 2.0 * nrm[1]
+    m2 = best[4] + perturb * 2.0 * nrm[2]
+    ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    return d, m0 / ln, m1 / ln, m2 / ln
+
+
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def initialise(D, N, dmin, dmax, kinv, seed):
     """Random planes: depth uniform in inverse depth over [dmin, dmax], normal random
@@ -405,11 +462,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
             if stats[y, x, 2] / s0 - ma * ma < min_var:
                 continue  # a textureless window: every plane costs the same
             _window(x, y, ref, wts, radius, step, win, xs, ys)
-            best[0] = C[y, x]
-            best[1] = D[y, x]
-            best[2] = N[y, x, 0]
-            best[3] = N[y, x, 1]
-            best[4] = N[y, x, 2]
+            _load(best, C, D, N, y, x)
             own = every if full else S[y, x]
             bm = S[y, x]
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
@@ -432,17 +485,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                 m0 = N[qy, qx, 0]
                 m1 = N[qy, qx, 1]
                 m2 = N[qy, qx, 2]
-                # the neighbour's plane, carried to this pixel's ray
-                qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
-                qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
-                qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
-                dp = D[qy, qx] * (m0 * qrx + m1 * qry + m2 * qrz)
-                den = m0 * rx + m1 * ry + m2 * rz
-                d = D[qy, qx]
-                if abs(den) > 1e-9:
-                    dd = dp / den
-                    if dd > 0 and abs(dd - d) < 0.1 * d:
-                        d = dd
+                d = _carried(D, N, qx, qy, kinv, rx, ry, rz)
                 if d < dmin or d > dmax:
                     continue
                 if (abs(d - best[1]) < 1e-3 * best[1]
@@ -459,10 +502,6 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
             # refinement: perturbed depth and normal, perturbed normal, a random plane
             pix = x * 65536 + y
             for trial in range(3 if random_plane else 2):
-                bd = best[1]
-                b0 = best[2]
-                b1 = best[3]
-                b2 = best[4]
                 base = 2 + 4 * trial
                 if trial == 2:
                     u = _uniform(seed, pix, it, base)
@@ -472,18 +511,8 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                     m1 = nrm[1]
                     m2 = nrm[2]
                 else:
-                    d = bd
-                    if trial == 0:
-                        u = _uniform(seed, pix, it, base)
-                        d = 1.0 / (1.0 / bd * (1.0 + perturb * (2.0 * u - 1.0)))
-                    _random_normal(seed, x, y, it, base + 1, kinv, nrm)
-                    m0 = b0 + perturb * 2.0 * nrm[0]
-                    m1 = b1 + perturb * 2.0 * nrm[1]
-                    m2 = b2 + perturb * 2.0 * nrm[2]
-                    ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-                    m0 /= ln
-                    m1 /= ln
-                    m2 /= ln
+                    d, m0, m1, m2 = _perturbed(best, perturb, trial == 0, seed, pix, x, y, it,
+                                               base, kinv, nrm)
                     if m0 * rx + m1 * ry + m2 * rz > 0:
                         continue
                 if d < dmin or d > dmax:
@@ -494,11 +523,7 @@ def sweep(colour, it, seed, D, N, C, S, nact, full, dmin, dmax, ref, wts, stats,
                                 d, m0, m1, m2, best):
                     bm = _best_sources(scratch, ns, nact)
             S[y, x] = bm
-            C[y, x] = best[0]
-            D[y, x] = best[1]
-            N[y, x, 0] = best[2]
-            N[y, x, 1] = best[3]
-            N[y, x, 2] = best[4]
+            _store(best, C, D, N, y, x)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
@@ -536,11 +561,7 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
             if stats[y, x, 2] / s0 - ma * ma < min_var:
                 continue
             _window(x, y, ref, wts, radius, step, win, xs, ys)
-            best[0] = C[y, x]
-            best[1] = D[y, x]
-            best[2] = N[y, x, 0]
-            best[3] = N[y, x, 1]
-            best[4] = N[y, x, 2]
+            _load(best, C, D, N, y, x)
             rx = kinv[0, 0] * x + kinv[0, 1] * y + kinv[0, 2]
             ry = kinv[1, 0] * x + kinv[1, 1] * y + kinv[1, 2]
             rz = kinv[2, 0] * x + kinv[2, 1] * y + kinv[2, 2]
@@ -569,18 +590,7 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                 sd[dirn] = -1.0
                 if qx < 0:
                     continue
-                m0 = N0[qy, qx, 0]
-                m1 = N0[qy, qx, 1]
-                m2 = N0[qy, qx, 2]
-                qrx = kinv[0, 0] * qx + kinv[0, 1] * qy + kinv[0, 2]
-                qry = kinv[1, 0] * qx + kinv[1, 1] * qy + kinv[1, 2]
-                qrz = kinv[2, 0] * qx + kinv[2, 1] * qy + kinv[2, 2]
-                d = D0[qy, qx]
-                den = m0 * rx + m1 * ry + m2 * rz
-                if abs(den) > 1e-9:
-                    dd = d * (m0 * qrx + m1 * qry + m2 * qrz) / den
-                    if dd > 0 and abs(dd - d) < 0.1 * d:
-                        d = dd
+                d = _carried(D0, N0, qx, qy, kinv, rx, ry, rz)
                 sd[dirn] = d
                 lo = min(lo, d)
                 hi = max(hi, d)
@@ -617,30 +627,15 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
                 continue  # no seed reached this pixel
             pix = x * 65536 + y
             for trial in range(2):
-                base = 40 + 4 * trial
-                d = best[1]
-                if trial == 0:
-                    u = _uniform(seed, pix, it, base)
-                    d = 1.0 / (1.0 / d * (1.0 + perturb * (2.0 * u - 1.0)))
-                _random_normal(seed, x, y, it, base + 1, kinv, nrm)
-                m0 = best[2] + perturb * 2.0 * nrm[0]
-                m1 = best[3] + perturb * 2.0 * nrm[1]
-                m2 = best[4] + perturb * 2.0 * nrm[2]
-                ln = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-                m0 /= ln
-                m1 /= ln
-                m2 /= ln
+                d, m0, m1, m2 = _perturbed(best, perturb, trial == 0, seed, pix, x, y, it,
+                                           40 + 4 * trial, kinv, nrm)
                 if m0 * rx + m1 * ry + m2 * rz > 0 or d < dmin or d > dmax:
                     continue
                 _keep_better(_cost(x, y, d, m0, m1, m2, scratch, win, xs, ys, stats, src,
                                    sizes, kinv, kr, ks, rs, ts, hm, min_var,
                                    top_k, geom, sdepth, max_reproj, every),
                              d, m0, m1, m2, best)
-            C[y, x] = best[0]
-            D[y, x] = best[1]
-            N[y, x, 0] = best[2]
-            N[y, x, 1] = best[3]
-            N[y, x, 2] = best[4]
+            _store(best, C, D, N, y, x)
 
 
 @nb.njit(parallel=True, cache=True, fastmath=True)
