@@ -638,6 +638,20 @@ def fill_holes(colour, it, seed, hole, seedable, D0, N0, D, N, C, reach, min_dir
             _store(best, C, D, N, y, x)
 
 
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _pixel_into(x, y, z, k, wfc, cfw):
+    """Pixel (x, y) at depth z of a camera with intrinsics ``k`` and world_from_cam
+    ``wfc`` (4x4), in the frame of another camera (its cam_from_world ``cfw``)."""
+    p0 = (x - k[0, 2]) / k[0, 0] * z
+    p1 = (y - k[1, 2]) / k[1, 1] * z
+    X0 = wfc[0, 0] * p0 + wfc[0, 1] * p1 + wfc[0, 2] * z + wfc[0, 3]
+    X1 = wfc[1, 0] * p0 + wfc[1, 1] * p1 + wfc[1, 2] * z + wfc[1, 3]
+    X2 = wfc[2, 0] * p0 + wfc[2, 1] * p1 + wfc[2, 2] * z + wfc[2, 3]
+    return (cfw[0, 0] * X0 + cfw[0, 1] * X1 + cfw[0, 2] * X2 + cfw[0, 3],
+            cfw[1, 0] * X0 + cfw[1, 1] * X1 + cfw[1, 2] * X2 + cfw[1, 3],
+            cfw[2, 0] * X0 + cfw[2, 1] * X1 + cfw[2, 2] * X2 + cfw[2, 3])
+
+
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, ocfw,
                  depth_tol, max_reproj, cos_max):
@@ -654,14 +668,7 @@ def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, o
             z = depth[y, x]
             if z <= 0.0:
                 continue
-            p0 = (x - k[0, 2]) / k[0, 0] * z
-            p1 = (y - k[1, 2]) / k[1, 1] * z
-            X0 = wfc[0, 0] * p0 + wfc[0, 1] * p1 + wfc[0, 2] * z + wfc[0, 3]
-            X1 = wfc[1, 0] * p0 + wfc[1, 1] * p1 + wfc[1, 2] * z + wfc[1, 3]
-            X2 = wfc[2, 0] * p0 + wfc[2, 1] * p1 + wfc[2, 2] * z + wfc[2, 3]
-            Y0 = ocfw[0, 0] * X0 + ocfw[0, 1] * X1 + ocfw[0, 2] * X2 + ocfw[0, 3]
-            Y1 = ocfw[1, 0] * X0 + ocfw[1, 1] * X1 + ocfw[1, 2] * X2 + ocfw[1, 3]
-            Y2 = ocfw[2, 0] * X0 + ocfw[2, 1] * X1 + ocfw[2, 2] * X2 + ocfw[2, 3]
+            Y0, Y1, Y2 = _pixel_into(x, y, z, k, wfc, ocfw)
             if Y2 <= 1e-12:
                 continue
             uo = int(np.rint(ok[0, 0] * Y0 / Y2 + ok[0, 2]))
@@ -671,14 +678,8 @@ def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, o
             d = odepth[vo, uo]
             if d <= 0.0 or abs(Y2 - d) / d > depth_tol:
                 continue
-            q0 = (uo - ok[0, 2]) / ok[0, 0] * d
-            q1 = (vo - ok[1, 2]) / ok[1, 1] * d
-            W0 = owfc[0, 0] * q0 + owfc[0, 1] * q1 + owfc[0, 2] * d + owfc[0, 3]
-            W1 = owfc[1, 0] * q0 + owfc[1, 1] * q1 + owfc[1, 2] * d + owfc[1, 3]
-            W2 = owfc[2, 0] * q0 + owfc[2, 1] * q1 + owfc[2, 2] * d + owfc[2, 3]
-            Z0 = cfw[0, 0] * W0 + cfw[0, 1] * W1 + cfw[0, 2] * W2 + cfw[0, 3]
-            Z1 = cfw[1, 0] * W0 + cfw[1, 1] * W1 + cfw[1, 2] * W2 + cfw[1, 3]
-            Z2 = max(cfw[2, 0] * W0 + cfw[2, 1] * W1 + cfw[2, 2] * W2 + cfw[2, 3], 1e-12)
+            Z0, Z1, Z2 = _pixel_into(uo, vo, d, ok, owfc, cfw)
+            Z2 = max(Z2, 1e-12)
             eu = k[0, 0] * Z0 / Z2 + k[0, 2] - x
             ev = k[1, 1] * Z1 / Z2 + k[1, 2] - y
             if eu * eu + ev * ev > max_reproj * max_reproj:
