@@ -183,13 +183,17 @@ def mixed_conifer_reference(pts):
 
 
 def _polygon_centroid(p):
-    x, y = p[:, 0], p[:, 1]
+    """The centroid of polygon ``p (k, 2)``, computed about its vertices' mean: in projected
+    coordinates (y ~ 4e6 m) the shoelace products lose metres (the tile's crown offsets came
+    out 6 m in median, up to 19 m, against 0.5 m about the mean)."""
+    m = p.mean(axis=0)
+    x, y = p[:, 0] - m[0], p[:, 1] - m[1]
     cr = x * np.roll(y, -1) - np.roll(x, -1) * y
     a = cr.sum() / 2
     if abs(a) < 1e-9:
-        return p.mean(axis=0)
-    return np.array([np.sum((x + np.roll(x, -1)) * cr),
-                     np.sum((y + np.roll(y, -1)) * cr)]) / (6 * a)
+        return m
+    return m + np.array([np.sum((x + np.roll(x, -1)) * cr),
+                         np.sum((y + np.roll(y, -1)) * cr)]) / (6 * a)
 
 
 def _survey_figures(pts, res, ref_trees, area):
