@@ -53,7 +53,6 @@ from core.raster_io import Raster, write_raster
 from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
 from data_synth.scenes import SceneBundle
-from procgen.crowns import REACH_MAX, crown_reach
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
     NEEDLE_CLUSTER,
@@ -128,15 +127,6 @@ class ForestConfig(Config):
     needle_density: float = option(NEEDLE_DENSITY, unit="1/m2", range="(0, 2000]",
                                    help="needle clusters per square metre of a conifer "
                                         "branch's spray")
-    crown_competition: bool = option(False,
-                                     help="crowns compete for the space between them: pushed "
-                                          "back where a neighbour's crown is, grown further "
-                                          "into open space, each keeping its area "
-                                          "(procgen.crowns); off: each crown as measured, "
-                                          "overlapping its neighbours")
-    crown_reach_max: float = option(REACH_MAX, unit="crown radii", range="[1, 3]",
-                                    help="with crown_competition: how far a crown may reach "
-                                         "into open space, from its stem")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
 
@@ -278,31 +268,20 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     zg = terrain_height(dtm_local, xl, yl)
     objects, meshes = [], {}
     ground_parts = _ground(cfg, dtm_local, rng, objects, meshes)
-    # the unlisted trees' own generator: the listed trees and the understory stay as they were
-    urng = np.random.default_rng([seed, 1])
-    unlisted = inventory is not None and cfg.unlisted > 0
-    reach = u = None
-    if cfg.crown_competition:
-        # every crown's radius first (drawn from their own generator where the table has
-        # none), the unlisted trees placed, then each crown's reach among all of them
-        t = dict(t, crown_radius=_crown_radii(t, np.random.default_rng([seed, 2])))
-        u = _unlisted_trees(cfg, t, t["crown_radius"], lo, hi, urng) if unlisted else None
-        reach = _competing_reach(cfg, t, u)
-    crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes,
-                          reach=None if reach is None else reach[:n])
+    crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes)
     trees = {"tree_id": np.arange(1, n + 1), "x": t["x"], "y": t["y"],
              "z_ground": zg + origin[2], "height": t["height"], "crown_radius": crowns,
              "dbh": dbhs, "species": np.asarray(t["species"], str),
              "listed": np.ones(n, np.int64)}
-    if unlisted:
-        if u is None:
-            u = _unlisted_trees(cfg, t, crowns, lo, hi, urng)
+    if inventory is not None and cfg.unlisted > 0:
+        # their own generator: the listed trees and the understory stay as they were
+        urng = np.random.default_rng([seed, 1])
+        u = _unlisted_trees(cfg, t, crowns, lo, hi, urng)
         m = len(u["x"])
         if m:
             uxl, uyl = u["x"] - origin[0], u["y"] - origin[1]
             uzg = terrain_height(dtm_local, uxl, uyl)
-            ucr, udbh = _trees(cfg, u, uxl, uyl, uzg, urng, objects, meshes, first_id=n + 1,
-                               reach=None if reach is None else reach[n:])
+            ucr, udbh = _trees(cfg, u, uxl, uyl, uzg, urng, objects, meshes, first_id=n + 1)
             new = {"tree_id": np.arange(n + 1, n + m + 1), "x": u["x"], "y": u["y"],
                    "z_ground": uzg + origin[2], "height": u["height"], "crown_radius": ucr,
                    "dbh": udbh, "species": u["species"], "listed": np.zeros(m, np.int64)}
@@ -361,35 +340,6 @@ def _ground(cfg, dtm: Raster, rng, objects, meshes):
     return parts
 
 
-def _crown_radii(t, rng) -> np.ndarray:
-    """The table's crown radii, and the species' proportion (+-15 %, ``rng``) where it has
-    none."""
-    n = len(t["x"])
-    given = t.get("crown_radius")
-    cr = np.full(n, np.nan) if given is None else np.array(given, np.float64)
-    for k in np.flatnonzero(~(cr > 0)):
-        sp = species_for(str(t["species"][k]))
-        cr[k] = sp.crown_width * float(t["height"][k]) * rng.uniform(0.85, 1.15)
-    return cr
-
-
-def _competing_reach(cfg, t, u) -> np.ndarray:
-    """Each crown's reach per azimuth sector (:func:`procgen.crowns.crown_reach`), the
-    listed trees' (with their offsets) then the unlisted ones' ``u`` (none)."""
-    xy = np.column_stack([t["x"], t["y"]]).astype(np.float64)
-    radii = np.asarray(t["crown_radius"], np.float64)
-    off = np.zeros((len(xy), 2))
-    if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
-        off = np.column_stack([t["crown_dx"], t["crown_dy"]]).astype(np.float64)
-        off[~np.all(np.isfinite(off), axis=1)] = 0.0
-    if u is not None and len(u["x"]):
-        xy = np.vstack([xy, np.column_stack([u["x"], u["y"]])])
-        radii = np.concatenate([radii, u["crown_radius"]])
-        off = np.vstack([off, np.zeros((len(u["x"]), 2))])
-    centre = xy.mean(axis=0) if len(xy) else np.zeros(2)  # about the stand: metres kept
-    return crown_reach(xy - centre, radii, offsets=off, reach_max=cfg.crown_reach_max)
-
-
 def _unlisted_trees(cfg, t, crowns, lo, hi, rng) -> dict:
     """Trees an inventory does not list, in inventory coordinates: ``cfg.unlisted`` per
     hectare of the stand's extent ``lo``-``hi``, each stem where no listed crown (its
@@ -429,7 +379,7 @@ def _unlisted_trees(cfg, t, crowns, lo, hi, rng) -> dict:
             "crown_dx": None, "crown_dy": None}
 
 
-def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1, reach=None):
+def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
     n = len(xl)
     models = {}
     crowns, dbhs = np.empty(n), np.full(n, np.nan)
@@ -450,8 +400,8 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1, reach=None):
         if not cr > 0:
             cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
         dbh = t["dbh"][k] if t.get("dbh") is not None else np.nan
-        off = (0.0, 0.0)  # with a reach, it holds the offset: the crown among its neighbours
-        if reach is None and t.get("crown_dx") is not None and t.get("crown_dy") is not None:
+        off = (0.0, 0.0)
+        if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
             off = (float(t["crown_dx"][k]), float(t["crown_dy"][k]))
             off = off if np.all(np.isfinite(off)) else (0.0, 0.0)
         V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
@@ -459,8 +409,7 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1, reach=None):
                              dbh=float(dbh) if dbh > 0 else None,
                              azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
                              needle_cluster=cfg.needle_cluster,
-                             needle_density=cfg.needle_density, crown_offset=off,
-                             crown_reach=None if reach is None else reach[k])
+                             needle_density=cfg.needle_density, crown_offset=off)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh

@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.validate import check_array, check_positive, check_rng
-from procgen.crowns import MAX_ASYMMETRY
 
 __all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "grow_tree",
            "place_tree", "needle_clusters", "crown_years", "LEADER_GROWTH", "NEEDLE_CLUSTER",
@@ -344,8 +343,7 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
                dbh: float | None = None, azimuth: float = 0.0,
                rng: np.random.Generator | None = None,
                needle_cluster: float = NEEDLE_CLUSTER, needle_density: float = NEEDLE_DENSITY,
-               crown_offset=(0.0, 0.0),
-               crown_reach=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               crown_offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Scale a normalised tree to its size and stand it at ``position``.
 
     Parameters
@@ -373,12 +371,6 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
         reaches ``1 + a cos(t)`` of its radius at azimuth ``t`` from the offset's direction,
         ``a = |offset| / crown radius`` (at most 0.6), which moves a round crown's centre by
         ``a`` radii; the stem and the top stay where they are.
-    crown_reach : (k,) float, optional
-        Metres from the stem to the crown's edge in ``k`` azimuth sectors, sector ``i`` at
-        ``2 pi i / k`` from +x in the world (after ``azimuth``), linear between them: a crown
-        shaped by its neighbours (:func:`procgen.crowns.crown_reach`, which takes the
-        offset into account: give one or the other). Every point of the crown moves along
-        its own azimuth by reach / ``crown_radius``; the stem and the top stay.
 
     Returns
     -------
@@ -415,22 +407,9 @@ def place_tree(model: TreeModel, *, position, height: float, crown_radius: float
     c, s = np.cos(azimuth), np.sin(azimuth)
     V = V @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     d = np.asarray(crown_offset, np.float64).reshape(2)
-    if crown_reach is not None:
-        if np.any(d != 0):
-            raise ValueError("crown_offset: expected none with crown_reach (the reach "
-                             f"includes the offset), got {d.tolist()}")
-        reach = check_array(crown_reach, "crown_reach", shape=(None,), min_rows=4)
+    if np.any(d != 0):
         r = crown_radius if crown_radius is not None else model.crown_radius * kxy
-        sec = len(reach)
-        ang = np.mod(np.arctan2(V[:, 1], V[:, 0]), 2 * np.pi) * (sec / (2 * np.pi))
-        i0 = np.floor(ang).astype(np.int64) % sec
-        w = ang - np.floor(ang)
-        k = ((1 - w) * reach[i0] + w * reach[(i0 + 1) % sec]) / max(r, 1e-9)
-        k[np.unique(model.triangles[model.parts == 0])] = 1.0  # the stem stays round
-        V[:, :2] *= k[:, None]
-    elif np.any(d != 0):
-        r = crown_radius if crown_radius is not None else model.crown_radius * kxy
-        a = min(float(np.hypot(*d)) / max(r, 1e-9), MAX_ASYMMETRY)
+        a = min(float(np.hypot(*d)) / max(r, 1e-9), 0.6)
         u = d / np.hypot(*d)
         rho = np.hypot(V[:, 0], V[:, 1])
         cos_t = np.divide(V[:, :2] @ u, rho, out=np.zeros(len(V)), where=rho > 1e-12)
