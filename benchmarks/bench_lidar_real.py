@@ -185,7 +185,18 @@ def mixed_conifer_reference(pts):
 def _polygon_centroid(p):
     """The centroid of polygon ``p (k, 2)``, computed about its vertices' mean: in projected
     coordinates (y ~ 4e6 m) the shoelace products lose metres (the tile's crown offsets came
-    out 6 m in median, up to 19 m, against 0.5 m about the mean)."""
+    out 6.0 m in median, 18.7 m at the 90th percentile, against 0.84 and 1.98 m about the
+    mean).
+
+    >>> t = np.arange(12) * np.pi / 6                  # a crown 3 m across a 12-gon ...
+    >>> far = np.array([481_349.53, 3_813_010.75])     # ... at MixedConifer's corner (UTM 12N)
+    >>> ring = 3 * np.column_stack([np.cos(t), np.sin(t)]) + far
+    >>> (_polygon_centroid(ring) - far).round(6).tolist()   # (about the origin: 0.73, 5.75)
+    [0.0, 0.0]
+    >>> sq = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [1.0, 2.0], [0.0, 2.0]])
+    >>> (_polygon_centroid(sq + far) - far).round(6).tolist()   # not the vertices' mean
+    [1.0, 1.0]
+    """
     m = p.mean(axis=0)
     x, y = p[:, 0] - m[0], p[:, 1] - m[1]
     cr = x * np.roll(y, -1) - np.roll(x, -1) * y
