@@ -59,6 +59,7 @@ from procgen.trees import (
     NEEDLE_DENSITY,
     SPECIES,
     TREE_PARTS,
+    WHORL_AREA,
     crown_years,
     grow_tree,
     place_tree,
@@ -127,6 +128,10 @@ class ForestConfig(Config):
     needle_density: float = option(NEEDLE_DENSITY, unit="1/m2", range="(0, 2000]",
                                    help="needle clusters per square metre of a conifer "
                                         "branch's spray")
+    whorl_area: float = option(WHORL_AREA, unit="m2", range="(0, 100]",
+                               help="crown projection a conifer's whorl fills with sprays "
+                                    "of its species' width; a crown with more area per "
+                                    "whorl widens its sprays in proportion")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
 
@@ -409,7 +414,8 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
                              dbh=float(dbh) if dbh > 0 else None,
                              azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
                              needle_cluster=cfg.needle_cluster,
-                             needle_density=cfg.needle_density, crown_offset=off)
+                             needle_density=cfg.needle_density, crown_offset=off,
+                             whorl_area=cfg.whorl_area)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh

@@ -8,12 +8,14 @@ import pytest
 
 from procgen.trees import (
     FAN,
+    WHORL_AREA,
     crown_years,
     grow_tree,
     hull_radius,
     needle_clusters,
     place_tree,
     species_for,
+    spray_scale,
 )
 
 
@@ -110,3 +112,55 @@ def test_a_crown_offset_moves_the_crown_not_the_stem_or_the_top():
     far = np.max(leaf1[:, 1] - 4.0) / np.max(leaf0[:, 1] - 4.0)
     near = np.max(4.0 - leaf1[:, 1]) / np.max(4.0 - leaf0[:, 1])
     assert far == pytest.approx(1 + a, rel=0.1) and near == pytest.approx(1 - a, rel=0.1)
+
+
+def _nadir_opacity(V, F, radius, lo=0.0, hi=0.8, step=0.05):
+    """Share of vertical rays ``step`` apart, between ``lo`` and ``hi`` of the crown's
+    radius from the stem (at the origin), that hit a triangle."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(V.astype(np.float32)),
+                        o3d.core.Tensor(F.astype(np.uint32)))
+    g = np.arange(-radius, radius + 1e-9, step)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    rho = np.hypot(x, y) / radius
+    keep = (rho >= lo) & (rho <= hi)
+    rays = np.zeros((int(keep.sum()), 6), np.float32)
+    rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = x[keep], y[keep], V[:, 2].max() + 5, -1
+    return float(np.isfinite(scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()).mean())
+
+
+@pytest.mark.parametrize("code, bound", [("PIPO", 0.85), ("ABCO", 0.95)])
+def test_a_conifer_crown_stays_as_opaque_whatever_its_size(code, bound):
+    sp = species_for(code)
+    stopped, widened = {}, {}
+    # the calibrated crown (21 m, 3 m), the species' proportion, and the stand's large ones
+    for h, r in ((16.0, 2.24), (21.0, 3.0), (16.0, 3.3), (24.0, 4.2)):
+        m = grow_tree(sp, rng=np.random.default_rng(0), years=crown_years(h, sp.crown_ratio),
+                      crown_ratio=sp.crown_ratio)
+        for area in (WHORL_AREA, 100.0):           # 100 m2 per whorl: sprays never widen
+            V, F, P = place_tree(m, position=(0.0, 0.0, 0.0), height=h, crown_radius=r,
+                                 rng=np.random.default_rng(1), whorl_area=area)
+            (widened if area == WHORL_AREA else stopped)[h, r] = _nadir_opacity(V, F, r)
+            if area == WHORL_AREA:
+                # the widened sprays keep the crown's radius as asked
+                leaf = V[F[P == 2].ravel()]
+                assert hull_radius(leaf[:, :2]) == pytest.approx(r, rel=0.06)
+    w = np.array(list(widened.values()))
+    # within 0.8 of the radius the crown stops about the same share of nadir rays at every
+    # size, and nearly all of them
+    assert w.min() > bound and w.max() - w.min() < 0.10, widened
+    # with sprays of a fixed width the large crowns opened (PIPO 24 m / 4.2 m: 75 % against
+    # 93 % for 16 m / 2.24 m), and the small ones were already as they are
+    s = np.array(list(stopped.values()))
+    assert s[0] == w[0] and s[-1] < w[-1] - 0.02
+    assert spray_scale(3.0, 23) == 1.0 and spray_scale(4.2, 24) > 1.5
+
+
+def test_widened_sprays_are_seeded():
+    m = grow_tree("PIPO", rng=np.random.default_rng(2), years=crown_years(24.0, 0.5))
+    out = [place_tree(m, position=(0.0, 0.0, 0.0), height=24.0, crown_radius=4.2,
+                      rng=np.random.default_rng(s))[0] for s in (5, 5, 6)]
+    assert out[0].tobytes() == out[1].tobytes()
+    assert out[0].shape != out[2].shape or not np.array_equal(out[0], out[2])
