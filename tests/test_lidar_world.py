@@ -353,9 +353,9 @@ def test_unlisted_trees_grow_in_the_gaps_and_leave_the_listed_alone(tmp_path):
     inv = tmp_path / "inv.csv"
     inv.write_text("x,y,height,crown_radius,crown_dx,crown_dy,species\n"
                    "10,10,14,4.0,1.0,0,PIAB\n30,12,12,3.0,,,PIAB\n20,30,16,5.0,0,-1.5,FASY\n")
-    plain = build_forest(ForestConfig(relief=0.0, margin=2.0, understory=50.0, variants=1),
+    plain = build_forest(ForestConfig(relief=0.0, margin=2.0, understory=400.0, variants=1),
                          inventory=inv, seed=4)
-    cfg = ForestConfig(relief=0.0, margin=2.0, understory=50.0, variants=1, unlisted=300.0,
+    cfg = ForestConfig(relief=0.0, margin=2.0, understory=400.0, variants=1, unlisted=300.0,
                        unlisted_height=6.0, unlisted_height_sd=2.0)
     b = build_forest(cfg, inventory=inv, seed=4)
     t = b.trees
