@@ -347,8 +347,8 @@ year older with every year's shoot of the axis, are longer the farther from the 
 WHORL_AREA = 1.23
 """Square metres of crown projection that a whorl's branches fill with sprays of their
 species' width: that of the crowns the needle density was set on (21 m tall, 3 m radius:
-pi 3^2 over 23 whorls for *Pinus ponderosa*, 24 for the firs). A crown with more area per whorl widens its sprays in
-proportion (:func:`spray_scale`)."""
+pi 3^2 over 23 whorls for *Pinus ponderosa*, 24 for the firs). A crown with more area per
+whorl widens its sprays in proportion (:func:`spray_scale`)."""
 
 
 def spray_scale(crown_radius: float, whorls: int, *, whorl_area: float = WHORL_AREA) -> float:
