@@ -409,9 +409,16 @@ def test_the_second_pass_fills_holes_on_confirmed_surfaces_only():
 
 
 def test_confirmed_depths_are_what_fusion_keeps_before_erosion():
-    """The compiled agreement test (the second pass's "confirmed") against fusion's own, on
-    depths and normals perturbed so that about half of them agree."""
-    from reconstruct.mvs.fusion import FusionOptions, confirmed_depths, fuse_points
+    """The compiled agreement test (the second pass's "confirmed", and fusion's) against
+    the same test in numpy, on depths and normals perturbed so that about half of them
+    agree."""
+    from reconstruct.mvs.fusion import (
+        FusionOptions,
+        _agree,
+        _backproject,
+        confirmed_depths,
+        fuse_points,
+    )
 
     cams, _ = _plane_views(n=4)
     rng = np.random.default_rng(4)
@@ -425,11 +432,23 @@ def test_confirmed_depths_are_what_fusion_keeps_before_erosion():
         normals.append((n / np.linalg.norm(n, axis=2, keepdims=True)).astype(np.float32))
     nb = [[j for j in range(4) if j != i] for i in range(4)]
     opt = FusionOptions(edge_erosion=0, min_views=2)
-    want = fuse_points(cams, depths, normals, [np.zeros(d.shape + (3,), np.uint8)
-                                               for d in depths], nb, opt).masks
+    cos_max = np.cos(np.radians(opt.max_normal_deg))
+    want = []
+    for i, cam in enumerate(cams):
+        u, v, pc = _backproject(cam, depths[i])
+        X = pc @ cam.world_from_cam[:3, :3].T + cam.world_from_cam[:3, 3]
+        n_ref = normals[i][v, u].astype(np.float64) @ cam.world_from_cam[:3, :3].T
+        count = sum(_agree(X, n_ref, u, v, cam, cams[j], depths[j], normals[j], opt, cos_max)
+                    for j in nb[i])
+        m = np.zeros(depths[i].shape, bool)
+        m[v[count >= 2], u[count >= 2]] = True
+        want.append(m)
     got = confirmed_depths(cams, depths, normals, nb, opt)
-    for g, m in zip(got, want, strict=True):
+    fused = fuse_points(cams, depths, normals, [np.zeros(d.shape + (3,), np.uint8)
+                                                for d in depths], nb, opt).masks
+    for g, f, m in zip(got, fused, want, strict=True):
         assert 0.2 < m.mean() < 0.8 and (g != m).mean() < 1e-3
+        assert np.array_equal(f, g)
 
 
 def test_fusion_keeps_what_views_agree_on():

@@ -168,15 +168,18 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         cam = cameras[i]
         u, v, pc = _backproject(cam, depths[i], opt.edge_erosion, jump=opt.edge_jump,
                                 hole_area=opt.hole_area)
-        count = np.zeros(len(u), np.int32)
         R_wc = cam.world_from_cam[:3, :3]
         X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
         n_ref = normals[i][v, u].astype(np.float64) @ R_wc.T
-        for j in neighbours[i]:
-            if j == i:
-                continue
-            count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
-                            opt, cos_max)
+        if opt.disparity_tol == 0:  # the same test, compiled, over the whole map
+            count = _agree_counts(i, cameras, depths, normals, neighbours[i], opt,
+                                  cos_max)[v, u]
+        else:
+            count = np.zeros(len(u), np.int32)
+            for j in neighbours[i]:
+                if j != i:
+                    count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
+                                    opt, cos_max)
         keep = count >= opt.min_views
         mask = np.zeros(depths[i].shape, bool)
         mask[v[keep], u[keep]] = True
@@ -201,19 +204,8 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     cos_max = np.cos(np.radians(opt.max_normal_deg))
     out = []
     if opt.disparity_tol == 0:  # the same test, compiled
-        from reconstruct.mvs import _patchmatch_kernels as pk
-
-        for i, cam in enumerate(cameras):
-            count = np.zeros(depths[i].shape, np.int32)
-            for j in neighbours[i]:
-                if j != i:
-                    o = cameras[j]
-                    pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
-                                    cam.cam_from_world, depths[j], normals[j], o.K,
-                                    o.world_from_cam, o.cam_from_world, opt.depth_tol,
-                                    opt.max_reprojection, cos_max)
-            out.append(count >= opt.min_views)
-        return out
+        return [_agree_counts(i, cameras, depths, normals, neighbours[i], opt, cos_max)
+                >= opt.min_views for i in range(len(cameras))]
     for i, cam in enumerate(cameras):
         u, v, pc = _backproject(cam, depths[i])
         R_wc = cam.world_from_cam[:3, :3]
@@ -229,6 +221,25 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         mask[v[keep], u[keep]] = True
         out.append(mask)
     return out
+
+
+def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray],
+                  normals: Sequence[np.ndarray], neighbours: Sequence[int], opt: FusionOptions,
+                  cos_max: float) -> np.ndarray:
+    """(H, W) int32: how many of ``neighbours`` agree with each depth of view i, by the
+    test of :func:`_agree` with a relative depth tolerance, compiled
+    (:func:`reconstruct.mvs._patchmatch_kernels.agree_counts`)."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+
+    cam = cameras[i]
+    count = np.zeros(depths[i].shape, np.int32)
+    for j in neighbours:
+        if j != i:
+            o = cameras[j]
+            pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
+                            cam.cam_from_world, depths[j], normals[j], o.K, o.world_from_cam,
+                            o.cam_from_world, opt.depth_tol, opt.max_reprojection, cos_max)
+    return count
 
 
 def _pixels(cam: Camera, X: np.ndarray):
