@@ -67,6 +67,11 @@ class FusionOptions(Config):
     density_quantile: float = option(0.05, range="[0, 1)",
                                      help="Poisson vertices below this quantile of the "
                                           "density are trimmed")
+    free_space: str = option("confirmed", choices=("confirmed", "all"),
+                             help="which depths say that views saw through a Poisson vertex "
+                                  "(it is then trimmed): those fusion kept (another view "
+                                  "agrees), or every depth of the maps (an unconfirmed depth "
+                                  "behind the surface cut real parts off the mesh)")
     max_distance: float = option(2.0, range="(0, inf)",
                                  help="vertices farther than this many Poisson cells (the "
                                       "octree's finest, or the points' median spacing if "
@@ -286,9 +291,14 @@ def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_m
 
 def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
                     depths: Sequence[np.ndarray], options: FusionOptions | None = None,
-                    *, max_points: int = 2_000_000, seed: int = 0):
+                    *, max_points: int = 2_000_000, seed: int = 0,
+                    confirmed: Sequence[np.ndarray] | None = None):
     """Screened Poisson mesh of the fused points, trimmed by density, distance to the
-    points and free space (an open3d TriangleMesh with vertex colours)."""
+    points and free space (an open3d TriangleMesh with vertex colours).
+
+    ``confirmed`` (H, W) bool per view: the depths fusion kept; with
+    ``options.free_space`` "confirmed" only those say that a view saw through a vertex
+    (without them, every depth does)."""
     import open3d as o3d
 
     opt = options or FusionOptions()
@@ -333,6 +343,8 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
              len(pts), depth, cell, footprint)
     dist = tree.query(V, k=1)[0]
     drop |= dist > opt.max_distance * max(spacing, cell, 1e-12)
+    if confirmed is not None and opt.free_space == "confirmed":
+        depths = [np.where(m, d, 0.0) for m, d in zip(confirmed, depths, strict=True)]
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()
