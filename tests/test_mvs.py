@@ -477,6 +477,43 @@ def test_fusion_keeps_what_views_agree_on():
     assert fused2.coverage[0] == 0.0 and min(fused2.coverage[1:]) > 0.5
 
 
+def test_only_confirmed_depths_trim_the_mesh_as_free_space():
+    """Two views whose depth in one region lies 10 and 25 % behind the plane (no other
+    view agrees: fusion drops it) see through the plane there: with free_space "all" they trim
+    the Poisson surface over that region, with "confirmed" (the default) they do not."""
+    from reconstruct.mvs.fusion import FusionOptions, fuse_points, poisson_surface
+
+    cams, _ = _plane_views(n=4)
+    depths = [_true_depth(c).astype(np.float32) for c in cams]
+    normals = []
+    for c in cams:
+        n = c.cam_from_world[:3, :3] @ np.array([0, 0, 1.0])
+        normals.append(np.broadcast_to(-n if n[2] > 0 else n, (c.height, c.width, 3))
+                       .astype(np.float32))
+    colors = [np.zeros((c.height, c.width, 3), np.uint8) for c in cams]
+    nb = [[j for j in range(4) if j != i] for i in range(4)]
+    fused = fuse_points(cams, depths, normals, colors, nb, FusionOptions(edge_erosion=0))
+    wrong = [d.copy() for d in depths]
+    wrong[0][30:60, 40:80] *= 1.1  # each behind the plane, and not where the other is
+    wrong[1][30:60, 40:80] *= 1.25
+    masks = fuse_points(cams, wrong, normals, colors, nb, FusionOptions(edge_erosion=0)).masks
+    assert not masks[0][30:60, 40:80].any() and masks[0].mean() > 0.3
+
+    def area_near(mesh, X):  # vertices within 2 cm of the world points X
+        from scipy.spatial import cKDTree
+
+        return int((cKDTree(np.asarray(mesh.vertices)).query(X)[0] < 0.02).sum())
+
+    region = np.zeros(depths[0].shape, bool)
+    region[35:55, 45:75] = True
+    v, u = np.nonzero(region)
+    X = cams[0].unproject(np.column_stack([u, v]).astype(float), depths[0][region])
+    kept = poisson_surface(fused, cams, wrong, FusionOptions(), confirmed=masks)
+    cut = poisson_surface(fused, cams, wrong, FusionOptions(free_space="all"), confirmed=masks)
+    assert area_near(kept, X) == len(X)
+    assert area_near(cut, X) < 0.2 * len(X)
+
+
 # -- the pipeline on photos as phones write them, and from known cameras ---------------------
 
 @pytest.fixture(scope="module")
