@@ -409,9 +409,16 @@ def test_the_second_pass_fills_holes_on_confirmed_surfaces_only():
 
 
 def test_confirmed_depths_are_what_fusion_keeps_before_erosion():
-    """The compiled agreement test (the second pass's "confirmed") against fusion's own, on
-    depths and normals perturbed so that about half of them agree."""
-    from reconstruct.mvs.fusion import FusionOptions, confirmed_depths, fuse_points
+    """The compiled agreement test (the second pass's "confirmed", and fusion's) against
+    the same test in numpy, on depths and normals perturbed so that about half of them
+    agree."""
+    from reconstruct.mvs.fusion import (
+        FusionOptions,
+        _agree,
+        _backproject,
+        confirmed_depths,
+        fuse_points,
+    )
 
     cams, _ = _plane_views(n=4)
     rng = np.random.default_rng(4)
@@ -425,11 +432,23 @@ def test_confirmed_depths_are_what_fusion_keeps_before_erosion():
         normals.append((n / np.linalg.norm(n, axis=2, keepdims=True)).astype(np.float32))
     nb = [[j for j in range(4) if j != i] for i in range(4)]
     opt = FusionOptions(edge_erosion=0, min_views=2)
-    want = fuse_points(cams, depths, normals, [np.zeros(d.shape + (3,), np.uint8)
-                                               for d in depths], nb, opt).masks
+    cos_max = np.cos(np.radians(opt.max_normal_deg))
+    want = []
+    for i, cam in enumerate(cams):
+        u, v, pc = _backproject(cam, depths[i])
+        X = pc @ cam.world_from_cam[:3, :3].T + cam.world_from_cam[:3, 3]
+        n_ref = normals[i][v, u].astype(np.float64) @ cam.world_from_cam[:3, :3].T
+        count = sum(_agree(X, n_ref, u, v, cam, cams[j], depths[j], normals[j], opt, cos_max)
+                    for j in nb[i])
+        m = np.zeros(depths[i].shape, bool)
+        m[v[count >= 2], u[count >= 2]] = True
+        want.append(m)
     got = confirmed_depths(cams, depths, normals, nb, opt)
-    for g, m in zip(got, want, strict=True):
+    fused = fuse_points(cams, depths, normals, [np.zeros(d.shape + (3,), np.uint8)
+                                                for d in depths], nb, opt).masks
+    for g, f, m in zip(got, fused, want, strict=True):
         assert 0.2 < m.mean() < 0.8 and (g != m).mean() < 1e-3
+        assert np.array_equal(f, g)
 
 
 def test_fusion_keeps_what_views_agree_on():
@@ -456,6 +475,43 @@ def test_fusion_keeps_what_views_agree_on():
     wrong = [depths[0] * 1.05, *depths[1:]]
     fused2 = fuse_points(cams, wrong, normals, colors, nb, opt)
     assert fused2.coverage[0] == 0.0 and min(fused2.coverage[1:]) > 0.5
+
+
+def test_only_confirmed_depths_trim_the_mesh_as_free_space():
+    """Two views whose depth in one region lies 10 and 25 % behind the plane (no other
+    view agrees: fusion drops it) see through the plane there: with free_space "all" they trim
+    the Poisson surface over that region, with "confirmed" (the default) they do not."""
+    from reconstruct.mvs.fusion import FusionOptions, fuse_points, poisson_surface
+
+    cams, _ = _plane_views(n=4)
+    depths = [_true_depth(c).astype(np.float32) for c in cams]
+    normals = []
+    for c in cams:
+        n = c.cam_from_world[:3, :3] @ np.array([0, 0, 1.0])
+        normals.append(np.broadcast_to(-n if n[2] > 0 else n, (c.height, c.width, 3))
+                       .astype(np.float32))
+    colors = [np.zeros((c.height, c.width, 3), np.uint8) for c in cams]
+    nb = [[j for j in range(4) if j != i] for i in range(4)]
+    fused = fuse_points(cams, depths, normals, colors, nb, FusionOptions(edge_erosion=0))
+    wrong = [d.copy() for d in depths]
+    wrong[0][30:60, 40:80] *= 1.1  # each behind the plane, and not where the other is
+    wrong[1][30:60, 40:80] *= 1.25
+    masks = fuse_points(cams, wrong, normals, colors, nb, FusionOptions(edge_erosion=0)).masks
+    assert not masks[0][30:60, 40:80].any() and masks[0].mean() > 0.3
+
+    def area_near(mesh, X):  # vertices within 2 cm of the world points X
+        from scipy.spatial import cKDTree
+
+        return int((cKDTree(np.asarray(mesh.vertices)).query(X)[0] < 0.02).sum())
+
+    region = np.zeros(depths[0].shape, bool)
+    region[35:55, 45:75] = True
+    v, u = np.nonzero(region)
+    X = cams[0].unproject(np.column_stack([u, v]).astype(float), depths[0][region])
+    kept = poisson_surface(fused, cams, wrong, FusionOptions(), confirmed=masks)
+    cut = poisson_surface(fused, cams, wrong, FusionOptions(free_space="all"), confirmed=masks)
+    assert area_near(kept, X) == len(X)
+    assert area_near(cut, X) < 0.2 * len(X)
 
 
 # -- the pipeline on photos as phones write them, and from known cameras ---------------------

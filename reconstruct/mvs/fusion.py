@@ -67,6 +67,11 @@ class FusionOptions(Config):
     density_quantile: float = option(0.05, range="[0, 1)",
                                      help="Poisson vertices below this quantile of the "
                                           "density are trimmed")
+    free_space: str = option("confirmed", choices=("confirmed", "all"),
+                             help="which depths say that views saw through a Poisson vertex "
+                                  "(it is then trimmed): those fusion kept (another view "
+                                  "agrees), or every depth of the maps (an unconfirmed depth "
+                                  "behind the surface cut real parts off the mesh)")
     max_distance: float = option(2.0, range="(0, inf)",
                                  help="vertices farther than this many Poisson cells (the "
                                       "octree's finest, or the points' median spacing if "
@@ -168,15 +173,18 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         cam = cameras[i]
         u, v, pc = _backproject(cam, depths[i], opt.edge_erosion, jump=opt.edge_jump,
                                 hole_area=opt.hole_area)
-        count = np.zeros(len(u), np.int32)
         R_wc = cam.world_from_cam[:3, :3]
         X = pc @ R_wc.T + cam.world_from_cam[:3, 3]
         n_ref = normals[i][v, u].astype(np.float64) @ R_wc.T
-        for j in neighbours[i]:
-            if j == i:
-                continue
-            count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
-                            opt, cos_max)
+        if opt.disparity_tol == 0:  # the same test, compiled, over the whole map
+            count = _agree_counts(i, cameras, depths, normals, neighbours[i], opt,
+                                  cos_max)[v, u]
+        else:
+            count = np.zeros(len(u), np.int32)
+            for j in neighbours[i]:
+                if j != i:
+                    count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
+                                    opt, cos_max)
         keep = count >= opt.min_views
         mask = np.zeros(depths[i].shape, bool)
         mask[v[keep], u[keep]] = True
@@ -201,19 +209,8 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     cos_max = np.cos(np.radians(opt.max_normal_deg))
     out = []
     if opt.disparity_tol == 0:  # the same test, compiled
-        from reconstruct.mvs import _patchmatch_kernels as pk
-
-        for i, cam in enumerate(cameras):
-            count = np.zeros(depths[i].shape, np.int32)
-            for j in neighbours[i]:
-                if j != i:
-                    o = cameras[j]
-                    pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
-                                    cam.cam_from_world, depths[j], normals[j], o.K,
-                                    o.world_from_cam, o.cam_from_world, opt.depth_tol,
-                                    opt.max_reprojection, cos_max)
-            out.append(count >= opt.min_views)
-        return out
+        return [_agree_counts(i, cameras, depths, normals, neighbours[i], opt, cos_max)
+                >= opt.min_views for i in range(len(cameras))]
     for i, cam in enumerate(cameras):
         u, v, pc = _backproject(cam, depths[i])
         R_wc = cam.world_from_cam[:3, :3]
@@ -229,6 +226,25 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         mask[v[keep], u[keep]] = True
         out.append(mask)
     return out
+
+
+def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray],
+                  normals: Sequence[np.ndarray], neighbours: Sequence[int], opt: FusionOptions,
+                  cos_max: float) -> np.ndarray:
+    """(H, W) int32: how many of ``neighbours`` agree with each depth of view i, by the
+    test of :func:`_agree` with a relative depth tolerance, compiled
+    (:func:`reconstruct.mvs._patchmatch_kernels.agree_counts`)."""
+    from reconstruct.mvs import _patchmatch_kernels as pk
+
+    cam = cameras[i]
+    count = np.zeros(depths[i].shape, np.int32)
+    for j in neighbours:
+        if j != i:
+            o = cameras[j]
+            pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
+                            cam.cam_from_world, depths[j], normals[j], o.K, o.world_from_cam,
+                            o.cam_from_world, opt.depth_tol, opt.max_reprojection, cos_max)
+    return count
 
 
 def _pixels(cam: Camera, X: np.ndarray):
@@ -275,9 +291,14 @@ def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_m
 
 def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
                     depths: Sequence[np.ndarray], options: FusionOptions | None = None,
-                    *, max_points: int = 2_000_000, seed: int = 0):
+                    *, max_points: int = 2_000_000, seed: int = 0,
+                    confirmed: Sequence[np.ndarray] | None = None):
     """Screened Poisson mesh of the fused points, trimmed by density, distance to the
-    points and free space (an open3d TriangleMesh with vertex colours)."""
+    points and free space (an open3d TriangleMesh with vertex colours).
+
+    ``confirmed`` (H, W) bool per view: the depths fusion kept; with
+    ``options.free_space`` "confirmed" only those say that a view saw through a vertex
+    (without them, every depth does)."""
     import open3d as o3d
 
     opt = options or FusionOptions()
@@ -322,6 +343,8 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
              len(pts), depth, cell, footprint)
     dist = tree.query(V, k=1)[0]
     drop |= dist > opt.max_distance * max(spacing, cell, 1e-12)
+    if confirmed is not None and opt.free_space == "confirmed":
+        depths = [np.where(m, d, 0.0) for m, d in zip(confirmed, depths, strict=True)]
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()

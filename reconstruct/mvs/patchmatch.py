@@ -8,10 +8,12 @@ The method is Gipuma/ACMM's, on the CPU (the kernels are
 2. each view gets its source views (:func:`reconstruct.mvs.dense.select_neighbors`: shared
    sparse points at a useful triangulation angle) and a depth range (its sparse points'
    depths, widened);
-3. planes are initialised at random in that range (or, with ``coarse_iterations``, by
-   that many iterations of step 3 at half resolution, upsampled) and improved by red-black
+3. planes are initialised by ``coarse_iterations`` iterations of this step at half
+   resolution, upsampled (with 0: at random in that range) and improved by red-black
    propagation and random refinement against a bilateral-weighted NCC aggregated over
-   the ``top_k`` best source views (``iterations``);
+   the ``top_k`` best source views (``iterations``; the first ``full_iterations`` of
+   them against every source, the first ``random_iterations`` with a random plane too,
+   at either resolution);
 4. then, with every view's depth map from step 3, ``geom_iterations`` more iterations
    add geometric consistency: the forward-backward reprojection error through each
    source's depth map;
@@ -83,12 +85,13 @@ class PatchMatchOptions(Config):
     top_k: int = option(1, range="[1, 16]",
                         help="the cost of a plane is the mean of its top_k best source "
                              "views")
-    iterations: int = option(3, range="[1, 20]",
+    iterations: int = option(1, range="[1, 20]",
                              help="photometric iterations (at full resolution)")
-    coarse_iterations: int = option(0, range="[0, 20]",
+    coarse_iterations: int = option(3, range="[0, 20]",
                                     help="photometric iterations at half resolution whose "
                                          "planes, upsampled, start the full-resolution "
-                                         "ones (0: those start from random planes)")
+                                         "ones (0: they start from random planes, and "
+                                         "want iterations 3)")
     geom_iterations: int = option(2, range="[0, 20]",
                                   help="iterations with geometric consistency")
     active_sources: int = option(3, range="[0, 16]",
@@ -303,11 +306,10 @@ def _run_view(i: int, views: Sequence[View], sources: Sequence[int], opt: PatchM
     pk.final_costs(D, N, C, S, nact, *args)
     for it in range(iters):
         perturb = max(p0 * 0.5 ** it, 0.01)
-        full = nact == 0 or (init is None and not coarse and it < opt.full_iterations)
+        full = nact == 0 or (init is None and it < opt.full_iterations)
         for colour in (0, 1):
             pk.sweep(colour, 1 + 2 * it + colour, seed, D, N, C, S, nact, full, dmin, dmax,
-                     *args, perturb,
-                     init is None and not coarse and it < opt.random_iterations)
+                     *args, perturb, init is None and it < opt.random_iterations)
     keep = C < opt.max_cost
     depth = np.where(keep, D, 0.0).astype(np.float32)
     normal = np.where(keep[..., None], N, 0.0).astype(np.float32)

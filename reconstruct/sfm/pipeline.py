@@ -688,14 +688,20 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
     depth = st.run("dense", lambda: depth_stage(names, images(), v["cameras"], v["visible"],
                                                 v["points"], tmp, mvs),
                    files=["dense"], depends={"method": mvs.method, "options": method_opts})
-    fused = st.run("fuse", lambda: fuse_stage(depth, working_colors(depth, images()), tmp, mvs),
+    colors: list = []
+
+    def working():  # the views' colours at the depth maps' size, made once for both stages
+        if not colors:
+            colors.extend(working_colors(depth, images()))
+        return colors
+
+    fused = st.run("fuse", lambda: fuse_stage(depth, working(), tmp, mvs),
                    files=["fused.ply"] if mvs.method == "patchmatch" else [],
                    depends={"fusion": asdict(mvs.fusion)})
 
     def mesh_fn():
         tm = time.perf_counter()
-        mesh, surface = mesh_stage(depth, fused, working_colors(depth, images()), v["points"],
-                                   tmp, mvs)
+        mesh, surface = mesh_stage(depth, fused, working(), v["points"], tmp, mvs)
         if mesh is not None:
             mesh = _clean_mesh(mesh)
             if len(mesh.triangles):
