@@ -155,8 +155,12 @@ def monstree(root: Path):
     _side_by_side("monstree", reps)
     rep = reps["patchmatch"]
     ok = _check("monstree: registered", rep["registered"], 23, fmt="{:.0f}")
-    ok &= _check("monstree: fused coverage of the worst view",
-                 rep["dense"]["min_fused_coverage"], 0.60)
+    # issue 32: the views fused at 0.70 or more on average; the worst view's 0.60 of the
+    # last issue is retired (a view that is mostly far forest: docs/sfm.md), so reported
+    cover = [v["fused_coverage"] for v in rep["dense"]["views"].values()]
+    ok &= _check("monstree: fused coverage, mean over the views", float(np.mean(cover)), 0.70)
+    print(f"   monstree: fused coverage of the worst view {min(cover):.3f} (reported; the "
+          f"last issue's 0.60 is retired)")
     ratio = rep["timings"]["dense"] / rep["timings"]["sparse_total"]
     ok &= _check("monstree: dense stage / sparse stage", ratio, 1.2, higher=False,
                  fmt="{:.2f}")
