@@ -4,7 +4,9 @@
 
 writes ``docs/img/mvs_monstree.png`` and ``docs/img/mvs_dino.png`` (photo | mesh drawn
 from that photo's camera, shaded, in its colours | a second view) and
-``docs/img/mvs_depth.png`` (a photo beside its depth, normal and confidence maps).
+``docs/img/mvs_depth.png`` (a photo beside its depth, normal and confidence maps), and
+``docs/img/mvs_columns.png`` (the rendered scene of thin columns and steps: a render and
+the mesh from two of its cameras).
 """
 
 import json
@@ -58,13 +60,22 @@ def figure(rec: Path, images: Path, names, out: Path, h=360):
     from reconstruct.camera_files import camera_from_colmap, image_cam_from_world
 
     mesh = read_mesh(rec / "mesh.ply")
+    report = json.loads((rec / "report.json").read_text())
+    # a mesh written in the scene's frame (renders with ground truth) is drawn from the
+    # model's cameras carried there by the evaluation's Sim(3), its scale taken out
+    sfm_from_scene, scale = np.eye(4), 1.0
+    if str(report.get("frame", "")).startswith("scene") and "alignment_scene_from_sfm" in report:
+        a = np.asarray(report["alignment_scene_from_sfm"], float)
+        sfm_from_scene, scale = np.linalg.inv(a), float(np.cbrt(np.linalg.det(a[:3, :3])))
     model = pycolmap.Reconstruction(str(rec / "sparse" / "0"))
     by = {im.name: im for im in model.images.values()}
     tiles = []
     for i, name in enumerate(names):
         cam = camera_from_colmap(by[name].camera, image_cam_from_world(by[name]))
+        cam_from_scene = cam.cam_from_world @ sfm_from_scene
+        cam_from_scene[:3] *= scale  # a rotation again; the same pixels
         cam = cam.__class__(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy,
-                            np.zeros(5), cam.cam_from_world)
+                            np.zeros(5), cam_from_scene)
         if i == 0:
             photo = read_image(images / name)
             tiles.append(_fit(photo if photo.ndim == 3 else np.dstack([photo] * 3), h))
@@ -95,6 +106,12 @@ def main(bench: Path):
         figure(dino, real / "dinoSparseRing" / "images", ["dinoSR0001.png", "dinoSR0005.png",
                                                           "dinoSR0011.png"],
                img / "mvs_dino.png")
+    cols = bench / "columns"
+    if (cols / "mesh.ply").is_file():
+        # a capture folder's views are named by their path in it
+        names = sorted(f"images/{p.name}" for p in (bench / "columns24" / "images").glob("*.png"))
+        figure(cols, bench / "columns24", [names[0], names[len(names) // 3]],
+               img / "mvs_columns.png")
 
 
 if __name__ == "__main__":
