@@ -371,7 +371,7 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
     from core.trees_io import read_tree_table, write_tree_table
     from data_synth.forest import ForestConfig, build_forest, write_forest
     from reconstruct.lidar import reconstruct_points
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     receivers = RECEIVERS if receivers is None else receivers
     _, radii, offsets = mixed_conifer_reference(real_pts)

@@ -35,7 +35,7 @@ def survey(relief: float, cache: Path):
     from acquire.lidar.capture import LidarCaptureConfig
     from core.las_io import read_las
     from data_synth.forest import ForestConfig, build_forest, terrain_height, write_forest
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)

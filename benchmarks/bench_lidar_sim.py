@@ -89,7 +89,7 @@ def _cost_ratio(bundle):
 
 def _hectare(bundle, build_s):
     from acquire.lidar.capture import LidarCaptureConfig
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     cfg = LidarCaptureConfig(preset="riegl-lms-q560", density=10.0, footprint_samples=5)
     with tempfile.TemporaryDirectory() as tmp:
@@ -108,7 +108,7 @@ _CHILD = r"""
 import json, resource, sys, tempfile, time
 from pathlib import Path
 from acquire.lidar.capture import LidarCaptureConfig
-from scanamp.lidar_run import run_lidar_capture
+from scanamp.methods.lidar import run_lidar_capture
 spec = {"scene": {"name": "plain", "seed": 0},
         "objects": [{"name": "ground", "shape": "plane", "size": [2200.0, 400.0]}]
                    + [{"name": f"b{i}", "shape": "box", "size": [20.0, 20.0, 15.0],

@@ -97,7 +97,7 @@ def reconstruction(bundle) -> Path:
     from data_synth.scenes import write_scene
     from reconstruct.lidar import LidarReconConfig, evaluate_lidar
     from reconstruct.lidar import run as run_lidar
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)

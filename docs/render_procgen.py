@@ -28,7 +28,7 @@ def _colored(v, f, rgb):
 
 def city(out: Path, seed: int = 0) -> Path:
     from procgen.city import CityConfig, generate_city
-    from scanamp.commands.procgen_city import _COLORS
+    from scanamp.cli.procgen_city import _COLORS
 
     c = generate_city(np.random.default_rng(seed), CityConfig(voxel=2.0))
     kinds = np.array(["building", "road", "highway"])[c.part]
@@ -50,7 +50,7 @@ def city(out: Path, seed: int = 0) -> Path:
 
 def plant_gallery(out: Path, seeds=range(12)) -> Path:
     from procgen.shape_grammar import plant_mesh
-    from scanamp.commands.procgen_plant import BARK, LEAF
+    from scanamp.cli.procgen_plant import BARK, LEAF
 
     pl = pv.Plotter(off_screen=True, shape=(3, 4), window_size=(1200, 900), border=False)
     for k, seed in enumerate(seeds):

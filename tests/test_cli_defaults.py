@@ -14,7 +14,7 @@ import pytest
 
 from core.config import iter_options
 from scanamp.cli import build_parser
-from scanamp.options import config_from_args
+from scanamp.cli import config_from_args
 
 
 def _commands():

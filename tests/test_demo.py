@@ -85,7 +85,7 @@ def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
 
 
 def test_same_seed_same_table(demo_out, report, tmp_path, monkeypatch):
-    import scanamp.demo as demo
+    import scanamp.demo.pipeline as demo
 
     def sfm_fails(*args):
         raise RuntimeError("SfM failed: registered 2 of 12 images")

@@ -42,7 +42,7 @@ def test_fractal_images(tmp_path, kind):
     from scipy.spatial import ConvexHull
 
     from procgen import fractals as F
-    from scanamp.commands.procgen_fractal import _fit
+    from scanamp.cli.procgen_fractal import _fit
 
     w, h, level = 120, 90, 3
     out = tmp_path / f"{kind}.png"

@@ -56,7 +56,7 @@ def test_render_cli_and_gt(tmp_path):
     import open3d as o3d
 
     from acquire.camera import Camera
-    from scanamp.commands.render import default_view
+    from scanamp.cli.render import default_view
 
     out = tmp_path / "v.png"
     assert main(["render", "primitives", "--out", str(out), "--size", "96x72", "--gt",

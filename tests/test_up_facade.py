@@ -42,7 +42,7 @@ def test_a_bare_strip_and_wall_is_a_close_call_and_the_cli_names_up(tmp_path, ca
     """A wall with a strip of ground as deep as the wall is tall, and nothing else (no
     windows, no roof), is an L that reads either way: the estimate says it is close, and
     the command's warning names --up."""
-    from scanamp.commands.amplify import _warn_if_close
+    from scanamp.cli.amplify import _warn_if_close
 
     # a 20 x 10 wall (facing -y) on a 20 x 10 strip of ground, as two quads
     v = np.array([[0, 0, 0], [20, 0, 0], [20, 0, 10], [0, 0, 10],

@@ -254,7 +254,7 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     # the simulations need an inside: an open reconstruction collides as its thin shell
     solid, shell = watertight(mesh, resolution=p["collider_resolution"])
     if sim == "boids":
-        from scanamp.boids_run import run_boids
+        from scanamp.animation.boids import run_boids
         from simulate.boids import load_recipe as load_boids
 
         r = load_boids(sub)
@@ -269,7 +269,7 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
         run_boids(r, out_dir / name, mesh=collider, render=p["render"], width=p["width"],
                   height=p["height"])
     else:
-        from scanamp.simulation_run import run_simulation
+        from scanamp.animation.simulation import run_simulation
 
         size = p["size"] if p["size"] is not None else 0.6
         collider, T = (_fit(solid, sim, size) if p["fit"] else (solid, np.eye(4)))

@@ -88,7 +88,7 @@ def turntable(parts, path, *, frames: int = 36, width: int = 480, height: int = 
               elevation_deg: float = 30.0, fov_deg: float = 45.0, fps: float = 12.0):
     """A turntable animation of ``parts`` about +z (``.mp4`` or ``.gif``): ``frames``
     views one full turn apart, each framed as :func:`render_parts` frames the first."""
-    from scanamp.animation import write_frames
+    from scanamp.animation.render import write_frames
 
     allv = np.vstack([mesh_arrays(p[0])[0] for p in parts])
     azimuths = -60.0 + 360.0 * np.arange(frames) / frames

@@ -425,7 +425,7 @@ def _run_lidar(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
     from data_synth.scenes import build_scene, write_scene
     from reconstruct.lidar.evaluation import evaluate_lidar
     from reconstruct.lidar.pipeline import run as run_lidar
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     if material:
         raise InputError("a LiDAR study takes no material overrides", field="material")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scanamp.commands.simulate_particles import SimulationOptions, add_arguments, run_kind
+from scanamp.cli.simulate_particles import SimulationOptions, add_arguments, run_kind
 
 GROUP = "simulate"
 NAME = "cloth"

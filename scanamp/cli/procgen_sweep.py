@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.config import Config, option
-from scanamp.commands._procgen_common import (
+from scanamp.cli._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,

@@ -42,7 +42,7 @@ def add_arguments(p):
 
 def run_kind(kind: str, args, config: SimulationOptions) -> int:
     """Run ``args`` as a ``kind`` (particles / cloth) simulation; 1 when it blew up."""
-    from scanamp.simulation_run import run_simulation
+    from scanamp.animation.simulation import run_simulation
 
     try:
         w, h = (int(s) for s in config.size.lower().split("x"))

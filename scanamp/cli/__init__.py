@@ -35,7 +35,7 @@ import cv2  # noqa: E402,F401  (cv2 before pycolmap: pycolmap's libpng breaks cv
 
 import core  # noqa: E402,F401  (first: it sets the threading environment)
 from core.validate import InputError  # noqa: E402
-from scanamp.options import add_config_flags, config_from_args  # noqa: E402
+from scanamp.cli._options import add_config_flags, config_from_args  # noqa: E402
 
 log = logging.getLogger("scanamp")
 
@@ -85,11 +85,11 @@ class _Version(argparse.Action):
 
 
 def _command_modules():
-    import scanamp.commands as pkg
+    import scanamp.cli as pkg
 
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda i: i.name):
         if not info.name.startswith("_"):
-            yield importlib.import_module(f"scanamp.commands.{info.name}")
+            yield importlib.import_module(f"scanamp.cli.{info.name}")
 
 
 def build_parser() -> argparse.ArgumentParser:

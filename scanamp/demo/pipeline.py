@@ -13,10 +13,10 @@
    all methods, on the reference surface a camera above the table can see
    (:func:`visible_from_above`): one table.
 4. **Amplify** the best reconstruction (highest F-score) with :func:`scanamp.amplify.run`,
-   then let snow settle on it (:func:`scanamp.simulation_run.run_simulation`) and a flock
-   fly around it (:func:`scanamp.boids_run.run_boids`).
+   then let snow settle on it (:func:`scanamp.animation.simulation.run_simulation`) and a flock
+   fly around it (:func:`scanamp.animation.boids.run_boids`).
 5. **Report**: ``DIR/report.html`` (table, renders, plots, animations, timings, seed) and
-   ``DIR/report.json`` (the same numbers); see :mod:`scanamp.demo_report`.
+   ``DIR/report.json`` (the same numbers); see :mod:`scanamp.demo.report`.
 
 Scales (:data:`SCALES`): ``"default"`` (about a minute on 2 cores), ``"full"`` (the
 capture and reconstruction defaults: 640x480, 360 laser steps, ...), ``"test"`` (the
@@ -53,7 +53,7 @@ __all__ = ["DemoSettings", "SCALES", "run", "visible_from_above", "score", "cano
 
 REPORT_FORMAT = "scanamp.demo/1"
 #: the demo's amplification recipe: ridged displacement, then an L-system forest
-AMPLIFY_RECIPE = Path(__file__).with_name("demo_amplify.toml")
+AMPLIFY_RECIPE = Path(__file__).with_name("amplify.toml")
 METHODS = ("laser", "stereo", "sfm")
 #: the demo's calibration board (6 x 5 squares of 30 mm): detectable at 320 x 240
 _BOARD = {"type": "charuco", "squares_x": 6, "squares_y": 5, "square_length": 0.03,
@@ -83,7 +83,7 @@ class DemoSettings:
     curve_samples : int              samples per side for the F-score curves / histograms
     render_size : (2,) int           comparison renders
     amplify_recipe : str or None     :func:`scanamp.amplify.run` recipe (name or TOML path;
-                                     None: ``scanamp/demo_amplify.toml``, displace + forest)
+                                     None: ``scanamp/demo/amplify.toml``, displace + forest)
     turntable : int                  frames of the amplified result's turntable (0: none)
     snow_frames : int                particle frames (the shipped ``snow`` recipe)
     boids : (2,) int                 boids and steps (the shipped ``flock`` recipe)
@@ -407,8 +407,8 @@ def collider_proxy(mesh, *, cells: int = 80):
 
 def _animate(mesh, st: DemoSettings, root: Path, seed: int, timings: dict) -> dict:
     from core.mesh_io import read_mesh
-    from scanamp.boids_run import run_boids
-    from scanamp.simulation_run import run_simulation
+    from scanamp.animation.boids import run_boids
+    from scanamp.animation.simulation import run_simulation
     from simulate.boids import load_recipe
 
     out = {}
@@ -507,7 +507,7 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
     from core.mesh_io import write_mesh
     from data_synth.scenes import build_scene, write_scene
     from reconstruct.evaluation.evaluate import default_tau
-    from scanamp import demo_report
+    from scanamp.demo import report as demo_report
 
     t_all = time.perf_counter()
     timings: dict[str, float] = {}

@@ -24,7 +24,7 @@ def add_arguments(p):
 
 
 def run(args, config: LidarCaptureConfig) -> int:
-    from scanamp.lidar_run import run_lidar_capture
+    from scanamp.methods.lidar import run_lidar_capture
 
     run_lidar_capture(args.scene, config, args.out)
     return 0

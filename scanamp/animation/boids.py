@@ -147,7 +147,7 @@ def render_flock(frames, out_path: str | os.PathLike, *, mesh=None, width: int =
     from acquire.camera import frame_camera
     from acquire.render.glyphs import render_glyphs
     from core.meshes import mesh_arrays
-    from scanamp.animation import mesh_background, render_animation
+    from scanamp.animation.render import mesh_background, render_animation
 
     out_path = Path(out_path)
     suffix = out_path.suffix.lower()

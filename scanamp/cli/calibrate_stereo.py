@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from reconstruct.calibration.images import StereoCalibrationOptions
-from scanamp.commands._calibrate_common import add_board_arguments, report_path
+from scanamp.cli._calibrate_common import add_board_arguments, report_path
 
 GROUP = "calibrate"
 NAME = "stereo"

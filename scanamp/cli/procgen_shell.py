@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from core.config import Config, option
 from procgen.shells import SHAPES
-from scanamp.commands._procgen_common import (
+from scanamp.cli._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,

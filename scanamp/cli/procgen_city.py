@@ -8,7 +8,7 @@ import logging
 import numpy as np
 
 from procgen.city import CityConfig
-from scanamp.commands._procgen_common import (
+from scanamp.cli._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,

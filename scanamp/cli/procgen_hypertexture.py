@@ -6,7 +6,7 @@ import logging
 from dataclasses import dataclass
 
 from core.config import Config, option
-from scanamp.commands._procgen_common import (
+from scanamp.cli._procgen_common import (
     MESH_OUT,
     add_output,
     check_out,

@@ -125,7 +125,7 @@ def run_simulation(kind: str, recipe: str | os.PathLike, out_dir: str | os.PathL
         sim_seconds = time.perf_counter() - t0
         if render and render_frames:
             from acquire.camera import frame_camera
-            from scanamp.animation import mesh_background, render_animation
+            from scanamp.animation.render import mesh_background, render_animation
 
             pts = [f["points"] for f in render_frames if len(f["points"])]
             allp = np.concatenate(pts + [np.asarray(mesh.vertices)])
