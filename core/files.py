@@ -28,6 +28,7 @@ else:  # pragma: no cover
 __all__ = [
     "atomic_dir",
     "atomic_file",
+    "json_data",
     "write_json",
     "read_text",
     "read_json",
@@ -140,6 +141,17 @@ def _jsonable(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def json_data(data: Any) -> Any:
+    """``data`` as :func:`write_json` writes it and :func:`read_json` gives it back: numpy
+    arrays and tuples as lists, numpy scalars as Python numbers, paths as strings.
+
+    >>> import numpy as np
+    >>> json_data({"K": np.eye(2), "n": np.int64(3), "t": (1, 2)})
+    {'K': [[1.0, 0.0], [0.0, 1.0]], 'n': 3, 't': [1, 2]}
+    """
+    return json.loads(json.dumps(data, default=_jsonable, allow_nan=True))
 
 
 def write_json(path: str | os.PathLike, data: Any) -> Path:

@@ -85,18 +85,27 @@ def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
 
 
 def test_same_seed_same_table(demo_out, report, tmp_path, monkeypatch):
-    import scanamp.demo.pipeline as demo
+    from reconstruct.result import ReconstructionResult
+    from scanamp.methods import get_method
 
-    def sfm_fails(*args):
-        raise RuntimeError("SfM failed: registered 2 of 12 images")
+    sfm = get_method("sfm")
 
-    # a method whose algorithm fails is recorded in its row and the demo goes on
-    monkeypatch.setitem(demo._RUNNERS, "sfm", sfm_fails)
+    def no_capture(bundle, config, out_dir, **kw):
+        return out_dir
+
+    def sfm_fails(config, inputs, out_dir, **kw):
+        return ReconstructionResult(out_dir, {"registered": 2}, ok=False,
+                                    message="registered 2 of 12 images")
+
+    # a method whose algorithm fails (reached through the registry, as the demo reaches
+    # every method) is recorded in its row and the demo goes on
+    monkeypatch.setattr(sfm, "capture", no_capture)
+    monkeypatch.setattr(sfm, "reconstruct", sfm_fails)
     again = run(tmp_path / "again", seed=0, scale="test", methods=("laser", "sfm"))
     assert again["methods"][1] == {"method": "sfm", "ok": False,
-                                   "error": "SfM failed: registered 2 of 12 images"}
+                                   "error": "sfm failed: registered 2 of 12 images"}
     assert again["best"] == "laser"
-    assert "failed: SfM failed" in (tmp_path / "again" / "report.html").read_text()
+    assert "failed: sfm failed" in (tmp_path / "again" / "report.html").read_text()
     # scene and capture: identical bytes
     for rel in ("scene/mesh.ply", "scene/scene.toml", "captures/laser/capture.json",
                 "captures/laser/images/scan_0005.png"):

@@ -25,7 +25,7 @@ import numpy as np
 from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.frames import rotation_about
 from core.progress import track
 from core.validate import InputError
@@ -44,6 +44,7 @@ from reconstruct.laser.error_model import (
     estimate_peak_sigma,
 )
 from reconstruct.laser.stripe import DETECTORS, StripeOptions, detect_peaks
+from reconstruct.result import ReconstructionResult
 from reconstruct.surface.meshing import MeshingOptions, points_to_mesh
 
 log = logging.getLogger(__name__)
@@ -141,8 +142,9 @@ _STRIPE_FIELDS = ("detector", "threshold", "min_contrast", "max_width", "max_ste
 
 
 def run(config: LaserReconConfig, capture_dir, out_dir, *,
-        from_stage: str | None = None) -> Path:
-    """Reconstruct a laser capture into ``out_dir`` (see the module docstring).
+        from_stage: str | None = None) -> ReconstructionResult:
+    """Reconstruct a laser capture into ``out_dir`` (see the module docstring); the folder
+    and its report.
 
     The work is five named stages (:data:`STAGES`), each cached in ``out_dir/stages``
     (:class:`core.stages.Stages`): run again into the same folder, only the stages whose
@@ -184,7 +186,7 @@ def run(config: LaserReconConfig, capture_dir, out_dir, *,
         for w in report["warnings"]:
             log.warning("%s", w)
         write_json(tmp / "report.json", report)
-    return out_dir
+    return ReconstructionResult(out_dir, json_data(report))
 
 
 def _prepare(cap) -> dict:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from core.config import Config, option
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.las_io import LasWriter, read_las
 from core.raster_io import write_raster
 from core.trees_io import write_tree_table
@@ -31,6 +31,7 @@ from core.validate import InputError
 from reconstruct.lidar.ground import GroundOptions, classify_ground
 from reconstruct.lidar.rasters import canopy_height, dtm_from_ground
 from reconstruct.lidar.trees import TreeOptions, detect_trees
+from reconstruct.result import ReconstructionResult
 
 __all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
 
@@ -136,8 +137,9 @@ def _classified(points: dict, ground: np.ndarray, water: np.ndarray | None = Non
     return out
 
 
-def run(config: LidarReconConfig, points_path, out_dir) -> Path:
-    """Reconstruct terrain, canopy and trees of a LAS/LAZ file into ``out_dir``."""
+def run(config: LidarReconConfig, points_path, out_dir) -> ReconstructionResult:
+    """Reconstruct terrain, canopy and trees of a LAS/LAZ file into ``out_dir``; the folder
+    and its report."""
     points_path = Path(points_path)
     t0 = time.perf_counter()
     points, info = read_las(points_path)
@@ -168,7 +170,7 @@ def run(config: LidarReconConfig, points_path, out_dir) -> Path:
         _write_classified(tmp / "classified.laz", points, info, cls)
         report["timings"]["write_s"] = time.perf_counter() - t0
         write_json(tmp / "report.json", report)
-    return Path(out_dir)
+    return ReconstructionResult(Path(out_dir), json_data(report))
 
 
 def _heights(points: dict, res: LidarResult) -> dict:

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from core.config import Config, option
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.validate import InputError
+from reconstruct.result import ReconstructionResult
 
 log = logging.getLogger(__name__)
 
@@ -139,9 +140,10 @@ def _merge_mesh(scans, poses, cfg: ScansReconConfig):
 
 
 def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
-        from_stage: str | None = None) -> Path:
+        from_stage: str | None = None) -> ReconstructionResult:
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
-    into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
+    into ``out_dir`` (module docstring); ``poses``: an optional initial guess file. The
+    folder and its report."""
     from core.meshes import make_mesh
     from core.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
@@ -171,9 +173,9 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
             depends={"merge": cfg.merge, "resolution": cfg.resolution,
                      "fill_holes": cfg.fill_holes})
         mesh = make_mesh(verts, tris)
-        _write_outputs(tmp, scans, result, mesh, merge_rep, cfg, (t_load, cpu_load),
-                       time.perf_counter() - t0, st)
-    return out_dir
+        report = _write_outputs(tmp, scans, result, mesh, merge_rep, cfg, (t_load, cpu_load),
+                                time.perf_counter() - t0, st)
+    return ReconstructionResult(out_dir, json_data(report))
 
 
 def _up(sights: list[np.ndarray]) -> np.ndarray:
@@ -189,8 +191,9 @@ def _up(sights: list[np.ndarray]) -> np.ndarray:
     return up if up[1] >= 0 else -up
 
 
-def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total, st):
-    """``load``: the wall-clock and CPU seconds of reading the scans."""
+def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total, st) -> dict:
+    """Write the mesh, poses, report and figures; the report. ``load``: the wall-clock and
+    CPU seconds of reading the scans."""
     from core.image_io import write_image
     from core.mesh_io import write_mesh
     from core.range_io import ScanPose, write_conf, write_poses_json
@@ -249,3 +252,4 @@ def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total
         write_image(tmp / "residuals.png", plot_residuals(
             [s.name for s in result.scans], [s.rms for s in result.scans],
             [s.overlap for s in result.scans], [s.registered for s in result.scans]))
+    return report

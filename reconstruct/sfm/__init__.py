@@ -31,7 +31,6 @@ _EXPORTS = {
     "scan_photos": "photo_set",
     "upright_folder": "photo_set",
     "SfmConfig": "pipeline",
-    "SfmResult": "pipeline",
     "parse_camera": "pipeline",
     "run": "pipeline",
 }

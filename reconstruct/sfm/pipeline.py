@@ -42,7 +42,7 @@ from acquire.camera import Camera
 from acquire.capture_io import load_capture
 from acquire.sfm.nerfstudio import write_transforms
 from core.config import Config, option
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.image_io import read_image, to_uint8
 from core.mesh_io import read_mesh, write_mesh, write_points
 from core.validate import InputError, check_choice
@@ -56,6 +56,7 @@ from reconstruct.camera_files import (
 )
 from reconstruct.evaluation.sim3 import align_cameras
 from reconstruct.mvs.pipeline import MvsOptions
+from reconstruct.result import ReconstructionResult
 from reconstruct.sfm.colmap import ColmapOptions
 from reconstruct.sfm.photo_set import (
     CAMERA_MODES,
@@ -65,7 +66,7 @@ from reconstruct.sfm.photo_set import (
     upright_folder,
 )
 
-__all__ = ["SfmConfig", "SfmResult", "run", "parse_camera"]
+__all__ = ["SfmConfig", "run", "parse_camera"]
 
 log = logging.getLogger(__name__)
 
@@ -112,16 +113,6 @@ class SfmConfig(Config):
         super().__post_init__()
         if self.camera is not None:
             parse_camera(self.camera)
-
-
-@dataclass
-class SfmResult:
-    """Outcome of :func:`run`: ``ok`` False means the output holds a report only."""
-
-    out_dir: Path
-    ok: bool
-    message: str
-    report: dict
 
 
 def parse_camera(text: str) -> tuple[str, str]:
@@ -342,7 +333,7 @@ STAGES = ("features", "matches", "sparse", "dense", "fuse", "mesh", "evaluate")
 
 
 def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.PathLike, *,
-        from_stage: str | None = None) -> SfmResult:
+        from_stage: str | None = None) -> ReconstructionResult:
     """Reconstruct cameras, sparse points and a dense mesh from images.
 
     The work is seven named stages (:data:`STAGES`), each cached in ``out_dir/stages``
@@ -361,7 +352,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
 
     Returns
     -------
-    SfmResult
+    reconstruct.result.ReconstructionResult
         ``ok`` is False when fewer than 3 images registered or the dense surface came
         out empty: the folder then holds report.json (and the sparse model if any),
         never a mesh.
@@ -410,7 +401,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
         report["timings"]["total"] = time.perf_counter() - t_all
         report["ok"], report["message"] = ok, message
         write_json(tmp / "report.json", report)
-    return SfmResult(out_dir, ok, message, report)
+    return ReconstructionResult(out_dir, json_data(report), ok, message)
 
 
 class _Upright:

@@ -11,13 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.image_io import read_image
 from core.mesh_io import write_points
 from core.validate import InputError
 from reconstruct.calibration.camera import to_gray
 from reconstruct.calibration.rectify import rectify, rectify_pair
 from reconstruct.evaluation.disparity import disparity_metrics
+from reconstruct.result import ReconstructionResult
 from reconstruct.stereo.matching import depth_to_points, disparity_to_depth, match
 from reconstruct.stereo.options import StereoOptions
 
@@ -55,7 +56,8 @@ def read_disparity(path: Path, *, scale: float | None = None) -> np.ndarray:
 
 
 def run_pair(left_path, right_path, calibration_path, out_dir, *, options: StereoOptions | None
-             = None, disparity_gt=None, disparity_gt_scale: float | None = None) -> Path:
+             = None, disparity_gt=None, disparity_gt_scale: float | None = None
+             ) -> ReconstructionResult:
     """Disparity, depth and points of a user's own pair (see :mod:`reconstruct.calibration.io`).
 
     Writes ``disparity.npy`` (rectified left, NaN = none), ``depth.npy`` (z in the
@@ -113,4 +115,4 @@ def run_pair(left_path, right_path, calibration_path, out_dir, *, options: Stere
         write_image(tmp / "left_rect.png", lr)
         write_image(tmp / "right_rect.png", rr)
         write_json(tmp / "report.json", report)
-    return out
+    return ReconstructionResult(out, json_data(report))

@@ -25,7 +25,7 @@ import numpy as np
 from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.image_io import read_image
 from core.mesh_io import write_mesh, write_points
 from core.progress import track
@@ -40,6 +40,7 @@ from reconstruct.calibration.stereo import (
     world_from_cam_at,
 )
 from reconstruct.evaluation.disparity import disparity_metrics
+from reconstruct.result import ReconstructionResult
 from reconstruct.stereo.matching import depth_to_points, disparity_range, disparity_to_depth, match
 from reconstruct.stereo.options import StereoOptions
 from reconstruct.stereo.scoring import (
@@ -214,9 +215,10 @@ def _mode_result(mesh, depths, pts, metrics, timings) -> dict:
     return res
 
 
-def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> Path:
+def run_capture(capture_path, out_dir, options: StereoOptions | None = None
+                ) -> ReconstructionResult:
     """Reconstruct a stereo capture folder into ``out_dir`` (points.ply, mesh.ply,
-    report.json, disparity/ maps)."""
+    report.json, disparity/ maps); the folder and its report."""
     opts = options or StereoOptions()
     check_choice(opts.mode, "mode", {"auto", "passive", "active"})
     cap = load_capture(capture_path)
@@ -287,4 +289,4 @@ def run_capture(capture_path, out_dir, options: StereoOptions | None = None) -> 
         if gt_ok:
             report["calibration"]["truth_errors"] = calib_errors(calib, gt)
         write_json(tmp / "report.json", report)
-    return out
+    return ReconstructionResult(out, json_data(report))

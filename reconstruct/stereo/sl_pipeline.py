@@ -21,12 +21,13 @@ from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
-from core.files import atomic_dir, write_json
+from core.files import atomic_dir, json_data, write_json
 from core.mesh_io import write_mesh, write_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import detect_board
 from reconstruct.calibration.stereo import calibrate_pair, world_from_cam_at
+from reconstruct.result import ReconstructionResult
 from reconstruct.stereo.pipeline import _frame_name, _read, calibrate_axis_entry
 from reconstruct.stereo.scoring import reference_in_table, score_mesh
 from reconstruct.stereo.structured_light import (
@@ -131,9 +132,10 @@ def _calibrate(cap: Capture, opts: SLOptions):
     return cam, proj, table_from_cam, rep, info
 
 
-def run_capture(capture_path, out_dir, options: SLOptions | None = None) -> Path:
+def run_capture(capture_path, out_dir, options: SLOptions | None = None
+                ) -> ReconstructionResult:
     """Reconstruct a structured-light capture into ``out_dir`` (mesh.ply, points.ply,
-    report.json)."""
+    report.json); the folder and its report."""
     opts = options or SLOptions()
     cap = load_capture(capture_path)
     if cap.kind != "structured-light":
@@ -195,4 +197,4 @@ def run_capture(capture_path, out_dir, options: SLOptions | None = None) -> Path
         if len(mesh.vertices):
             write_mesh(tmp / "mesh.ply", mesh)
         write_json(tmp / "report.json", report)
-    return out
+    return ReconstructionResult(out, json_data(report))

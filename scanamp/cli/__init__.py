@@ -1,11 +1,13 @@
 """The ``scanamp`` command line: a thin layer over the library.
 
-Commands are discovered from the modules of :mod:`scanamp.commands`. A module
-defines ``NAME`` (``"scene"``), optionally ``GROUP`` (``"capture"`` for
-``scanamp capture laser``), ``HELP``, ``add_arguments(parser)`` and
-``run(args) -> int``. A module with ``CONFIG`` (its config dataclass, see
+Commands are discovered from the modules of this room (``scanamp/cli/``; an
+underscored module is a helper, not a command). A module defines ``NAME`` (``"scene"``),
+optionally ``GROUP`` (``"simulate"`` for ``scanamp simulate boids``), ``HELP``,
+``add_arguments(parser)`` and ``run(args) -> int``; or ``commands()``, a list of objects
+with those attributes (``capture`` and ``reconstruct`` make one per registered
+acquisition method, :mod:`scanamp.methods`). A module with ``CONFIG`` (its config dataclass, see
 :mod:`core.config`) gets ``--config FILE.toml`` and one flag per declared option
-(:mod:`scanamp.options`), and is called as ``run(args, config)`` with the effective
+(:mod:`scanamp.cli._options`), and is called as ``run(args, config)`` with the effective
 config. Errors: bad input exits 2 with one line ``error: ...``;
 an algorithm that failed or an internal error exits 1 (traceback under --debug).
 
@@ -38,6 +40,8 @@ from core.validate import InputError  # noqa: E402
 from scanamp.cli._options import add_config_flags, config_from_args  # noqa: E402
 
 log = logging.getLogger("scanamp")
+
+__all__ = ["main", "build_parser", "versions", "add_config_flags", "config_from_args"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -84,12 +88,14 @@ class _Version(argparse.Action):
         parser.exit(0)
 
 
-def _command_modules():
-    import scanamp.cli as pkg
-
-    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda i: i.name):
-        if not info.name.startswith("_"):
-            yield importlib.import_module(f"scanamp.cli.{info.name}")
+def _commands():
+    """Every command: each public module of this room is one, or makes several with
+    ``commands()`` (``capture`` and ``reconstruct``: one per registered method)."""
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"{__name__}.{info.name}")
+        yield from (mod.commands() if hasattr(mod, "commands") else [mod])
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -109,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
                   "procgen": "procedural modeling generators",
                   "calibrate": "calibrate a real camera or stereo pair from board photos",
                   "mesh": "mesh processing: clean a reconstruction"}
-    for mod in _command_modules():
+    for mod in _commands():
         group = getattr(mod, "GROUP", None)
         target = sub
         if group:

@@ -2,12 +2,10 @@
 
 1. **Scene** — the built-in ``demo`` scene (``data_synth/scene_specs/demo.toml``): a
    fractal terrain patch with an L-system tree, a seashell and a scanned-object blob.
-2. **Capture and reconstruct** it three ways, each with the project's own entry points:
-   the laser turntable scanner (:func:`acquire.laser.capture.capture`,
-   :func:`reconstruct.laser.pipeline.run`), the active stereo rig
-   (:func:`acquire.stereo.capture.capture`, :func:`reconstruct.stereo.pipeline.run_capture`)
-   and structure from motion on an orbit (:func:`acquire.sfm.capture.capture`,
-   :func:`reconstruct.sfm.pipeline.run`).
+2. **Capture and reconstruct** it three ways, through the methods registry
+   (:mod:`scanamp.methods`) as the commands do: the laser turntable scanner, the active
+   stereo rig and structure from motion on an orbit, each at the demo's scale; each
+   method carries its mesh into the world frame (``world_from_output``).
 3. **Evaluate** every mesh against the ground truth with
    :func:`reconstruct.evaluation.evaluate.evaluate` in the world frame, at one ``tau`` for
    all methods, on the reference surface a camera above the table can see
@@ -36,6 +34,7 @@ import hashlib
 import logging
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,7 +43,6 @@ import numpy as np
 from core.files import atomic_dir, write_json
 from core.meshes import surface_distance
 from core.validate import check_choice
-from scanamp.methods import METHODS as ACQUISITION
 
 log = logging.getLogger(__name__)
 
@@ -266,52 +264,48 @@ class _Method:
     notes: str = ""
 
 
-def _laser(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
+@dataclass(frozen=True)
+class _Setup:
+    """How the demo runs one method: its rig and reconstruction configs at the demo's
+    scale, and how its table row reads the reconstruction's report."""
+
+    label: str
+    capture: object
+    recon: object
+    scene_path: str | None
+    points: Callable[[dict], int]
+    notes: Callable[[dict], str]
+
+
+def _laser(st: DemoSettings, seed: int) -> _Setup:
     from acquire.laser.rig import LaserCaptureConfig, LaserRig
-    from core.mesh_io import read_mesh
-    from core.meshes import transform_mesh
     from reconstruct.laser.pipeline import LaserReconConfig
     from reconstruct.surface.meshing import MeshingOptions
 
-    m = _Method("laser", "laser triangulation (turntable)", root / "captures" / "laser",
-                root / "recon" / "laser")
     cv, lv, av = st.laser_calib
     # Raised camera and laser: the sheet must reach the terrain, not graze it.
     rig = LaserRig(width=st.laser_size[0], height=st.laser_size[1], steps=st.laser_steps,
                    aim_height=0.035, camera_elevation_deg=30.0, laser_elevation_deg=35.0,
                    camera_views=cv, laser_views=lv, axis_views=av,
                    calib_supersample=st.laser_calib_supersample)
-    laser = ACQUISITION["laser"]
-    t = time.perf_counter()
-    laser.capture(bundle, LaserCaptureConfig(rig=rig, target=dict(_BOARD)), m.capture_dir,
-                  rng=np.random.default_rng(seed), seed=seed, scene_path="demo")
-    m.seconds["capture"] = time.perf_counter() - t
-    t = time.perf_counter()
     # The laser's own stripe thresholds: its profile test rejects the ambient-lit plateaus
-    # and edges of this scene that a 20/12 pin once had to keep out.
-    cfg = LaserReconConfig(meshing=MeshingOptions(depth=st.poisson_depth, density_quantile=0.03,
-                                                  trim_distance=0.005), evaluate=False)
-    rep = laser.run(cfg, m.capture_dir, m.recon_dir).report
-    m.seconds["reconstruct"] = time.perf_counter() - t
-    # the reconstruction is in the calibrated turntable frame; the true camera pose
-    # (evaluation only) carries it into the world: world <- camera <- turntable
-    obj_from_cam = np.asarray(rep["calibration"]["object_from_camera"])
-    world_from_obj = rig.camera().world_from_cam @ np.linalg.inv(obj_from_cam)
-    m.mesh = transform_mesh(read_mesh(m.recon_dir / "mesh.ply"), world_from_obj)
-    m.points = int(rep["counts"]["stripe_points"])
-    m.notes = (f"{st.laser_steps} steps of {360 / st.laser_steps:g} deg, "
-               f"{st.laser_size[0]}x{st.laser_size[1]}, Poisson depth {st.poisson_depth}")
-    return m
+    # and edges of this scene.
+    recon = LaserReconConfig(meshing=MeshingOptions(depth=st.poisson_depth,
+                                                    density_quantile=0.03,
+                                                    trim_distance=0.005), evaluate=False)
+    return _Setup("laser triangulation (turntable)",
+                  LaserCaptureConfig(rig=rig, target=dict(_BOARD)), recon, "demo",
+                  lambda rep: int(rep["counts"]["stripe_points"]),
+                  lambda rep: (f"{st.laser_steps} steps of {360 / st.laser_steps:g} deg, "
+                               f"{st.laser_size[0]}x{st.laser_size[1]}, Poisson depth "
+                               f"{st.poisson_depth}"))
 
 
-def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
+def _stereo(st: DemoSettings, seed: int) -> _Setup:
     from acquire.stereo.rig import RigConfig
     from core.config import with_options
-    from core.mesh_io import read_mesh
-    from core.meshes import transform_mesh
+    from scanamp.methods import get_method
 
-    m = _Method("stereo", "active stereo (random dots, turntable)",
-                root / "captures" / "stereo", root / "recon" / "stereo")
     w, h = st.stereo_size
     rig = with_options(RigConfig(), {
         "camera.width": w, "camera.height": h, "projector.width": w, "projector.height": h,
@@ -319,58 +313,59 @@ def _stereo(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
         "rig.stage_angles_deg": tuple(st.stereo_angles_deg),
         "render.supersample": st.stereo_supersample, "rig.distance": 0.42,
         "rig.aim_height": 0.03, "rig.working_range": (0.28, 0.6)})
-    active = ACQUISITION["active-stereo"]
-    t = time.perf_counter()
-    active.capture(bundle, rig, m.capture_dir, rng=np.random.default_rng(seed), seed=seed,
-                   scene_path="demo")
-    m.seconds["capture"] = time.perf_counter() - t
-    t = time.perf_counter()
-    rep = active.run(active.recon_config(), m.capture_dir, m.recon_dir).report
-    m.seconds["reconstruct"] = time.perf_counter() - t
-    mesh = read_mesh(m.recon_dir / "mesh.ply")
-    if rep["calibration"]["axis"].get("method") == "mount":
-        # the axis board sits in a known jig on the platter: the calibrated turntable frame
-        # *is* the world frame, and the mesh is scored as the rig delivers it
-        m.mesh = mesh
-    else:  # axis only: tie the frame to the world through the true camera pose
-        table_from_left = np.asarray(rep["calibration"]["table_from_left"])
-        left, _ = rig.stereo_cameras()
-        m.mesh = transform_mesh(mesh, left.world_from_cam @ np.linalg.inv(table_from_left))
-    m.points = int(rep["points"])
-    m.notes = (f"{len(st.stereo_angles_deg)} turntable stops, {w}x{h}, SGBM + TSDF "
-               f"(voxel {1000 * rep['voxel_size']:.2g} mm)")
-    return m
+    # active stereo: the random dots alone, no passive comparison
+    recon = dataclasses.replace(get_method("stereo").default_recon_config(), mode="active",
+                                compare=False)
+    return _Setup("active stereo (random dots, turntable)", rig, recon, "demo",
+                  lambda rep: int(rep["points"]),
+                  lambda rep: (f"{len(st.stereo_angles_deg)} turntable stops, {w}x{h}, SGBM + "
+                               f"TSDF (voxel {1000 * rep['voxel_size']:.2g} mm)"))
 
 
-def _sfm(bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
+def _sfm(st: DemoSettings, seed: int) -> _Setup:
     from acquire.sfm.capture import PathConfig
-    from core.mesh_io import read_mesh
     from reconstruct.sfm.pipeline import SfmConfig
 
-    m = _Method("sfm", "structure from motion (orbit, pycolmap + PatchMatch MVS)",
-                root / "captures" / "sfm", root / "recon" / "sfm")
     w, h = st.sfm_size
-    cfg = PathConfig(kind="orbit", views=st.sfm_views, elevations_deg=[30.0, 50.0], width=w,
-                     height=h, supersample=st.sfm_supersample)
-    sfm = ACQUISITION["sfm"]
+    path = PathConfig(kind="orbit", views=st.sfm_views, elevations_deg=[30.0, 50.0], width=w,
+                      height=h, supersample=st.sfm_supersample)
+    return _Setup("structure from motion (orbit, pycolmap + PatchMatch MVS)", path,
+                  SfmConfig(seed=seed, num_threads=st.sfm_threads), None,
+                  lambda rep: int(rep["sparse"]["num_points"]),
+                  lambda rep: (f"{st.sfm_views} views on 2 rings, {w}x{h}, "
+                               f"{rep['registered']} registered, "
+                               f"{int(rep['sparse']['num_points'])} sparse points, PatchMatch "
+                               f"MVS + Poisson"))
+
+
+_SETUPS = {"laser": _laser, "stereo": _stereo, "sfm": _sfm}
+
+
+def _acquire(name: str, bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
+    """Capture and reconstruct with method ``name`` of the registry; the mesh carried into
+    the world frame by the method (:meth:`scanamp.methods.Method.world_from_output`)."""
+    from core.mesh_io import read_mesh
+    from core.meshes import transform_mesh
+    from scanamp.methods import get_method
+
+    method, setup = get_method(name), _SETUPS[name](st, seed)
+    m = _Method(name, setup.label, root / "captures" / name, root / "recon" / name)
     t = time.perf_counter()
-    sfm.capture(bundle, cfg, m.capture_dir, rng=np.random.default_rng(seed), seed=seed)
+    method.capture(bundle, setup.capture, m.capture_dir, rng=np.random.default_rng(seed),
+                   seed=seed, scene_path=setup.scene_path)
     m.seconds["capture"] = time.perf_counter() - t
     t = time.perf_counter()
-    res = sfm.run(SfmConfig(seed=seed, num_threads=st.sfm_threads), m.capture_dir, m.recon_dir)
+    res = method.reconstruct(setup.recon, method.inputs(m.capture_dir), m.recon_dir)
     m.seconds["reconstruct"] = time.perf_counter() - t
     if not res.ok:
-        raise RuntimeError(f"SfM failed: {res.message}")
-    rep = res.report
-    # with ground truth, the dense stage already works in the aligned scene frame
+        raise RuntimeError(f"{name} failed: {res.message}")
+    world_from_output = method.world_from_output(setup.capture, m.capture_dir, res)
     m.mesh = read_mesh(m.recon_dir / "mesh.ply")
-    m.points = int(rep["sparse"]["num_points"])
-    m.notes = (f"{st.sfm_views} views on 2 rings, {w}x{h}, {rep['registered']} registered, "
-               f"{m.points} sparse points, PatchMatch MVS + Poisson")
+    if not np.array_equal(world_from_output, np.eye(4)):
+        m.mesh = transform_mesh(m.mesh, world_from_output)
+    m.points = setup.points(res.report)
+    m.notes = setup.notes(res.report)
     return m
-
-
-_RUNNERS = {"laser": _laser, "stereo": _stereo, "sfm": _sfm}
 
 
 # ----------------------------------------------------------------------------- animation
@@ -533,7 +528,7 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
         for name in methods:
             stage("%s: capture and reconstruction", name)
             try:
-                m = _RUNNERS[name](bundle, st, tmp, seed)
+                m = _acquire(name, bundle, st, tmp, seed)
             except RuntimeError as exc:  # an algorithm that failed: record it and go on
                 log.warning("%s failed: %s", name, exc)
                 rows.append({"method": name, "ok": False, "error": str(exc)})

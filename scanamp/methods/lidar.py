@@ -1,12 +1,22 @@
-"""Run a LiDAR survey of a scene into a folder (``scanamp capture lidar``).
+"""Time-of-flight LiDAR: airborne strips, a vehicle's path or terrestrial stations
+surveying a scene (a forest, a city block), and the survey's reconstruction.
 
-``DIR/points.laz`` (LAS 1.4: the survey's points, the truth as extra bytes), ``DIR/
-report.json`` (the plan, the scanner, counts, the density achieved), for terrestrial
-stations ``DIR/scans.e57`` (one scan per station with its pose and grid), and with
-``per_strip`` ``DIR/strips/*.laz``. Legs (strips, stations) run one after another in
-this process, or in parallel in local worker processes (``workers``) or on a Dask
-scheduler (``scheduler``); each worker rebuilds the scene from its name or folder, so
-the legs' files are the same bytes wherever they ran (each leg has its own noise seed).
+``scanamp capture lidar SCENE --preset NAME --out DIR`` writes ``DIR/points.laz`` (LAS 1.4:
+the survey's points, the truth as extra bytes), ``DIR/report.json`` (the plan, the scanner,
+counts, the density achieved), for terrestrial stations ``DIR/scans.e57`` (one scan per
+station with its pose and grid), and with ``per_strip`` ``DIR/strips/*.laz`` (options:
+:class:`acquire.lidar.capture.LidarCaptureConfig`; ``--density 10`` plans the flight).
+Legs (strips, stations) run one after another in this process, or in parallel in local
+worker processes (``--workers 2``) or on a Dask scheduler (``--scheduler
+tcp://host:8786``); each worker rebuilds the scene from its name or folder, so the legs'
+files are the same bytes wherever they ran (each leg has its own noise seed).
+
+``scanamp reconstruct lidar POINTS.laz --out DIR`` classifies the ground (cloth simulation
+filter), writes the DTM and CHM GeoTIFFs and finds the trees
+(:func:`reconstruct.lidar.pipeline.run`, options
+:class:`reconstruct.lidar.pipeline.LidarReconConfig`), for a simulated or a real survey.
+The output is in the scene's projected coordinates (local + ``[scene].origin``); a study
+scores the trees and the DTM against a forest scene's truth.
 """
 
 from __future__ import annotations
@@ -40,10 +50,12 @@ from core.files import atomic_dir, write_json
 from core.las_io import LasWriter
 from core.progress import track
 from core.validate import InputError
+from reconstruct.lidar.pipeline import LidarReconConfig
+from scanamp.methods.protocol import Method, scene_for_capture
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run_lidar_capture", "scene_origin", "scene_crs"]
+__all__ = ["Lidar", "METHOD", "run_lidar_capture", "scene_origin", "scene_crs"]
 
 
 def scene_origin(bundle) -> np.ndarray:
@@ -74,8 +86,6 @@ class _Survey:
     """A scene, its world and the planned survey: rebuilt identically in every worker."""
 
     def __init__(self, scene: str, config: LidarCaptureConfig, bundle=None):
-        from scanamp.methods import scene_for_capture
-
         self.preset = get_preset(config.preset)
         self.bundle = bundle if bundle is not None else scene_for_capture(scene)
         self.world = LidarWorld(self.bundle.render_scene, self.preset.wavelength_nm)
@@ -153,7 +163,7 @@ def run_lidar_capture(scene: str, config: LidarCaptureConfig, out_dir: str | os.
     t0 = time.perf_counter()
     get_preset(config.preset)                     # an unknown preset: before any work
     if client is None and config.scheduler:
-        from scanamp.study.runner import connect
+        from scanamp.cluster import connect
 
         client = connect(config.scheduler)
     sv = _Survey(sv_scene(scene), config, bundle)
@@ -233,3 +243,70 @@ def _report(sv: _Survey, summaries: list, seconds: float) -> dict:
             "intensity_reference_range_m": sv.intensity_range,
             **summary_report(summaries, sv.plan, sv.bounds[:, :2]),
             "seconds": seconds}
+
+
+class Lidar(Method):
+    name = "lidar"
+    title = "time-of-flight LiDAR (airborne, vehicle, terrestrial)"
+    capture_help = ("simulate a time-of-flight LiDAR survey (airborne, vehicle, terrestrial) of "
+                    "a scene into LAS/LAZ (and E57 for stations), with per-point truth")
+    reconstruct_help = ("ground (cloth simulation filter), DTM and CHM GeoTIFFs, and individual "
+                        "trees of an airborne LiDAR survey (LAS/LAZ, simulated or real)")
+    capture_config = LidarCaptureConfig
+    recon_config = LidarReconConfig
+    frame = "projected: the scene's local coordinates + [scene].origin (the LAS files' CRS)"
+    metrics = ("evaluation.trees.f", "evaluation.dtm.rmse", "evaluation.trees.height_rmse")
+    takes_materials = False
+
+    def check_scene(self, bundle) -> None:
+        if not getattr(bundle, "trees", None):
+            raise InputError("a LiDAR study needs a forest scene (its truth: trees and "
+                             "terrain)", field="study.scene")
+
+    def capture(self, bundle, config, out_dir, *, rng, seed=0, scene_path=None) -> Path:
+        """The survey's legs draw their noise from ``seed`` (one stream per leg), so
+        ``rng`` is not used; the workers rebuild the scene from ``scene_path`` (else the
+        bundle's name)."""
+        import dataclasses
+
+        scene = str(scene_path) if scene_path is not None else bundle.name
+        run_lidar_capture(scene, dataclasses.replace(config, seed=seed), out_dir,
+                          bundle=bundle)
+        return Path(out_dir)
+
+    def inputs(self, capture_dir) -> Path:
+        return Path(capture_dir) / "points.laz"
+
+    def reconstruct(self, config, inputs, out_dir):
+        from reconstruct.lidar.pipeline import run
+
+        return run(config, inputs, out_dir)
+
+    def evaluate(self, capture_dir, result, bundle) -> dict:
+        """The survey's report, the reconstruction's, and the trees and DTM scored against
+        the forest's truth (written beside the capture, as ``scanamp scene`` writes it)."""
+        from core.files import read_json
+        from data_synth.scenes import write_scene
+        from reconstruct.lidar.evaluation import evaluate_lidar
+
+        truth = write_scene(bundle, Path(capture_dir).parent / "truth")
+        return {"capture": read_json(Path(capture_dir) / "report.json"),
+                "reconstruction": result.report,
+                "evaluation": evaluate_lidar(result.out_dir, truth)}
+
+    def add_reconstruct_arguments(self, p) -> None:
+        p.add_argument("points", type=Path, metavar="POINTS.laz",
+                       help="the survey (.las or .laz); its coordinates and CRS are kept")
+
+    def reconstruct_from_args(self, config, args):
+        return self.reconstruct(config, args.points, args.out)
+
+    def describe(self, result) -> list[str]:
+        rep = result.report
+        g = rep["ground"]
+        source = "classified here" if g["reclassified"] else "the file's class"
+        return [f"{rep['points']} points, {100 * g['share']:.1f}% ground ({source}); "
+                f"{rep['trees']['count']} trees -> {result.out_dir}"]
+
+
+METHOD = Lidar()

@@ -10,9 +10,10 @@ Usage (not run as a doctest: it runs the whole study)::
 See ``docs/study.md`` for the file format and the shipped studies.
 """
 
+from scanamp.cluster import connect
 from scanamp.study.kinds import KINDS, get_metric, score_peaks
 from scanamp.study.results import results_table, write_results
-from scanamp.study.runner import connect, execute_run, load_records, run_study
+from scanamp.study.runner import execute_run, load_records, run_study
 from scanamp.study.spec import Run, Study, load_study, run_id, shipped_studies, study_path
 from scanamp.study.suite import Suite, is_suite, load_suite, run_suite, suite_table
 

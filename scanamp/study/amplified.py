@@ -46,7 +46,7 @@ def run_amplified(bundle, cap_cfg: AmplifiedLaserConfig, rec_cfg, *, seed: int, 
     from data_synth.scenes import build_scene
     from scanamp.amplify import load_recipe
     from scanamp.amplify import run as amplify_run
-    from scanamp.methods import METHODS
+    from scanamp.methods import get_method
 
     opt = cap_cfg.amplify
     work = Path(work)
@@ -63,10 +63,10 @@ def run_amplified(bundle, cap_cfg: AmplifiedLaserConfig, rec_cfg, *, seed: int, 
         if o.get("name") == opt.object:
             spec["objects"][i] = {"name": opt.object, "shape": "mesh", "path": str(surface),
                                   **({"material": o["material"]} if "material" in o else {})}
-    method = METHODS["laser"]
+    method = get_method("laser")
     cap = method.capture(build_scene(spec), cap_cfg, work / "capture",
                          rng=np.random.default_rng(seed), seed=seed, scene_path=scene_path)
-    res = method.run(rec_cfg, cap, work / "reconstruction")
+    res = method.reconstruct(rec_cfg, cap, work / "reconstruction")
     amp_rep = read_json(amp / "report.json")
     return {**res.report, "ok": res.ok, "message": res.message,
             "amplify": {"recipe": recipe.name, "amplitude": opt.amplitude,

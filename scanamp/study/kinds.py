@@ -1,11 +1,17 @@
 """What one study run does, per kind: build the configs, capture, reconstruct, report.
 
-Each kind reads its capture config with the loader that ``scanamp capture KIND
---config FILE`` uses (the run's overrides are written as that TOML file first, so a
-study accepts exactly the keys and values the capture command accepts) and takes its
-reconstruction options from the reconstruction config dataclass the ``scanamp
-reconstruct KIND`` command fills (overridden by ``reconstruct.*`` keys). The report is
-the ``report.json`` the reconstruction writes.
+Every registered acquisition method (:mod:`scanamp.methods`) is a kind of the same name
+(:func:`method_kind`): there is no second table. A run reads its capture config with the
+loader that ``scanamp capture KIND --config FILE`` uses (the run's overrides are written
+as that TOML file first, so a study accepts exactly the keys and values the capture
+command accepts) and takes its reconstruction options from the reconstruction config
+dataclass the ``scanamp reconstruct KIND`` command fills (overridden by
+``reconstruct.*`` keys). It captures and reconstructs through the method, and its report
+is what the method's ``evaluate`` makes of the reconstruction (by default the
+reconstruction's own report, which scores it against the capture's ground truth).
+
+Three kinds are not a method's own run: ``amplified-laser`` (an amplified scene through
+the laser scanner, :mod:`scanamp.study.amplified`), ``peak-detector`` and ``_test``.
 
 ``peak-detector`` is cheaper: it renders the laser frames of the scan (the same rig,
 renderer, speckle and sensor model as ``capture laser``, no calibration captures),
@@ -26,17 +32,18 @@ import dataclasses
 import os
 import tempfile
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from core.files import read_toml, write_toml
 from core.validate import InputError
 
-__all__ = ["KINDS", "Kind", "split_overrides", "build_configs", "validate_run", "get_metric",
-           "material_overrides", "MATERIAL_KEYS"]
+__all__ = ["KINDS", "Kind", "method_kind", "split_overrides", "build_configs", "validate_run",
+           "get_metric", "material_overrides", "MATERIAL_KEYS"]
 
 # ``material.*`` overrides change the scanned object's material in the scene (any kind
 # that captures a scene): its reflectance model and parameters, the rest of it (colour,
@@ -258,43 +265,33 @@ def _scene_path(scene: str) -> str | None:
     return scene if "/" in scene or scene.endswith(".toml") else None
 
 
-def _execute(name: str):
-    """A study run of acquisition method ``name`` (:data:`scanamp.methods.METHODS`)."""
-    from scanamp.methods import METHODS
-
-    method = METHODS[name]
+def _execute(method):
+    """A study run of an acquisition method (:mod:`scanamp.methods`): the scene (with the
+    run's materials), the capture, the reconstruction and the method's evaluation."""
 
     def execute(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
                 material: dict | None = None) -> dict:
+        if material and not method.takes_materials:
+            raise InputError(f"a {method.name} study takes no material overrides",
+                             field="material")
         bundle, _ = _scene(scene, material)
-        if name == "sfm":  # pycolmap's seed follows the run's
-            rec_cfg = dataclasses.replace(rec_cfg, seed=seed)
-        cap = method.capture(bundle, cap_cfg, work / "capture", rng=np.random.default_rng(seed),
-                             seed=seed, scene_path=_scene_path(scene))
-        res = method.run(rec_cfg, cap, work / "reconstruction")
+        method.check_scene(bundle)
+        cap = method.capture(method.scene(bundle, cap_cfg), cap_cfg, work / "capture",
+                             rng=np.random.default_rng(seed), seed=seed,
+                             scene_path=_scene_path(scene))
+        res = method.reconstruct(method.seeded(rec_cfg, seed), method.inputs(cap),
+                                 work / "reconstruction")
         if not res.ok:
-            raise RunFailed(res.message or f"{name} failed", res.report)
-        return res.report
+            raise RunFailed(res.message or f"{method.name} failed", res.report)
+        return method.evaluate(Path(cap), res, bundle)
 
     return execute
 
 
-def _load(name: str):
-    def load(path: Path):
-        from scanamp.methods import METHODS
-
-        return METHODS[name].load_capture(path)
-
-    return load
-
-
-def _recon(name: str):
-    def default():
-        from scanamp.methods import METHODS
-
-        return METHODS[name].recon_config()
-
-    return default
+def method_kind(method) -> Kind:
+    """The study kind of an acquisition method: its configs, its run, its metrics."""
+    return Kind(method.name, method.load_capture_config, method.default_recon_config,
+                _execute(method), tuple(method.metrics))
 
 
 class RunFailed(RuntimeError):
@@ -403,102 +400,6 @@ def _run_amplified(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
     return report
 
 
-# -- LiDAR surveys of a forest (scanamp capture lidar -> reconstruct lidar -> evaluate) ------
-def _load_lidar(path: Path):
-    from acquire.lidar.capture import LidarCaptureConfig
-    from core.config import load_config
-
-    return load_config(LidarCaptureConfig, path)
-
-
-def _lidar_recon():
-    from reconstruct.lidar.pipeline import LidarReconConfig
-
-    return LidarReconConfig()
-
-
-def _run_lidar(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
-               material: dict | None = None) -> dict:
-    """Build the forest (its truth: trees.csv, dtm.tif), fly it, reconstruct, score."""
-    import json
-
-    from data_synth.scenes import build_scene, write_scene
-    from reconstruct.lidar.evaluation import evaluate_lidar
-    from reconstruct.lidar.pipeline import run as run_lidar
-    from scanamp.methods.lidar import run_lidar_capture
-
-    if material:
-        raise InputError("a LiDAR study takes no material overrides", field="material")
-    bundle = build_scene(scene)
-    if not getattr(bundle, "trees", None):
-        raise InputError("a LiDAR study needs a forest scene (its truth: trees and terrain)",
-                         field="study.scene")
-    scene_dir = write_scene(bundle, work / "scene")
-    capture = run_lidar_capture(str(scene_dir), dataclasses.replace(cap_cfg, seed=seed),
-                                work / "capture")
-    recon = run_lidar(rec_cfg, work / "capture" / "points.laz", work / "reconstruction")
-    report = json.loads((Path(recon) / "report.json").read_text())
-    return {"capture": capture, "reconstruction": report,
-            "evaluation": evaluate_lidar(recon, scene_dir)}
-
-
-# -- range scans from free viewpoints (capture scans -> reconstruct scans -> poses + F) ------
-def _load_scans(path: Path):
-    from acquire.scans.capture import ScansCaptureConfig
-    from core.config import load_config
-
-    return load_config(ScansCaptureConfig, path)
-
-
-def _scans_recon():
-    from reconstruct.scans.pipeline import ScansReconConfig
-
-    return ScansReconConfig()
-
-
-SCANS_TAU = 5e-4  # the F-score's distance for range scans (issue 30: F at 0.5 mm)
-
-
-def _run_scans(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
-               material: dict | None = None) -> dict:
-    """Scan the scene from ``views`` free viewpoints, register and merge with no pose
-    given, then score the poses against the capture's true ones (after the robust gauge
-    fit of :func:`reconstruct.evaluation.scan_poses.compare_scan_poses`) and the merged
-    mesh, carried into the world by that gauge, against the ground truth at 0.5 mm."""
-    import json
-
-    from acquire.scans.capture import capture_scans
-    from core.mesh_io import read_mesh
-    from core.range_io import read_poses_json
-    from reconstruct.evaluation.evaluate import evaluate
-    from reconstruct.evaluation.scan_poses import compare_scan_poses
-    from reconstruct.scans.load import load_scans
-    from reconstruct.scans.pipeline import run as run_scans
-
-    bundle, info = _scene(scene, material)
-    cap_cfg = dataclasses.replace(cap_cfg, seed=seed)
-    cap = capture_scans(bundle.render_scene, cap_cfg, work / "capture",
-                        np.random.default_rng(seed), seed=seed, scene_info=info,
-                        gt_mesh=bundle.gt_mesh())
-    rec = Path(run_scans(rec_cfg, [Path(cap) / "scans"], work / "reconstruction"))
-    report = json.loads((rec / "report.json").read_text())
-    name = lambda f: Path(f).name  # noqa: E731
-    est = {name(q.file): (q.model_from_scan if q.registered else None)
-           for q in read_poses_json(rec / "poses.json")}
-    true = {name(q.file): q.model_from_scan for q in read_poses_json(Path(cap) / "poses.json")}
-    points = {s.name: s.points for s in load_scans([Path(cap) / "scans"])}
-    errors = compare_scan_poses(est, true, points)
-    diag = float(np.linalg.norm(np.ptp(np.asarray(bundle.gt_mesh().vertices), axis=0)))
-    mesh = read_mesh(rec / "mesh.ply").transform(errors.gauge)
-    surface = evaluate(mesh, bundle.gt_mesh(), tau=SCANS_TAU)
-    return {"reconstruction": report,
-            "registered_fraction": sum(v is not None for v in est.values()) / len(true),
-            "poses": {**errors.to_dict(),
-                      "displacement_max_fraction_of_scene":
-                          float(errors.displacement_rms.max()) / diag},
-            "mesh": surface.to_dict()}
-
-
 @dataclass
 class _TestConfig:
     """Test-only kind: ``y = x**2``; ``sleep`` seconds; ``fail_above``: raise when x >
@@ -543,29 +444,39 @@ def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work:
     return {"y": rec.scale * cfg.x ** 2, "x": cfg.x, "seed": seed}
 
 
-_LASER_METRICS = ("evaluation.depth_error.rms_m", "evaluation.surface.fscore",
-                  "evaluation.surface.recall", "evaluation.surface.precision")
-KINDS: dict[str, Kind] = {
-    "laser": Kind("laser", _load("laser"), _recon("laser"), _execute("laser"), _LASER_METRICS),
-    "stereo": Kind("stereo", _load("stereo"), _recon("stereo"), _execute("stereo"),
-                   ("results.active.evaluation.accuracy_mean",
-                    "results.active.evaluation.fscore",
-                    "results.active.disparity_mean.avgerr")),
-    "structured-light": Kind("structured-light", _load("structured-light"),
-                             _recon("structured-light"), _execute("structured-light"),
-                             ("evaluation.accuracy_mean", "evaluation.fscore")),
-    "sfm": Kind("sfm", _load("sfm"), _recon("sfm"), _execute("sfm"),
-                ("registered_fraction", "metrics.poses.rotation_error_deg.mean",
-                 "metrics.poses.ate_fraction_of_scene", "metrics.mesh.fscore")),
-    "amplified-laser": Kind("amplified-laser", _load_amplified, _recon("laser"),
-                            _run_amplified, _LASER_METRICS),
-    "peak-detector": Kind("peak-detector", _load("laser"), _recon("laser"), _run_peaks,
-                          ("peak_error.rms_px", "peak_error.detection_rate",
-                           "peak_error.outlier_rate")),
-    "lidar": Kind("lidar", _load_lidar, _lidar_recon, _run_lidar,
-                  ("evaluation.trees.f", "evaluation.dtm.rmse", "evaluation.trees.height_rmse")),
-    "scans": Kind("scans", _load_scans, _scans_recon, _run_scans,
-                  ("registered_fraction", "poses.rotation_error_deg.max",
-                   "poses.displacement_max_fraction_of_scene", "mesh.fscore")),
-    "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",)),
-}
+class _Kinds(Mapping):
+    """The study kinds: one per registered acquisition method (:mod:`scanamp.methods`,
+    read at each look-up, so a method registered later is a kind too), then the kinds that
+    are not a method's own capture and reconstruction."""
+
+    def _all(self) -> dict[str, Kind]:
+        from scanamp.methods import methods
+
+        laser = _laser_kind()
+        return {**{name: method_kind(m) for name, m in methods().items()},
+                "amplified-laser": Kind("amplified-laser", _load_amplified,
+                                        laser.recon_default, _run_amplified,
+                                        laser.default_metrics),
+                "peak-detector": Kind("peak-detector", laser.load_capture,
+                                      laser.recon_default, _run_peaks,
+                                      ("peak_error.rms_px", "peak_error.detection_rate",
+                                       "peak_error.outlier_rate")),
+                "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",))}
+
+    def __getitem__(self, name: str) -> Kind:
+        return self._all()[name]
+
+    def __iter__(self):
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._all())
+
+
+def _laser_kind() -> Kind:
+    from scanamp.methods import get_method
+
+    return method_kind(get_method("laser"))
+
+
+KINDS: Mapping[str, Kind] = _Kinds()

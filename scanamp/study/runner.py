@@ -40,6 +40,7 @@ from core.files import read_json, write_json
 from core.outputs import read_manifest, write_declared
 from core.progress import track
 from core.validate import InputError
+from scanamp.cluster import connect
 
 log = logging.getLogger(__name__)
 
@@ -157,22 +158,6 @@ def _crash_record(task: dict, message: str) -> dict:
             "scene": task["scene"], "seed": task["seed"], "params": task["params"],
             "overrides": task["overrides"], "status": "failed", "error": message,
             "report": None, "seconds": None, "metrics": {m: None for m in task["metrics"]}}
-
-
-def connect(scheduler: str, *, timeout: float = 5.0):
-    """A ``dask.distributed.Client`` on ``scheduler``; InputError if unreachable."""
-    try:
-        from distributed import Client
-    except ImportError:  # pragma: no cover
-        raise InputError("needs dask.distributed (pip install 'dask[distributed]')",
-                         field="--scheduler") from None
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)
-    try:
-        return Client(scheduler, timeout=f"{timeout}s", set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot reach the Dask scheduler {scheduler!r} within {timeout:g} s "
-                         f"({reason[:160]})", field="--scheduler") from None
 
 
 def _run_dask(tasks: list[dict], client, done_cb) -> None:
