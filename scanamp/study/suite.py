@@ -10,7 +10,7 @@ methods (the stereo study scores the passive and the active pair).
 :func:`run_suite` runs each member study, resumably, in its own sub-folder of the
 suite's folder, then writes ``results.csv`` (one row per method and row value: F-score,
 outliers ``1 - precision``, dropout ``1 - recall``, bias) and one grouped bar plot per
-measure under ``plots/``. The shipped suite is ``materials`` (issue 17): which scanning
+measure under ``plots/``. The shipped suite is ``materials``: which scanning
 method fails on which surface.
 """
 
