@@ -19,7 +19,7 @@ import numpy as np
 
 from acquire.laser.rig import LaserCaptureConfig
 from reconstruct.laser.pipeline import STAGES, LaserReconConfig
-from scanamp.methods.protocol import Method, scene_info
+from scanamp.methods.protocol import Method, add_from_stage, scene_info
 
 __all__ = ["Laser", "METHOD"]
 
@@ -57,10 +57,7 @@ class Laser(Method):
 
     def add_reconstruct_arguments(self, parser) -> None:
         super().add_reconstruct_arguments(parser)
-        parser.add_argument("--from", dest="from_stage", choices=STAGES, default=None,
-                            help="re-run from this stage on (" + " -> ".join(STAGES) + "); "
-                                 "without it a stage whose options and inputs are unchanged "
-                                 "is reused from --out")
+        add_from_stage(parser, STAGES)
 
     def reconstruct_from_args(self, config, args):
         return self.reconstruct(config, args.capture, args.out, from_stage=args.from_stage)

@@ -28,8 +28,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["Method", "scene_for_capture", "without_textures", "scene_info", "object_name",
-           "world_from_table"]
+__all__ = ["Method", "add_from_stage", "scene_for_capture", "without_textures", "scene_info",
+           "object_name", "world_from_table"]
 
 
 class Method(abc.ABC):
@@ -122,6 +122,14 @@ class Method(abc.ABC):
     def describe(self, result) -> list[str]:
         """The lines ``scanamp reconstruct NAME`` logs about ``result``."""
         return [f"wrote {result.out_dir}"]
+
+
+def add_from_stage(parser: argparse.ArgumentParser, stages) -> None:
+    """``--from STAGE`` of a staged pipeline's reconstruct command (:class:`core.stages.Stages`)."""
+    parser.add_argument("--from", dest="from_stage", choices=stages, default=None,
+                        help="re-run from this stage on (" + " -> ".join(stages) + "); without "
+                             "it a stage whose options and inputs are unchanged is reused from "
+                             "--out")
 
 
 # -- scenes --------------------------------------------------------------------------------

@@ -25,7 +25,7 @@ import numpy as np
 
 from acquire.scans.capture import ScansCaptureConfig
 from reconstruct.scans.pipeline import STAGES, ScansReconConfig
-from scanamp.methods.protocol import Method
+from scanamp.methods.protocol import Method, add_from_stage
 
 __all__ = ["Scans", "METHOD", "SCANS_TAU"]
 
@@ -111,8 +111,7 @@ class Scans(Method):
         p.add_argument("--poses", default=None, metavar="FILE",
                        help="initial guess of the poses (.conf, .aln or poses.json); never "
                             "needed")
-        p.add_argument("--from", dest="from_stage", choices=STAGES, default=None,
-                       help="re-run from this stage on (" + " -> ".join(STAGES) + ")")
+        add_from_stage(p, STAGES)
 
     def reconstruct_from_args(self, config, args):
         return self.reconstruct(config, args.scans, args.out, poses=args.poses,

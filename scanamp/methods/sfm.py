@@ -19,7 +19,7 @@ from pathlib import Path
 
 from acquire.sfm.capture import SfmCaptureConfig
 from reconstruct.sfm.pipeline import STAGES, SfmConfig
-from scanamp.methods.protocol import Method
+from scanamp.methods.protocol import Method, add_from_stage
 
 __all__ = ["Sfm", "METHOD"]
 
@@ -63,10 +63,7 @@ class Sfm(Method):
         p.add_argument("input", type=Path,
                        help="SfM capture folder (capture.json) or a folder of photos (JPEG, "
                             "PNG, TIFF; EXIF orientation applied)")
-        p.add_argument("--from", dest="from_stage", choices=STAGES, default=None,
-                       help="re-run from this stage on (" + " -> ".join(STAGES) + "); without "
-                            "it a stage whose options and inputs are unchanged is reused from "
-                            "--out")
+        add_from_stage(p, STAGES)
 
     def reconstruct_from_args(self, config, args):
         return self.reconstruct(config, args.input, args.out, from_stage=args.from_stage)
