@@ -26,8 +26,11 @@ def laser_scan(tmp_path_factory):
     cap = capture(bundle.render_scene, LaserCaptureConfig(rig=LaserRig(**SMALL), target=TARGET),
                   root / "cap",
                   np.random.default_rng(0), gt_mesh=bundle.gt_mesh())
-    out = run(LaserReconConfig(tau=0.002), cap, root / "rec")
-    return cap, out, json.loads((out / "report.json").read_text())
+    res = run(LaserReconConfig(tau=0.002), cap, root / "rec")
+    # the report in hand is report.json, as written
+    assert json.dumps(res.report) == json.dumps(
+        json.loads((res.out_dir / "report.json").read_text()))  # NaN compares as text
+    return cap, res.out_dir, res.report
 
 
 def test_capture_is_deterministic_and_complete(laser_scan, tmp_path):

@@ -52,15 +52,16 @@ def test_decoded_projector_coordinates_match_truth(sl_capture):
 def test_structured_light_reconstruction(sl_capture, tmp_path):
     from reconstruct.stereo.sl_pipeline import run_capture
 
-    out = run_capture(sl_capture, tmp_path / "rec")
-    r = json.loads((out / "report.json").read_text())
+    res = run_capture(sl_capture, tmp_path / "rec")
+    r = res.report
+    assert json.dumps(r) == json.dumps(json.loads((res.out_dir / "report.json").read_text()))
     assert r["calibration"]["truth_errors"]["baseline_rel_err"] < 0.02
     # small images, one view, no alignment: loose bound (the benchmark measures the 0.5 %
     # target); the rigid ICP diagnostic finds the calibrated frame within a few mm
     ev = r["evaluation"]
     assert ev["fscore"] > 0.85
     assert ev["diagnostic_icp"]["translation_mm"] < 3.0
-    assert (out / "mesh.ply").is_file()
+    assert (res.out_dir / "mesh.ply").is_file()
 
 
 def test_cli_rejects_a_stereo_capture_as_structured_light(sl_capture, tmp_path, capsys):
