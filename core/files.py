@@ -28,10 +28,10 @@ else:  # pragma: no cover
 __all__ = [
     "atomic_dir",
     "atomic_file",
-    "json_data",
     "write_json",
     "read_text",
     "read_json",
+    "json_data",
     "read_toml",
     "write_toml",
     "require",

@@ -142,8 +142,7 @@ def _merge_mesh(scans, poses, cfg: ScansReconConfig):
 def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
         from_stage: str | None = None) -> ReconstructionResult:
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
-    into ``out_dir`` (module docstring); ``poses``: an optional initial guess file. The
-    folder and its report."""
+    into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
     from core.meshes import make_mesh
     from core.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
