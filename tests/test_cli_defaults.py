@@ -13,8 +13,7 @@ import dataclasses
 import pytest
 
 from core.config import iter_options
-from scanamp.cli import build_parser
-from scanamp.cli import config_from_args
+from scanamp.cli import build_parser, config_from_args
 
 
 def _commands():
