@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.validate import check_array, check_choice, check_int, check_range
-from simulate.boid_kernels import (
+from simulate.boids._kernels import (
     _finish_all,
     _gather,
     _integrate,
@@ -435,7 +435,7 @@ def _step(state, params, rng, collider, method):
 
 def __getattr__(name):  # the recipe loader lives in simulate.boid_loader
     if name in ("Recipe", "load_recipe", "recipe_names"):
-        from simulate import boid_loader
+        from simulate.boids import recipes as boid_loader
 
         return getattr(boid_loader, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,7 +11,7 @@ import numba as nb
 import numpy as np
 
 if TYPE_CHECKING:
-    from simulate.boids import BoidParams
+    from simulate.boids.flock import BoidParams
 
 # --- parameters packed for the kernels -------------------------------------------------
 _RS2, _RA2, _RC2, _WS, _WA, _WC, _VMAX, _VMIN, _FMAX, _FOVCOS = range(10)

@@ -28,11 +28,11 @@ import numpy as np
 
 from core.validate import check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
-from simulate.emitters import Emitter
 from simulate.forces import ForceSet, _accel_inline
 from simulate.integrators import METHODS, check_step, integrate_adaptive
 from simulate.integrators import step as generic_step
 from simulate.neighbours import threads_for
+from simulate.particles.emitters import Emitter
 
 log = logging.getLogger(__name__)
 
