@@ -33,7 +33,7 @@ def survey(relief: float, cache: Path):
         d = np.load(f)
         return d["xyz"], d["last"], d["truth"], d["dtm_xyz"]
     from acquire.lidar.capture import LidarCaptureConfig
-    from core.las_io import read_las
+    from core.io.las import read_las
     from data_synth.forest import ForestConfig, build_forest, terrain_height, write_forest
     from scanamp.lidar_run import run_lidar_capture
 

@@ -5,8 +5,8 @@
 - :mod:`core.config`    configuration dataclasses: declared options, TOML in and out
 - :mod:`core.meshes`    the canonical mesh (``open3d.geometry.TriangleMesh``), its
   conversions to pymeshlab and pyvista, and mesh measures
-- :mod:`core.mesh_io`   mesh, point-cloud and polyline files
-- :mod:`core.image_io`  image files
+- :mod:`core.io`        the file formats: meshes, images, range grids, E57, LAS, rasters,
+  tree tables, other tools' cameras
 - :mod:`core.frames`    rotations and rigid transforms
 - :mod:`core.sampling`  area-uniform surface samples, voxel thinning
 - :mod:`core.progress`  progress of long work (the CLI decides whether it shows)

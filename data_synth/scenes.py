@@ -42,7 +42,7 @@ from acquire.render.scene import RenderScene, SceneObject
 from acquire.targets import target_from_dict
 from core.files import atomic_dir, read_toml, require, write_json, write_toml
 from core.frames import euler_xyz_deg
-from core.mesh_io import read_mesh, write_mesh
+from core.io.mesh import read_mesh, write_mesh
 from core.meshes import merge_meshes, transform_mesh
 from core.validate import InputError
 from data_synth import shapes

@@ -111,10 +111,10 @@ class LaserReconConfig(Config):
 
 
 def _read(path: Path, channel: int | None = None) -> np.ndarray:
-    """One frame, upright (core.image_io), as grey or one colour channel (0 = red)."""
+    """One frame, upright (core.io.image), as grey or one colour channel (0 = red)."""
     import cv2
 
-    from core.image_io import read_image
+    from core.io.image import read_image
 
     img = read_image(path)
     if img.ndim == 3:
@@ -149,7 +149,7 @@ def run(config: LaserReconConfig, capture_dir, out_dir, *,
     options or inputs changed are recomputed (a new Poisson depth re-runs ``mesh`` and
     ``evaluate``, not the calibrations). ``from_stage`` forces a stage and the later ones.
     """
-    from core.mesh_io import write_mesh, write_points
+    from core.io.mesh import write_mesh, write_points
     from core.stages import Stages, files_key
 
     cfg = config

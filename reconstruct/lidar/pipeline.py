@@ -5,7 +5,7 @@ cloth simulation filter when the file has no ground class (ASPRS 2) or with
 ``reclassify``; interpolate the DTM from the ground, the CHM from every point's height
 above it; find the trees (tops and crowns). Writes, in the file's coordinates and CRS:
 
-- ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.raster_io`);
+- ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.io.raster`);
 - ``trees.csv`` -- ``tree_id, x, y, height, crown_area``;
 - ``classified.laz`` -- the points with their ground class (2) and, when the filter ran,
   the water it found (9); others keep theirs (a point the file called ground that the
@@ -24,9 +24,9 @@ import numpy as np
 
 from core.config import Config, option
 from core.files import atomic_dir, write_json
-from core.las_io import LasWriter, read_las
-from core.raster_io import write_raster
-from core.trees_io import write_tree_table
+from core.io.las import LasWriter, read_las
+from core.io.raster import write_raster
+from core.io.trees import write_tree_table
 from core.validate import InputError
 from reconstruct.lidar.ground import GroundOptions, classify_ground
 from reconstruct.lidar.rasters import canopy_height, dtm_from_ground

@@ -324,7 +324,7 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     depth = opt.poisson_depth or int(np.clip(np.ceil(np.log2(extent / max(2 * footprint,
                                                                         1e-12))), 8, 11))
     # PoissonRecon prints its warnings ("bad average roots") itself: to the log instead
-    from core.mesh_io import native_output
+    from core.io.mesh import native_output
 
     said: list[str] = []
     with native_output(said, fds=(1, 2)):

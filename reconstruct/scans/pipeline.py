@@ -70,7 +70,7 @@ class ScansReconConfig(Config):
 
 def read_initial_poses(path) -> dict[str, np.ndarray]:
     """``{file name: model_from_scan}`` from a ``.conf``, ``.aln`` or ``poses.json``."""
-    from core.range_io import read_aln, read_conf, read_poses_json
+    from core.io.range import read_aln, read_conf, read_poses_json
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -191,9 +191,9 @@ def _up(sights: list[np.ndarray]) -> np.ndarray:
 
 def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total, st):
     """``load``: the wall-clock and CPU seconds of reading the scans."""
-    from core.image_io import write_image
-    from core.mesh_io import write_mesh
-    from core.range_io import ScanPose, write_conf, write_poses_json
+    from core.io.image import write_image
+    from core.io.mesh import write_mesh
+    from core.io.range import ScanPose, write_conf, write_poses_json
 
     t_load, cpu_load = load
 

@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from core.io.range import RangeGrid
 from core.meshes import face_normals, vertex_normals
-from core.range_io import RangeGrid
 from core.validate import InputError, check_array, check_range
 
 __all__ = ["RangeScan", "scan_from_grid", "scan_from_points", "grid_sight"]

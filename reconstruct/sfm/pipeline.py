@@ -43,8 +43,8 @@ from acquire.capture_io import load_capture
 from acquire.sfm.nerfstudio import write_transforms
 from core.config import Config, option
 from core.files import atomic_dir, write_json
-from core.image_io import read_image, to_uint8
-from core.mesh_io import read_mesh, write_mesh, write_points
+from core.io.image import read_image, to_uint8
+from core.io.mesh import read_mesh, write_mesh, write_points
 from core.validate import InputError, check_choice
 from reconstruct.calibration.io import read_camera_yaml
 from reconstruct.camera_files import (
@@ -151,7 +151,7 @@ class _Input:
     capture: object = None  # acquire.capture_io.Capture or None
     nominal: Camera | None = None
     order: str = "unknown"
-    infos: dict | None = None  # name -> core.image_io.PhotoInfo
+    infos: dict | None = None  # name -> core.io.image.PhotoInfo
     known: dict | None = None  # name -> Camera, from --cameras
 
 

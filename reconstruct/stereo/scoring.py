@@ -93,7 +93,7 @@ def reference_in_table(cap: Capture, table_from_left: np.ndarray, *, mounted: bo
     calibrated frame's origin height and heading are tied to the world through the
     true left camera (an approximation: it inherits the calibration's camera datum).
     """
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import transform_mesh
 
     gt = cap.ground_truth

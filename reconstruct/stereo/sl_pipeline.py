@@ -22,7 +22,7 @@ from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, write_json
-from core.mesh_io import write_mesh, write_points
+from core.io.mesh import write_mesh, write_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import detect_board

@@ -696,7 +696,7 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     --------
     A 40 x 40 range image of a plane 0.3 m in front of its scanner, 1 mm apart:
 
-    >>> from core.range_io import RangeGrid
+    >>> from core.io.range import RangeGrid
     >>> from reconstruct.scans import scan_from_grid
     >>> r, c = np.mgrid[0:40, 0:40]
     >>> pts = np.stack([(c.ravel() - 20) * 1e-3, (r.ravel() - 20) * 1e-3,

@@ -468,8 +468,8 @@ def _run_scans(cap_cfg, rec_cfg, *, scene: str, seed: int, work: Path,
     import json
 
     from acquire.scans.capture import capture_scans
-    from core.mesh_io import read_mesh
-    from core.range_io import read_poses_json
+    from core.io.mesh import read_mesh
+    from core.io.range import read_poses_json
     from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.evaluation.scan_poses import compare_scan_poses
     from reconstruct.scans.load import load_scans
