@@ -57,9 +57,9 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
 
     On an exception the temporary folder is removed and ``path`` is left as it was.
     Only an empty folder or one scanamp wrote (with its manifest,
-    :data:`core.outputs.MANIFEST`) is ever replaced: anything else at ``path`` raises
+    :data:`core.runs.outputs.MANIFEST`) is ever replaced: anything else at ``path`` raises
     InputError before anything is written. The folder gets the manifest: that of the
-    running command when ``path`` is the output it declared (:func:`core.outputs.writing`),
+    running command when ``path`` is the output it declared (:func:`core.runs.outputs.writing`),
     else one that says it was written through the Python API (``"command": "api"``).
 
     >>> import tempfile, pathlib
@@ -79,7 +79,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; outputs get the usual mode
-    from core import outputs  # the manifest (and config) of the command's declared output
+    from core.runs import outputs  # the manifest (and config) of the command's declared output
 
     outputs.write_declared(tmp, path)
     try:
@@ -98,7 +98,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
 
 def _check_replaceable(path: Path) -> None:
     """atomic_dir replaces only an empty folder or one scanamp wrote (never a file)."""
-    from core.outputs import MANIFEST
+    from core.runs.outputs import MANIFEST
 
     if not (path.exists() or path.is_symlink()):
         return

@@ -145,12 +145,12 @@ def run(config: LaserReconConfig, capture_dir, out_dir, *,
     """Reconstruct a laser capture into ``out_dir`` (see the module docstring).
 
     The work is five named stages (:data:`STAGES`), each cached in ``out_dir/stages``
-    (:class:`core.stages.Stages`): run again into the same folder, only the stages whose
+    (:class:`core.runs.stages.Stages`): run again into the same folder, only the stages whose
     options or inputs changed are recomputed (a new Poisson depth re-runs ``mesh`` and
     ``evaluate``, not the calibrations). ``from_stage`` forces a stage and the later ones.
     """
     from core.io.mesh import write_mesh, write_points
-    from core.stages import Stages, files_key
+    from core.runs.stages import Stages, files_key
 
     cfg = config
     t_all = time.perf_counter()

@@ -1,7 +1,7 @@
 """``scanamp reconstruct scans``: range scans from free viewpoints, registered to each
 other with no initial pose and merged into one surface.
 
-Stages (:class:`core.stages.Stages`, each skipped when its inputs and options are
+Stages (:class:`core.runs.stages.Stages`, each skipped when its inputs and options are
 unchanged): ``register`` (:func:`reconstruct.registration.register_scans`: features and a
 seeded RANSAC per pair, verification on the lines of sight, a pose graph, multi-view
 ICP), ``merge`` (:func:`reconstruct.surface.volumetric.merge_scans`, Curless and Levoy's
@@ -143,7 +143,7 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
     into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
     from core.meshes import make_mesh
-    from core.stages import Stages, files_key
+    from core.runs.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
 
     cfg = config

@@ -37,8 +37,8 @@ import traceback
 from pathlib import Path
 
 from core.files import read_json, write_json
-from core.outputs import read_manifest, write_declared
 from core.progress import track
+from core.runs.outputs import read_manifest, write_declared
 from core.validate import InputError
 
 log = logging.getLogger(__name__)

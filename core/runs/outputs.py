@@ -11,7 +11,7 @@ sentence that says what to do, before anything is written.
 :func:`output_dir` checks, then yields a temporary sibling folder that replaces the
 output on success (an interrupted or failed run leaves the old folder as it was); with
 ``reuse=True`` the temporary folder starts as a copy of the old one, so pipeline stages
-whose inputs did not change can be skipped (:mod:`core.stages`).
+whose inputs did not change can be skipped (:mod:`core.runs.stages`).
 """
 
 from __future__ import annotations
