@@ -63,7 +63,7 @@ def versions() -> dict[str, str]:
     """scanamp's version and those of its core dependencies (``scanamp --version``)."""
     from importlib import metadata
 
-    from core.runs.outputs import version
+    from core.files import version
 
     found = {"scanamp": version()}
     for dist in ("numpy", "opencv-contrib-python-headless", "open3d", "pycolmap", "pymeshlab",
@@ -176,6 +176,7 @@ def _check_outputs(args: argparse.Namespace, config=None) -> tuple[Path, str] | 
 
 
 def _run(args: argparse.Namespace) -> int:
+    from core import files
     from core.runs import outputs
 
     config = (config_from_args(args._config_cls, args) if args._config_cls is not None
@@ -187,7 +188,7 @@ def _run(args: argparse.Namespace) -> int:
         code = int((args._run(args, config) if config is not None else args._run(args)) or 0)
         if declared is not None and code == 0 and declared[0].is_dir() and \
                 outputs.read_manifest(declared[0]) is None:
-            outputs.write_declared(declared[0], declared[0])  # written in place, not atomically
+            files.write_declared(declared[0], declared[0])  # written in place, not atomically
     return code
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from core.runs.outputs import MANIFEST, check_output, check_output_file, output_dir, read_manifest
+from core.files import MANIFEST
+from core.runs.outputs import check_output, check_output_file, output_dir, read_manifest
 from core.validate import InputError
 
 

@@ -1,7 +1,7 @@
 """core.runs: how a run writes its results.
 
-- :mod:`core.runs.outputs` output folders that never destroy: where a command may write,
-  the manifest that marks a folder as ours, the declared output of the running command;
+- :mod:`core.runs.outputs` output folders that never destroy: where a command may write
+  and the running command's declared output (the manifest itself is :mod:`core.files`'s);
 - :mod:`core.runs.stages` pipeline stages, each skipped when its inputs and options are
   unchanged.
 
@@ -13,9 +13,8 @@
 from core.lazy import lazy_exports
 
 _EXPORTS = {
-    **dict.fromkeys(["MANIFEST", "read_manifest", "check_output", "check_output_file",
-                     "output_dir", "version", "writing", "write_manifest", "declared_manifest",
-                     "write_declared", "CONFIG_FILE"], "outputs"),
+    **dict.fromkeys(["read_manifest", "check_output", "check_output_file", "output_dir",
+                     "writing"], "outputs"),
     **dict.fromkeys(["Stages", "files_key"], "stages"),
 }
 __all__ = sorted(_EXPORTS)
