@@ -21,8 +21,8 @@ direction closest to its heading. Then every step's motion is cast as a swept se
 a boid whose segment meets the mesh stops ``skin`` before the surface and its velocity
 is reflected, so no boid passes through a mesh.
 
-The model is this module; its compiled kernels are :mod:`simulate.boid_kernels` and the
-recipe loader :mod:`simulate.boid_loader` (``load_recipe`` is served from here too).
+The model is this module; its compiled kernels are :mod:`simulate.boids._kernels`, and
+named recipes of parameters are :mod:`simulate.boids.recipes`.
 
 :func:`step` runs on the grid; ``method="reference"`` finds neighbours by testing all
 n^2 pairs in numpy (tests compare the two to 1e-10; benchmarks use it as the naive peer).
@@ -59,9 +59,8 @@ from simulate.neighbours import build_grid, threads_for
 
 log = logging.getLogger(__name__)
 
-# the recipe loader's names are served lazily from simulate.boid_loader (__getattr__)
-__all__ = ["BoidParams", "FlockState", "init_flock", "step", "perception_radius",  # noqa: F822
-           "load_recipe", "recipe_names", "Recipe"]
+__all__ = ["BoidParams", "FlockState", "init_flock", "step", "perception_radius", "MODELS",
+           "METHODS"]
 
 MODELS = ("reynolds", "couzin")
 METHODS = ("grid", "reference")
@@ -431,11 +430,3 @@ def _step(state, params, rng, collider, method):
     state.time += params.dt
     state.steps += 1
     return state
-
-
-def __getattr__(name):  # the recipe loader lives in simulate.boid_loader
-    if name in ("Recipe", "load_recipe", "recipe_names"):
-        from simulate.boids import recipes as boid_loader
-
-        return getattr(boid_loader, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,7 +9,7 @@ generic integrators of :mod:`simulate.integrators` over the whole state.
 
 Note on numba's cache: the fused kernel inlines the force kernel of :mod:`simulate.forces` when it
 is compiled, but numba keys its on-disk cache on this file only. After changing the
-force kernels, touch this file (or clear ``simulate/__pycache__``) so it recompiles.
+force kernels, touch this file (or clear ``simulate/particles/__pycache__``) so it recompiles.
 
 Attributes (colour, size, opacity, mass) are :class:`Ramp` functions of age, life
 fraction or temperature; temperature relaxes to ``ambient`` with time constant
