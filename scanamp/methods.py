@@ -2,7 +2,7 @@
 reconstructed, behind two entry points with one signature for every method.
 
 ``capture(scene, config, out_dir, *, rng, seed=0, scene_path=None) -> Path`` renders a
-virtual capture of ``scene`` (a :class:`data_synth.scenes.SceneBundle`) with the rig
+virtual capture of ``scene`` (a :class:`data_synth.bundle.SceneBundle`) with the rig
 ``config`` (what ``scanamp capture KIND --config`` reads, :attr:`Method.load_capture`).
 
 ``run(config, capture_dir, out_dir) -> Result`` reconstructs a capture folder with the
