@@ -107,7 +107,7 @@ class EvaluationResult:
     icp_reference_from_recon : (4, 4) tuple of tuples or None
         Rigid transform applied to the reconstruction before scoring.
     alignment : dict or None
-        How it was aligned (:meth:`reconstruct.registration.rigid.Registration.to_dict`):
+        How it was aligned (:meth:`reconstruct.registration.icp.Registration.to_dict`):
         method, threshold, and for ``global`` the coarse stage's source and fitness.
     bias : float or None
         Mean signed distance of the reconstruction's samples within ``tau`` of the
