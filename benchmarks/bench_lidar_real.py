@@ -208,11 +208,12 @@ def _polygon_centroid(p):
 
 
 def _survey_figures(pts, res, ref_trees, area):
+    from core.io.las import AsprsClass
     from reconstruct.lidar import height_above, tree_scores
 
     first = pts["return_number"] == 1
     cls = pts.get("classification")
-    ground = (cls == 2) if cls is not None else res.ground
+    ground = (cls == AsprsClass.GROUND) if cls is not None else res.ground
     h = height_above(res.dtm, _xyz(pts))
     veg = h[(~ground) & (h > 2.0)]
     tr = res.trees

@@ -31,7 +31,7 @@ _MODULES = {
               "write_poses_json", "model_from_conf", "conf_from_model"],
     "e57": ["E57Scan", "read_e57", "write_e57"],
     "las": ["LasWriter", "LasInfo", "read_las", "iter_las_chunks", "STANDARD_FIELDS",
-            "SCAN_ANGLE_STEP_DEG", "gps_date"],
+            "SCAN_ANGLE_STEP_DEG", "gps_date", "AsprsClass", "ASPRS_NAMES"],
     "raster": ["Raster", "write_raster", "read_raster"],
     "trees": ["read_tree_table", "write_tree_table", "TEXT_COLUMNS"],
     "scene_cameras": ["ViewCamera", "read_openmvs_scene", "read_meshroom_sfm",

@@ -24,7 +24,7 @@ import numpy as np
 
 from core.config import Config, option
 from core.files import atomic_dir, write_json
-from core.io.las import LasWriter, read_las
+from core.io.las import AsprsClass, LasWriter, read_las
 from core.io.raster import write_raster
 from core.io.trees import write_tree_table
 from core.validate import InputError
@@ -36,9 +36,8 @@ __all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
 
 log = logging.getLogger(__name__)
 
-GROUND_CLASS = 2
-WATER_CLASS = 9
-NOISE_CLASSES = (7, 18)  # low and high noise: never ground, never canopy
+#: low and high noise: never ground, never canopy
+NOISE_CLASSES = (AsprsClass.LOW_NOISE, AsprsClass.HIGH_NOISE)
 
 
 @dataclass
@@ -90,7 +89,7 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
     noise = np.isin(cls, NOISE_CLASSES) if cls is not None else np.zeros(n, bool)
     t = {}
     t0 = time.perf_counter()
-    has_ground = cls is not None and np.any(cls == GROUND_CLASS)
+    has_ground = cls is not None and np.any(cls == AsprsClass.GROUND)
     reclassified = bool(c.reclassify or not has_ground)
     if reclassified:
         last = None
@@ -105,7 +104,7 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
                                            last=None if last is None else last[keep], water=w)
             water[keep] = w
     else:
-        ground = cls == GROUND_CLASS
+        ground = cls == AsprsClass.GROUND
         water = np.zeros(n, bool)
     t["ground_s"] = time.perf_counter() - t0
     if ground.sum() < 3:
@@ -129,10 +128,10 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
 def _classified(points: dict, ground: np.ndarray, water: np.ndarray | None = None) -> np.ndarray:
     cls = points.get("classification")
     out = (np.ones(len(ground), np.uint8) if cls is None else np.asarray(cls, np.uint8).copy())
-    out[(out == GROUND_CLASS) & ~ground] = 1
+    out[(out == AsprsClass.GROUND) & ~ground] = AsprsClass.UNCLASSIFIED
     if water is not None:
-        out[water] = WATER_CLASS
-    out[ground] = GROUND_CLASS
+        out[water] = AsprsClass.WATER
+    out[ground] = AsprsClass.GROUND
     return out
 
 
