@@ -274,8 +274,7 @@ class Agreement:
     Attributes
     ----------
     relative_l1 : float
-        ``sum |a - b| / sum b`` of the tone-mapped images (the issue's "mean relative
-        error").
+        ``sum |a - b| / sum b`` of the tone-mapped images (the mean relative error).
     relative_l1_linear : float
         The same on linear radiance.
     pixels : int
