@@ -26,7 +26,7 @@ from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, write_json
-from core.frames import rotation_about
+from core.frames import rotation_about, transform_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import DIST_MODELS, calibrate_camera
@@ -368,7 +368,7 @@ def _triangulate(cap, prep, calib, stripes, cfg) -> dict:
             M = np.eye(4)
             M[:3, 3] = -readings[k] * axis_cal.scale * axis_cal.direction
         T = obj_from_cam @ M
-        P[sel] = pc[sel] @ T[:3, :3].T + T[:3, 3]
+        P[sel] = transform_points(T, pc[sel])
         V[sel] = T[:3, 3]  # the camera centre seen from the object at that reading
     if cfg.max_range > 0 and prep["motion"] == "turntable":
         keep = np.linalg.norm(P[:, :2], axis=1) < cfg.max_range

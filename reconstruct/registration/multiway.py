@@ -378,13 +378,14 @@ class _Clock:
 def _fine_view(scan, canon_from_scan: np.ndarray, fine: float) -> Oriented:
     """The scan's samples for the fine alignment, weighted by its confidence if it has one
     (VRIP's: low at grazing angles and near the scan's edges, where range images curl)."""
-    R, t = canon_from_scan[:3, :3], canon_from_scan[:3, 3]
+    R = canon_from_scan[:3, :3]
     conf = getattr(scan, "confidence", None)
     if len(scan.points) <= _RAW_POINTS:  # small scans: every sample, nothing to thin
-        return Oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T,
+        return Oriented(transform_points(canon_from_scan, scan.points), scan.normals @ R.T,
+                        scan.sight @ R.T,
                         None if conf is None else np.asarray(conf, float))
-    return thin_oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T, fine,
-                         conf)
+    return thin_oriented(transform_points(canon_from_scan, scan.points), scan.normals @ R.T,
+                         scan.sight @ R.T, fine, conf)
 
 
 def _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned, voxel,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.frames import transform_points
+from core.frames import transform_points, unit
 from core.validate import check_array
 
 __all__ = ["Oriented", "canonical_frame", "thin_oriented", "apply_vectors"]
@@ -122,17 +122,11 @@ def thin_oriented(points: np.ndarray, normals: np.ndarray, sight: np.ndarray,
         return out
 
     p = mean(points) / count[:, None]
-    n = _unit(mean(normals))
-    s = _unit(mean(sight))
+    n = unit(mean(normals), tiny=1e-12, fill=np.nan)
+    s = unit(mean(sight), tiny=1e-12, fill=np.nan)
     ok = np.all(np.isfinite(n), axis=1) & np.all(np.isfinite(s), axis=1)
     conf = None
     if confidence is not None:
         conf = np.bincount(inv, weights=np.asarray(confidence, float), minlength=k) / count
         conf = conf[ok]
     return Oriented(p[ok], n[ok], s[ok], conf)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    norm = np.linalg.norm(v, axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(norm > 1e-12, v / norm, np.nan)

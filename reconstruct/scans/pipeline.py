@@ -26,6 +26,7 @@ import numpy as np
 
 from core.config import Config, option
 from core.files import atomic_dir, write_json
+from core.frames import transform_points
 from core.validate import InputError
 
 log = logging.getLogger(__name__)
@@ -126,7 +127,7 @@ def _merge_mesh(scans, poses, cfg: ScansReconConfig):
         from reconstruct.surface.meshing import poisson_mesh
 
         pairs = list(zip(scans, poses, strict=True))
-        pts = np.concatenate([s.points @ T[:3, :3].T + T[:3, 3] for s, T in pairs])
+        pts = np.concatenate([transform_points(T, s.points) for s, T in pairs])
         nrm = np.concatenate([s.normals @ T[:3, :3].T for s, T in pairs])
         mesh, _ = poisson_mesh(pts, nrm, depth=9)
         return mesh, {"method": "poisson", "seconds": time.perf_counter() - t,
@@ -239,7 +240,7 @@ def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total
         for k, (s, i) in enumerate(zip(scans, sub, strict=True)):
             if result.scans[k].registered:
                 T = result.scans[k].model_from_scan
-                after_p.append(s.points[i] @ T[:3, :3].T + T[:3, 3])
+                after_p.append(transform_points(T, s.points[i]))
                 after_n.append(s.normals[i] @ T[:3, :3].T)
                 cols.append(palette[k])
         write_image(tmp / "scans_after.png", render_scans(after_p, after_n, up=_up(

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import unit
 from core.validate import check_array, check_choice, check_int, check_range
 from simulate.boids._kernels import (
     _finish_all,
@@ -219,13 +220,8 @@ class FlockState:
         self.wander = check_array(self.wander, "wander", shape=(n, 3)).copy()
 
 
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
-
-
 def _random_unit(rng, n):
-    return _unit(rng.standard_normal((n, 3)))
+    return unit(rng.standard_normal((n, 3)))
 
 
 def init_flock(n: int, params: BoidParams, *, rng: np.random.Generator,
@@ -272,7 +268,7 @@ def _cone(rays: int, half_angle: float) -> np.ndarray:
 def _frame(h):
     """Two unit vectors ``(n, 3)`` perpendicular to unit ``h`` and each other."""
     ref = np.where(np.abs(h[:, 0:1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-    u = _unit(np.cross(h, ref))
+    u = unit(np.cross(h, ref))
     return u, np.cross(h, u)
 
 
@@ -283,7 +279,7 @@ def _avoidance(collider, x, v, params: BoidParams):
     urgency grows from 0 (hit at the probe's end) to 1 (hit at the boid).
     """
     sp = np.linalg.norm(v, axis=1)
-    h = _unit(v)
+    h = unit(v)
     length = params.look_ahead * np.maximum(sp, 1e-9)
     hits = collider.cast(x, h * length[:, None])
     idx = np.nonzero(hits.hit & (hits.t <= 1.0))[0]
@@ -383,7 +379,7 @@ def _step(state, params, rng, collider, method):
     couzin = params.model == "couzin"
     if params.wander_weight > 0 and not couzin:
         jitter = math.radians(params.wander_jitter_deg)
-        state.wander = _unit(state.wander + jitter * rng.standard_normal((n, 3)))
+        state.wander = unit(state.wander + jitter * rng.standard_normal((n, 3)))
     steer = np.empty((n, 3))
     if method == "grid":
         lo = hi = None
