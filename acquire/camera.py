@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import transform_points
 from core.validate import check_array, check_int, check_positive
 
 __all__ = ["Camera", "distort", "undistort", "look_at_cam_from_world", "frame_camera"]
@@ -173,7 +174,7 @@ class Camera:
     def to_camera(self, points_world: np.ndarray) -> np.ndarray:
         """World points (n, 3) into the camera frame (n, 3)."""
         p = check_array(points_world, "points_world", shape=(None, 3))
-        return p @ self.cam_from_world[:3, :3].T + self.cam_from_world[:3, 3]
+        return transform_points(self.cam_from_world, p)
 
     def project(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Project world points through the distorted model.
@@ -208,7 +209,7 @@ class Camera:
         d = check_array(depth, "depth", shape=(len(xy),))
         pc = np.concatenate([xy * d[:, None], d[:, None]], axis=1)
         Tw = self.world_from_cam
-        return pc @ Tw[:3, :3].T + Tw[:3, 3]
+        return transform_points(Tw, pc)
 
     def rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World rays through pixels: ``origins (n, 3)`` and ``directions (n, 3)``.

@@ -40,7 +40,7 @@ RECIPES = _shipped()   # every shipped recipe
 def _added_size(out: Path, inp_v, inp_f, up) -> float:
     import open3d as o3d
 
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import bbox_diagonal
 
     rs = o3d.t.geometry.RaycastingScene()
@@ -54,7 +54,7 @@ def _added_size(out: Path, inp_v, inp_f, up) -> float:
 
 
 def _matrix(label: str, mesh_path: Path, work: Path, rows: list, *, up=None):
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import mesh_arrays
     from scanamp.amplify import run
 
@@ -93,7 +93,7 @@ def _demo(work: Path) -> Path:
 def _rotated_scene(work: Path, scale: float) -> Path:
     from scipy.spatial.transform import Rotation
 
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import make_mesh, mesh_arrays
     from data_synth.scenes import build_scene
 
@@ -108,7 +108,7 @@ def _rotated_scene(work: Path, scale: float) -> Path:
 def _decimated(src: Path, work: Path, n: int = 200_000) -> Path:
     import shutil
 
-    from core.mesh_io import read_mesh, write_mesh
+    from core.io.mesh import read_mesh, write_mesh
 
     m = read_mesh(src).simplify_quadric_decimation(n)
     folder = work / "monstree200k"

@@ -12,8 +12,8 @@ perception radius of each.
 import numpy as np
 from _timing import best_of, report
 
-from simulate import boid_kernels as B
 from simulate.boids import BoidParams, FlockState, init_flock, step
+from simulate.boids import _kernels as B
 
 DENSITY = 0.45  # boids per m^3: ~15 within the 2 m perception radius
 
@@ -29,7 +29,7 @@ def _setup(n, seed=0):
 
 
 def _sums_kdtree(x, v, P):
-    """Neighbour sums as in :func:`simulate.boid_kernels._sums_reference`, via cKDTree pairs."""
+    """Neighbour sums as in :func:`simulate.boids._kernels._sums_reference`, via cKDTree pairs."""
     from scipy.spatial import cKDTree
 
     n = len(x)

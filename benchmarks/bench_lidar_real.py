@@ -54,7 +54,7 @@ def _xyz(p):
 def topography():
     from scipy.interpolate import LinearNDInterpolator
 
-    from core.las_io import read_las
+    from core.io.las import read_las
     from reconstruct.lidar import LidarReconConfig, reconstruct_points
 
     pts, _ = read_las(LIDAR / "Topography.laz")
@@ -208,11 +208,12 @@ def _polygon_centroid(p):
 
 
 def _survey_figures(pts, res, ref_trees, area):
+    from core.io.las import AsprsClass
     from reconstruct.lidar import height_above, tree_scores
 
     first = pts["return_number"] == 1
     cls = pts.get("classification")
-    ground = (cls == 2) if cls is not None else res.ground
+    ground = (cls == AsprsClass.GROUND) if cls is not None else res.ground
     h = height_above(res.dtm, _xyz(pts))
     veg = h[(~ground) & (h > 2.0)]
     tr = res.trees
@@ -239,7 +240,7 @@ def _survey_figures(pts, res, ref_trees, area):
 
 
 def mixed_conifer():
-    from core.las_io import read_las
+    from core.io.las import read_las
     from reconstruct.lidar import reconstruct_points, tree_scores
 
     pts, info = read_las(LIDAR / "MixedConifer.laz")
@@ -256,7 +257,7 @@ def mixed_conifer():
 
 
 def speed():
-    from core.las_io import LasWriter, read_las
+    from core.io.las import LasWriter, read_las
     from reconstruct.lidar import LidarReconConfig
     from reconstruct.lidar import run as run_lidar
 
@@ -367,8 +368,8 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
     ``estimate``, the unlisted trees and shrubs measured on the tile
     (:func:`vegetation_not_listed`), else none and 200 shrubs/ha."""
     from acquire.lidar.capture import LidarCaptureConfig
-    from core.las_io import read_las
-    from core.trees_io import read_tree_table, write_tree_table
+    from core.io.las import read_las
+    from core.io.trees import read_tree_table, write_tree_table
     from data_synth.forest import ForestConfig, build_forest, write_forest
     from reconstruct.lidar import reconstruct_points
     from scanamp.methods.lidar import run_lidar_capture

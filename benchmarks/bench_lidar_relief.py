@@ -33,7 +33,7 @@ def survey(relief: float, cache: Path):
         d = np.load(f)
         return d["xyz"], d["last"], d["truth"], d["dtm_xyz"]
     from acquire.lidar.capture import LidarCaptureConfig
-    from core.las_io import read_las
+    from core.io.las import AsprsClass, read_las
     from data_synth.forest import ForestConfig, build_forest, terrain_height, write_forest
     from scanamp.methods.lidar import run_lidar_capture
 
@@ -47,7 +47,7 @@ def survey(relief: float, cache: Path):
         pts, _ = read_las(d / "survey" / "points.laz")
     xyz = np.column_stack([pts["x"], pts["y"], pts["z"]])
     last = pts["return_number"] >= pts["number_of_returns"]
-    truth = pts["classification"] == 2
+    truth = pts["classification"] == AsprsClass.GROUND
     lo = xyz[truth, :2].min(axis=0) + cfg.margin  # the stand, without its margin
     xs = np.arange(lo[0] + 0.5, lo[0] + SIZE, 1.0)
     ys = np.arange(lo[1] + 0.5, lo[1] + SIZE, 1.0)

@@ -43,7 +43,7 @@ def _render_scans(n_views=12, seed=0):
     """12 pinhole range scans of the ``object`` scene, their true poses and the scene."""
     import open3d as o3d
 
-    from core.range_io import RangeGrid
+    from core.io.range import RangeGrid
     from data_synth.scenes import build_scene
     from reconstruct.scans import scan_from_grid
 
@@ -148,8 +148,8 @@ def captured():
     """Target: ``scanamp capture scans object --views 12`` merged on its true poses."""
     import tempfile
 
-    from core.mesh_io import read_mesh
-    from core.range_io import read_poses_json
+    from core.io.mesh import read_mesh
+    from core.io.range import read_poses_json
     from reconstruct.scans import load_scans
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -215,7 +215,7 @@ def renders():
 _MEMORY = r"""
 import json, resource, sys, time
 sys.path.insert(0, sys.argv[1])
-from core.range_io import read_conf
+from core.io.range import read_conf
 from reconstruct.scans import load_scans
 from reconstruct.surface.volumetric import MergeOptions, merge_scans
 folder = sys.argv[2]
@@ -234,7 +234,7 @@ print(json.dumps({"before_mb": before, "peak_mb": status("VmHWM"),
 
 
 def _dragon():
-    from core.range_io import read_conf
+    from core.io.range import read_conf
     from reconstruct.scans import load_scans
 
     conf = [(f, T) for f, T in read_conf(REAL / "dragonStandRight.conf") if f.endswith(".ply")]

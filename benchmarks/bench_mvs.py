@@ -173,8 +173,8 @@ def silhouette_scores(mesh_path: Path, images: Path, cameras: dict) -> tuple[flo
     """Mean over views of (mesh pixels inside the silhouette, silhouette pixels covered)."""
     import open3d as o3d
 
-    from core.image_io import read_image
-    from core.mesh_io import read_mesh
+    from core.io.image import read_image
+    from core.io.mesh import read_mesh
 
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(read_mesh(mesh_path)))

@@ -62,7 +62,7 @@ def _bare_sgbm(left, right, num):
 
 
 def _aloe():
-    from core.image_io import read_image
+    from core.io.image import read_image
     from reconstruct.calibration.io import write_stereo_yaml
     from reconstruct.calibration.rectify import StereoCalibration
     from reconstruct.evaluation.disparity import disparity_metrics

@@ -131,7 +131,7 @@ def _floor(scans, ref, est):
 
 
 def dragon(root):
-    from core.range_io import read_conf
+    from core.io.range import read_conf
     from reconstruct.scans import load_scans
     from reconstruct.scans.pipeline import ScansReconConfig, run
 
@@ -188,9 +188,9 @@ def dragon(root):
 def rendered(root, peak=None, steps=None):
     from acquire.scans.capture import ScansCaptureConfig, capture_scans
     from acquire.scans.head import ScanHead
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
+    from core.io.range import read_poses_json
     from core.meshes import bbox_diagonal, mesh_arrays, transform_mesh
-    from core.range_io import read_poses_json
     from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.scans import load_scans
     from reconstruct.scans.pipeline import ScansReconConfig, run

@@ -54,7 +54,7 @@ def _capture(tmp, kind, sl=False):
 
 def _speed(cap_dir):
     from acquire.capture_io import load_capture
-    from core.image_io import read_image
+    from core.io.image import read_image
     from reconstruct.calibration.camera import to_gray
     from reconstruct.calibration.rectify import rectify, rectify_pair
     from reconstruct.stereo.matching import _sgbm, disparity_range, disparity_to_depth, match

@@ -5,8 +5,8 @@
 - :mod:`core.config`    configuration dataclasses: declared options, TOML in and out
 - :mod:`core.meshes`    the canonical mesh (``open3d.geometry.TriangleMesh``), its
   conversions to pymeshlab and pyvista, and mesh measures
-- :mod:`core.mesh_io`   mesh, point-cloud and polyline files
-- :mod:`core.image_io`  image files
+- :mod:`core.io`        the file formats: meshes, images, range grids, E57, LAS, rasters,
+  tree tables, other tools' cameras
 - :mod:`core.frames`    rotations and rigid transforms
 - :mod:`core.sampling`  area-uniform surface samples, voxel thinning
 - :mod:`core.progress`  progress of long work (the CLI decides whether it shows)
@@ -29,11 +29,10 @@ def _keep_freed_blocks() -> None:
 
     By default an array above 32 MB is mapped fresh from the system and unmapped when
     freed, and more than 64 MB free at the top of the heap is given back: every frame
-    of the renderer then page-faults its 0.4 GB of temporaries in again, zeroed by the
-    kernel (60 000 faults for ten 2 x 2 frames). Up to 256 MB blocks now come from the
-    heap and up to 512 MB of free heap is kept: 17 000 faults, and a 2 x 2 frame went
-    from 166 to 159 ms with the same peak memory (bench_render). The process's memory
-    then stays near its peak instead of shrinking between frames. Set only when the
+    of the renderer would page-fault its temporaries in again, zeroed by the kernel.
+    Here blocks up to 256 MB come from the heap and up to 512 MB of free heap is kept
+    (bench_render measures the effect), so the process's memory stays near its peak
+    instead of shrinking between frames. Set only when the
     environment sets no malloc tunables (Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_``
     for its workers, which then keep its policy), and only with glibc.
     """

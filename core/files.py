@@ -1,7 +1,9 @@
 """Files: atomic outputs and config reading, shared by every package.
 
 Outputs are written to a temporary sibling and renamed into place, so an
-interrupted or failed run leaves no half-written file or folder. Config readers
+interrupted or failed run leaves no half-written file or folder. A folder written so
+carries a manifest (:data:`MANIFEST`) naming the command that wrote it (the output
+the running command declared, :func:`declare_output`) or the Python API. Config readers
 raise :class:`core.validate.InputError` naming the file (and the field when
 one is at fault).
 """
@@ -9,6 +11,7 @@ one is at fault).
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import json
 import os
 import shutil
@@ -35,6 +38,14 @@ __all__ = [
     "read_toml",
     "write_toml",
     "require",
+    "MANIFEST",
+    "API",
+    "CONFIG_FILE",
+    "version",
+    "write_manifest",
+    "declared_manifest",
+    "write_declared",
+    "declare_output",
 ]
 
 
@@ -52,15 +63,91 @@ def _umask() -> int:
     return mask  # pragma: no cover
 
 
+#: the manifest file inside every output folder scanamp writes
+MANIFEST = ".scanamp.json"
+
+
+def version() -> str:
+    """scanamp's installed version ("unknown" when run from a bare checkout)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("scanamp")
+    except metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+#: the "command" of a folder written through the Python API rather than the CLI
+API = "api"
+#: the output folder the running command declared (:func:`declare_output`): its resolved
+#: path, the command, and the command's effective configuration as a TOML table (or None)
+_DECLARED: contextvars.ContextVar[tuple[Path, str, dict | None] | None] = \
+    contextvars.ContextVar("scanamp_declared_output", default=None)
+#: the effective configuration of a command, beside its manifest in the output folder
+CONFIG_FILE = "config.toml"
+
+
+def _manifest(command: str) -> dict:
+    # no time stamp: the same run gives the same bytes, the manifest included
+    return {"format": "scanamp.output/1", "command": command, "version": version()}
+
+
+def write_manifest(folder: str | os.PathLike, command: str) -> Path:
+    """Write the manifest that marks ``folder`` as written by ``scanamp command``."""
+    m = Path(folder) / MANIFEST
+    m.write_text(json.dumps(_manifest(command), indent=2) + "\n")
+    return m
+
+
+def declared_manifest(path: str | os.PathLike) -> dict:
+    """The manifest for folder ``path``: the running command's if ``path`` is the output it
+    declared, else the Python API's (``"command": "api"``).
+
+    :func:`atomic_dir` calls this to put the manifest into the folder before
+    it is renamed into place, so a command's output is marked as ours atomically.
+    """
+    declared = _DECLARED.get()
+    if declared is None or Path(path).resolve() != declared[0]:
+        return _manifest(API)
+    return _manifest(declared[1])
+
+
+def write_declared(folder: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Into ``folder`` (the temporary folder that becomes ``path``), write the manifest and,
+    when ``path`` is the running command's declared output and it has a config, the
+    effective ``config.toml`` (re-running with ``--config`` it reproduces the output)."""
+    folder = Path(folder)
+    if not (folder / MANIFEST).exists():
+        (folder / MANIFEST).write_text(json.dumps(declared_manifest(path), indent=2) + "\n")
+    declared = _DECLARED.get()
+    if declared is not None and declared[2] is not None and \
+            Path(path).resolve() == declared[0] and not (folder / CONFIG_FILE).exists():
+        write_toml(folder / CONFIG_FILE, declared[2])
+
+
+@contextlib.contextmanager
+def declare_output(path: str | os.PathLike, command: str,
+                   config: dict | None = None) -> Iterator[None]:
+    """Declare ``path`` as the output folder of ``command`` for the duration of a run:
+    the folder :func:`atomic_dir` writes there gets that command's manifest and, when
+    ``config`` (a TOML table) is given, ``config.toml`` (:func:`write_declared`).
+    :func:`core.runs.outputs.writing` declares a command's output with its config."""
+    token = _DECLARED.set((Path(path).resolve(), command, config))
+    try:
+        yield
+    finally:
+        _DECLARED.reset(token)
+
+
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary sibling folder; on success it replaces ``path``.
 
     On an exception the temporary folder is removed and ``path`` is left as it was.
     Only an empty folder or one scanamp wrote (with its manifest,
-    :data:`core.outputs.MANIFEST`) is ever replaced: anything else at ``path`` raises
+    :data:`MANIFEST`) is ever replaced: anything else at ``path`` raises
     InputError before anything is written. The folder gets the manifest: that of the
-    running command when ``path`` is the output it declared (:func:`core.outputs.writing`),
+    running command when ``path`` is the output it declared (:func:`declare_output`),
     else one that says it was written through the Python API (``"command": "api"``).
 
     >>> import tempfile, pathlib
@@ -80,9 +167,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; outputs get the usual mode
-    from core import outputs  # the manifest (and config) of the command's declared output
-
-    outputs.write_declared(tmp, path)
+    write_declared(tmp, path)  # the manifest (and config) of the command's declared output
     try:
         _check_replaceable(path)
     except InputError:
@@ -99,8 +184,6 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
 
 def _check_replaceable(path: Path) -> None:
     """atomic_dir replaces only an empty folder or one scanamp wrote (never a file)."""
-    from core.outputs import MANIFEST
-
     if not (path.exists() or path.is_symlink()):
         return
     if path.is_dir() and not path.is_symlink() and (

@@ -17,7 +17,32 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["axis_angle_matrix", "rotation_about", "euler_xyz_deg", "rotation_to",
-           "rotation_between", "rotation_angle_deg", "rigid"]
+           "rotation_between", "rotation_angle_deg", "rigid", "transform_points", "unit"]
+
+
+def transform_points(T, points) -> np.ndarray:
+    """``points`` ``(..., 3)`` moved by the ``(4, 4)`` transform ``T``: ``R p + t`` for each
+    point (``T``'s last row is not read, so an affine ``T`` works too).
+
+    >>> transform_points(rigid(np.eye(3), [1.0, 2.0, 3.0]), np.zeros((2, 3)))
+    array([[1., 2., 3.],
+           [1., 2., 3.]])
+    """
+    T = np.asarray(T, float)
+    return np.asarray(points, float) @ T[:3, :3].T + T[:3, 3]
+
+
+def unit(v, *, axis: int = -1, tiny: float = 0.0, fill: float = 0.0) -> np.ndarray:
+    """``v`` scaled to unit length along ``axis``; a vector of length ``<= tiny`` becomes
+    ``fill`` (0 by default; NaN marks it as having no direction).
+
+    >>> unit([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
+    array([[0.6, 0.8, 0. ],
+           [0. , 0. , 0. ]])
+    """
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v, axis=axis, keepdims=True)
+    return np.divide(v, n, out=np.full(v.shape, fill), where=n > tiny)
 
 
 def axis_angle_matrix(axis, angle: float) -> np.ndarray:

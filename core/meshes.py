@@ -2,7 +2,7 @@
 
 scanamp's canonical mesh is :class:`open3d.geometry.TriangleMesh` (float64
 vertices in metres, int32 triangles). Every conversion to pymeshlab or pyvista
-lives here and nowhere else; file formats live in :mod:`core.mesh_io`.
+lives here and nowhere else; file formats live in :mod:`core.io.mesh`.
 """
 
 from __future__ import annotations

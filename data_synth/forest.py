@@ -2,7 +2,7 @@
 
 A stand comes from an inventory (a CSV with ``x``, ``y``, ``height`` and optionally ``dbh``,
 ``crown_radius``, ``crown_dx``/``crown_dy`` (the crown's centre from the stem), ``species``:
-:func:`core.trees_io.read_tree_table`) or is procedural
+:func:`core.io.trees.read_tree_table`) or is procedural
 (density, species mix, height distribution, understory; seeded); an inventory's stand can
 also grow the trees it does not list (``unlisted``: small trees in its gaps, from their own
 seeded generator). Each tree is grown on its
@@ -48,11 +48,11 @@ from acquire.render.materials import Material
 from acquire.render.scene import RenderScene, SceneObject
 from core.config import Config, from_dict, option, to_dict
 from core.files import atomic_dir, write_json, write_toml
+from core.io.raster import Raster, write_raster
+from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
-from core.raster_io import Raster, write_raster
-from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
-from data_synth.scenes import SceneBundle
+from data_synth.bundle import SceneBundle
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
     NEEDLE_CLUSTER,
@@ -525,7 +525,7 @@ def write_forest(bundle: ForestBundle, out_dir) -> Path:
     ``labels.json``), ``trees.csv`` and ``dtm.tif`` (the truth, in the inventory's
     coordinates), ``materials.json``."""
     from acquire.lidar.labels import PARTS
-    from core.mesh_io import write_labeled_mesh
+    from core.io.mesh import write_labeled_mesh
 
     out = Path(out_dir)
     spec = {k: (dict(v) if isinstance(v, dict) else v) for k, v in bundle.spec.items()}

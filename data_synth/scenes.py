@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -42,12 +41,13 @@ from acquire.render.scene import RenderScene, SceneObject
 from acquire.targets import target_from_dict
 from core.files import atomic_dir, read_toml, require, write_json, write_toml
 from core.frames import euler_xyz_deg
-from core.mesh_io import read_mesh, write_mesh
-from core.meshes import merge_meshes, transform_mesh
+from core.io.mesh import read_mesh, write_mesh
+from core.meshes import transform_mesh
 from core.validate import InputError
 from data_synth import shapes
+from data_synth.bundle import SceneBundle
 
-__all__ = ["SceneBundle", "build_scene", "load_scene", "write_scene", "scene_names"]
+__all__ = ["build_scene", "load_scene", "write_scene", "scene_names"]
 
 SHAPES = ("sphere", "box", "cylinder", "torus", "plane", "blob", "terrain", "lsystem", "shell",
           "mesh", "charuco", "chessboard")
@@ -57,43 +57,6 @@ def scene_names() -> list[str]:
     """Names of the built-in scenes."""
     return sorted(p.name[:-5] for p in resources.files("data_synth.scene_specs").iterdir()
                   if p.name.endswith(".toml"))
-
-
-@dataclass
-class SceneBundle:
-    """A built scene: its spec, the render scene, and ground-truth world meshes.
-
-    ``origin`` (3,) float64: the scene's geometry is in a local frame, ``world = local +
-    origin`` (a survey's projected coordinates, millions of metres, stay exact);
-    ``crs_wkt``: the coordinate system of ``world`` when known.
-    """
-
-    spec: dict
-    render_scene: RenderScene
-    meshes: dict  # name -> world-frame open3d mesh
-    base_dir: Path | None = None
-    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    crs_wkt: str | None = None
-
-    @property
-    def name(self) -> str:
-        return self.spec.get("scene", {}).get("name", "scene")
-
-    @property
-    def seed(self) -> int:
-        return int(self.spec.get("scene", {}).get("seed", 0))
-
-    def gt_mesh(self):
-        """All objects merged, world frame (what mesh.ply holds)."""
-        return merge_meshes(self.meshes.values())
-
-    def object_mesh(self, name: str):
-        if name not in self.meshes:
-            raise ValueError(f"name: expected one of {sorted(self.meshes)}, got {name!r}")
-        return self.meshes[name]
-
-    def bounds(self) -> np.ndarray:
-        return self.render_scene.bounds()
 
 
 def _vec(table, key, n, *, path, prefix, default=None):

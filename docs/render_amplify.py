@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def main(argv):
-    from core.image_io import write_image
+    from core.io.image import write_image
     from scanamp.amplify import recipe_names
     from scanamp.amplify.views import contact_sheet
 

@@ -20,7 +20,7 @@ def main(argv):
     import numpy as np
     import open3d as o3d
 
-    from core.image_io import read_image, write_image
+    from core.io.image import read_image, write_image
     from data_synth.facades import facade_mesh
     from scanamp.amplify import run
 

@@ -18,7 +18,7 @@ OUT = Path(__file__).resolve().parent / "img"
 
 def _survey(bundle, divergence=None):
     from acquire.lidar.capture import LidarCaptureConfig
-    from core.las_io import read_las
+    from core.io.las import read_las
     from scanamp.methods.lidar import run_lidar_capture
 
     cfg = LidarCaptureConfig(preset="riegl-lms-q560", density=10.0, divergence=divergence)

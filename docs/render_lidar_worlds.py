@@ -91,9 +91,9 @@ def reconstruction(bundle) -> Path:
     import matplotlib.pyplot as plt
 
     from acquire.lidar.capture import LidarCaptureConfig
-    from core.las_io import read_las
-    from core.raster_io import read_raster
-    from core.trees_io import read_tree_table
+    from core.io.las import read_las
+    from core.io.raster import read_raster
+    from core.io.trees import read_tree_table
     from data_synth.scenes import write_scene
     from reconstruct.lidar import LidarReconConfig, evaluate_lidar
     from reconstruct.lidar import run as run_lidar

@@ -62,9 +62,9 @@ def look_at(eye, target, up=(0.0, 1.0, 0.0)):
 
 
 def main(folder: Path):
-    from core.image_io import write_image
+    from core.io.image import write_image
+    from core.io.range import read_conf
     from core.meshes import make_mesh
-    from core.range_io import read_conf
     from reconstruct.scans import load_scans
     from reconstruct.surface.volumetric import MergeOptions, merge_scans
 

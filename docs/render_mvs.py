@@ -55,8 +55,8 @@ def _fit(img, h):
 def figure(rec: Path, images: Path, names, out: Path, h=360):
     import pycolmap
 
-    from core.image_io import read_image, write_image
-    from core.mesh_io import read_mesh
+    from core.io.image import read_image, write_image
+    from core.io.mesh import read_mesh
     from reconstruct.camera_files import camera_from_colmap, image_cam_from_world
 
     mesh = read_mesh(rec / "mesh.ply")
@@ -84,7 +84,7 @@ def figure(rec: Path, images: Path, names, out: Path, h=360):
 
 
 def depth_figure(rec: Path, images: Path, name: str, out: Path, h=360):
-    from core.image_io import read_image, write_image
+    from core.io.image import read_image, write_image
 
     photo = read_image(images / name)
     prev = read_image(rec / "dense" / f"{name}.preview.png")

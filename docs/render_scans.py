@@ -56,8 +56,8 @@ def views(mesh, eyes, up, size=(420, 360)):
 
 
 def main(argv):
-    from core.image_io import write_image
-    from core.range_io import read_conf, read_poses_json
+    from core.io.image import write_image
+    from core.io.range import read_conf, read_poses_json
     from reconstruct.scans import load_scans
 
     cap = Path(argv[0]) if argv else None

@@ -26,15 +26,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from core.frames import unit
 from core.validate import check_array, check_choice
 
 __all__ = ["sweep", "extrude", "revolve", "transport_frames", "frenet_frames",
            "segment_tubes", "mesh_volume", "edge_manifold_report"]
-
-
-def _unit(v, axis=-1):
-    n = np.linalg.norm(v, axis=axis, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
 
 
 def _tangents(path: np.ndarray, closed: bool) -> np.ndarray:
@@ -42,7 +38,7 @@ def _tangents(path: np.ndarray, closed: bool) -> np.ndarray:
         t = np.roll(path, -1, axis=0) - np.roll(path, 1, axis=0)
     else:
         t = np.gradient(path, axis=0)
-    t = _unit(t)
+    t = unit(t)
     if np.any(np.linalg.norm(t, axis=1) == 0):
         raise ValueError("path: expected distinct consecutive points, got repeated points")
     return t
@@ -73,7 +69,7 @@ def transport_frames(path: np.ndarray, *, closed: bool = False,
         helper = np.eye(3)[np.argmin(np.abs(T[0]))]
     else:
         helper = check_array(normal, "normal", shape=(3,))
-    N0 = _unit(helper - np.dot(helper, T[0]) * T[0])
+    N0 = unit(helper - np.dot(helper, T[0]) * T[0])
     N = np.empty_like(T)
     N[0] = N0
     for i in range(1, n):  # double reflection (Wang et al. 2008)
@@ -84,7 +80,7 @@ def transport_frames(path: np.ndarray, *, closed: bool = False,
         v2 = T[i] - tl
         c2 = v2 @ v2
         N[i] = r - (2 / c2) * (v2 @ r) * v2 if c2 > 1e-300 else r
-        N[i] = _unit(N[i] - (N[i] @ T[i]) * T[i])
+        N[i] = unit(N[i] - (N[i] @ T[i]) * T[i])
     B = np.cross(T, N)
     if closed:
         # angle between the transported last normal carried to the first point and N0
@@ -110,7 +106,7 @@ def frenet_frames(path: np.ndarray, *, closed: bool = False) -> np.ndarray:
     if np.any(np.linalg.norm(dT, axis=1) < 1e-12):
         raise ValueError("path: zero curvature somewhere, Frenet frames undefined; "
                          "use frames='parallel'")
-    N = _unit(dT)
+    N = unit(dT)
     return np.stack([T, N, np.cross(T, N)], axis=1)
 
 
@@ -194,7 +190,7 @@ def extrude(profile: np.ndarray, height: float, *, caps: bool = True,
             direction=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
     """Translational sweep: ``profile (m, 2)`` in the XY plane moved by ``height`` along
     ``direction``; returns ``(vertices, triangles)``."""
-    d = _unit(check_array(direction, "direction", shape=(3,)))
+    d = unit(check_array(direction, "direction", shape=(3,)))
     path = np.stack([np.zeros(3), d * float(height)])
     # frame with N = +X, B = +Y when the direction is +Z
     helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])

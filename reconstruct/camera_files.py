@@ -18,7 +18,7 @@ Middlebury ``*_par.txt``
     A count, then one line per image: ``name k11..k33 r11..r33 t1 t2 t3`` with the
     projection ``K [R | t]`` (``x_cam = R X + t``), pixel centres at integers.
 OpenMVS ``*.mvs`` and Meshroom ``*.sfm``
-    Read by :mod:`core.scene_cameras_io` (its docstring gives both layouts). An OpenMVS
+    Read by :mod:`core.io.scene_cameras` (its docstring gives both layouts). An OpenMVS
     camera stored without its image size (``K`` normalised by the larger side) takes the
     size from ``sizes``, else a nominal 1000 x 1000 (its pose is exact either way).
 
@@ -90,7 +90,7 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
     elif path.suffix.lower() == ".txt":
         cams = _read_middlebury(path, sizes or {})
     elif path.suffix.lower() in (".mvs", ".sfm"):
-        from core.scene_cameras_io import read_meshroom_sfm, read_openmvs_scene
+        from core.io.scene_cameras import read_meshroom_sfm, read_openmvs_scene
 
         read = read_openmvs_scene if path.suffix.lower() == ".mvs" else read_meshroom_sfm
         cams = {v.name: _view_camera(v, (sizes or {}).get(v.name), path) for v in read(path)}
@@ -108,7 +108,7 @@ def read_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]
 
 
 def _view_camera(view, size, path: Path) -> Camera:
-    """A :class:`~acquire.camera.Camera` from a :class:`core.scene_cameras_io.ViewCamera`;
+    """A :class:`~acquire.camera.Camera` from a :class:`core.io.scene_cameras.ViewCamera`;
     a normalised ``K`` (no stored size) scaled by the larger side of ``size`` (else 1000)."""
     K, (w, h) = view.K, (view.width, view.height)
     if w == 0 or h == 0:

@@ -10,18 +10,18 @@ module on first use, so ``import simulate`` stays cheap):
   (Perlin or curl noise), ``Attractor``, ``Vortex``, ``Buoyancy``, ``Pairwise``
   (neighbour grid), ``Springs``, ``ForceSet``, ``pairwise_accel``,
   ``pairwise_accel_reference``;
-* emitters (:mod:`simulate.emitters`): ``PointShape``, ``DiscShape``, ``BoxShape``,
+* emitters (:mod:`simulate.particles.emitters`): ``PointShape``, ``DiscShape``, ``BoxShape``,
   ``MeshSurface``, ``VelocityDist``, ``Emitter``, ``birth_count``;
-* particle systems (:mod:`simulate.particles`): ``ParticleSystem``, ``advance_local``
+* particle systems (:mod:`simulate.particles.system`): ``ParticleSystem``, ``advance_local``
   (the fused kernel), ``Ramp``, ``Look``, ``Sink``, ``KillPlane``, ``FrameStats``,
   ``NonFiniteStateError``;
 * collisions with meshes: ``MeshCollider`` (:mod:`simulate.colliders`, Open3D's
   RaycastingScene), ``collide`` and ``ContactParams`` (:mod:`simulate.collisions`:
   swept segments, time of impact, restitution, friction, resting contact);
-* cloth (:mod:`simulate.cloth`): ``Cloth``, ``ClothSpec``, ``grid_cloth``;
-* boids (:mod:`simulate.boids`): ``BoidParams``, ``FlockState``, ``init_flock``,
+* cloth (:mod:`simulate.cloth.mass_spring`): ``Cloth``, ``ClothSpec``, ``grid_cloth``;
+* boids (:mod:`simulate.boids.flock`): ``BoidParams``, ``FlockState``, ``init_flock``,
   ``step_flock`` (``simulate.boids.step``), ``BoidRecipe`` (``simulate.boids.Recipe``),
-  ``load_boid_recipe``; measures (:mod:`simulate.flock_metrics`): ``flock_metrics``,
+  ``load_boid_recipe``; measures (:mod:`simulate.boids.metrics`): ``flock_metrics``,
   ``polarization``, ``milling``, ``nearest_neighbour_distances``, ``groups``;
 * neighbour search (:mod:`simulate.neighbours`): ``build_grid``, ``neighbour_lists``,
   ``neighbour_lists_reference``;
@@ -47,15 +47,15 @@ _EXPORTS = {
                     "stability_limit", "check_step", "METHODS"],
     "forces": ["Gravity", "Wind", "Damping", "Turbulence", "Attractor", "Vortex", "Buoyancy",
                "Pairwise", "Springs", "ForceSet", "pairwise_accel", "pairwise_accel_reference"],
-    "emitters": ["PointShape", "DiscShape", "BoxShape", "MeshSurface", "VelocityDist",
-                 "Emitter", "birth_count"],
-    "particles": ["ParticleSystem", "advance_local", "Ramp", "Look", "Sink", "KillPlane",
-                  "FrameStats", "NonFiniteStateError"],
+    "particles.emitters": ["PointShape", "DiscShape", "BoxShape", "MeshSurface",
+                           "VelocityDist", "Emitter", "birth_count"],
+    "particles.system": ["ParticleSystem", "advance_local", "Ramp", "Look", "Sink",
+                         "KillPlane", "FrameStats", "NonFiniteStateError"],
     "colliders": ["MeshCollider"],
     "collisions": ["collide", "ContactParams"],
-    "cloth": ["Cloth", "ClothSpec", "grid_cloth"],
-    "boids": ["BoidParams", "FlockState", "init_flock"],
-    "flock_metrics": ["flock_metrics", "polarization", "milling",
+    "cloth.mass_spring": ["Cloth", "ClothSpec", "grid_cloth"],
+    "boids.flock": ["BoidParams", "FlockState", "init_flock"],
+    "boids.metrics": ["flock_metrics", "polarization", "milling",
                       "nearest_neighbour_distances", "groups"],
     "neighbours": ["build_grid", "neighbour_lists", "neighbour_lists_reference"],
     "recipes": ["RECIPES", "load_recipe", "build_particles", "build_cloth", "procedural_scan"],
@@ -63,8 +63,8 @@ _EXPORTS = {
     "series_io": ["SeriesWriter", "write_vtp", "write_pvd"],
 }
 # names that would clash across modules get a prefix here
-_RENAMED = {"step_flock": ("boids", "step"), "BoidRecipe": ("boids", "Recipe"),
-            "load_boid_recipe": ("boids", "load_recipe")}
+_RENAMED = {"step_flock": ("boids.flock", "step"), "BoidRecipe": ("boids.recipes", "Recipe"),
+            "load_boid_recipe": ("boids.recipes", "load_recipe")}
 _WHERE = {name: (mod, name) for mod, names in _EXPORTS.items() for name in names}
 _WHERE.update(_RENAMED)
 

@@ -17,9 +17,8 @@ import numpy as np
 
 from core.files import read_toml, require
 from core.validate import InputError
-from simulate.cloth import Cloth, ClothSpec
+from simulate.cloth.mass_spring import Cloth, ClothSpec
 from simulate.collisions import ContactParams
-from simulate.emitters import BoxShape, DiscShape, Emitter, MeshSurface, PointShape, VelocityDist
 from simulate.forces import (
     Attractor,
     Buoyancy,
@@ -32,7 +31,15 @@ from simulate.forces import (
     Wind,
 )
 from simulate.integrators import METHODS
-from simulate.particles import KillPlane, Look, ParticleSystem, Ramp, Sink
+from simulate.particles.emitters import (
+    BoxShape,
+    DiscShape,
+    Emitter,
+    MeshSurface,
+    PointShape,
+    VelocityDist,
+)
+from simulate.particles.system import KillPlane, Look, ParticleSystem, Ramp, Sink
 
 __all__ = ["RECIPES", "load_recipe", "build_particles", "build_cloth", "procedural_scan",
            "recipe_kind"]

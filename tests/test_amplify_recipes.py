@@ -6,8 +6,8 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from core.image_io import read_image
-from core.mesh_io import read_mesh, write_mesh
+from core.io.image import read_image
+from core.io.mesh import read_mesh, write_mesh
 from core.meshes import make_mesh, mesh_arrays
 from core.validate import InputError
 from scanamp.amplify import KINDS, load_recipe, recipe_names, run
@@ -56,7 +56,7 @@ def test_run_writes_mesh_renders_and_report(small_mesh, tmp_path):
                                                                       "leaf", "vines"))
     assert parts == len(final.triangles)
     # every vertex labelled and coloured: the parts' labels count their vertices exactly
-    from core.mesh_io import read_labeled_mesh
+    from core.io.mesh import read_labeled_mesh
     from scanamp.amplify.labels import LABELS
 
     lm = read_labeled_mesh(out / "mesh.ply")
@@ -273,7 +273,7 @@ def _height_over(v, f, points):
 def test_city_recipe_lays_labelled_roads_buildings_and_roofs(tmp_path):
     """The shipped city recipe on a scan's ground with an object on it: roads, buildings
     and roofs each carry their label, and the object keeps its place and label."""
-    from core.mesh_io import read_labeled_mesh
+    from core.io.mesh import read_labeled_mesh
     from core.meshes import merge_meshes
     from procgen.terrain import heightfield_to_mesh
     from scanamp.amplify.labels import LABELS

@@ -123,7 +123,7 @@ def test_write_points_empty_cloud_is_a_valid_ply(tmp_path):
     import open3d as o3d
     import pytest
 
-    from core.mesh_io import write_points
+    from core.io.mesh import write_points
 
     write_points(tmp_path / "e.ply", np.zeros((0, 3)), colors=np.zeros((0, 3)))
     assert len(o3d.io.read_point_cloud(str(tmp_path / "e.ply")).points) == 0

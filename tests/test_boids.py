@@ -3,8 +3,8 @@ import open3d as o3d
 import pytest
 
 from simulate.boids import BoidParams, FlockState, init_flock, load_recipe, step
+from simulate.boids.metrics import milling, polarization
 from simulate.colliders import MeshCollider
-from simulate.flock_metrics import milling, polarization
 from simulate.stand_ins import stand_in_mesh
 
 

@@ -15,7 +15,7 @@ from acquire.render.renderer import render
 from acquire.render.scene import RenderScene
 from acquire.sensor import Sensor
 from acquire.targets import ChArUcoTarget, ChessboardTarget, target_from_spec
-from core.image_io import write_image
+from core.io.image import write_image
 from scanamp.cli import main
 
 BOARD = ChessboardTarget(cols=10, rows=7, square_length=0.02)
@@ -140,7 +140,7 @@ def test_epipolar_error_grows_with_a_wrong_calibration(photos):
     root = photos[0]
     L, R = sorted_images(root / "left"), sorted_images(root / "right")
     calib, rep = calibrate_stereo_images(L, R, BOARD)
-    from core.image_io import read_image
+    from core.io.image import read_image
 
     views = detect_pair_views(BOARD, ((a, read_image(a), b, read_image(b))
                                       for a, b in zip(L, R, strict=True)))

@@ -16,7 +16,7 @@ from acquire.scans import (
     stripe_peaks,
     view_poses,
 )
-from core.range_io import read_conf, read_poses_json
+from core.io.range import read_conf, read_poses_json
 from reconstruct.scans import load_scans
 from scanamp.cli import main
 

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from core.outputs import MANIFEST
+from core.files import MANIFEST
 from scanamp.cli import main
 
 

@@ -70,7 +70,7 @@ def test_fscore_curves_agree_with_the_table(report):
 
 
 def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
 
     amp = report["amplify"]
     assert [s["kind"] for s in amp["steps"]] == ["clean", "displace", "scatter"]

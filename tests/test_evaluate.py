@@ -6,7 +6,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from core.mesh_io import read_geometry, write_mesh, write_points
+from core.io.mesh import read_geometry, write_mesh, write_points
 from core.sampling import sample_surface
 from reconstruct import EvaluationResult, evaluate
 from reconstruct.evaluation.evaluate import TAU_FRACTION, fscore_at

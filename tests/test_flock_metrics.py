@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simulate.flock_metrics import (
+from simulate.boids.metrics import (
     flock_metrics,
     groups,
     milling,

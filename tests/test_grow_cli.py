@@ -20,7 +20,7 @@ def test_writes_mesh_and_seeds(tmp_path, capsys):
     gives the same bytes, another seed another plant (the grammar is stochastic)."""
     import numpy as np
 
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from procgen.lsystem import derive, interpret, load_grammar
 
     def grow(seed):

@@ -1,11 +1,11 @@
-"""core.las_io: LAS 1.4 / LAZ round trips at survey coordinates, streaming, bad files."""
+"""core.io.las: LAS 1.4 / LAZ round trips at survey coordinates, streaming, bad files."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from core.las_io import SCAN_ANGLE_STEP_DEG, LasWriter, iter_las_chunks, read_las
+from core.io.las import SCAN_ANGLE_STEP_DEG, LasWriter, iter_las_chunks, read_las
 from core.validate import InputError
 
 ORIGIN = np.array([512_345.678, 6_789_012.345, 310.0])   # projected metres (UTM-like)

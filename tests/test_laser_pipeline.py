@@ -121,7 +121,7 @@ def test_global_alignment_scores_the_scan_from_its_own_frame(laser_scan, tmp_pat
     its own calibrated frame put it (precision no worse by 0.01), whatever its rotation:
     the scan turned by 70 degrees is aligned to the same place, to the same score."""
     from core.frames import rotation_about
-    from core.mesh_io import read_mesh, write_mesh
+    from core.io.mesh import read_mesh, write_mesh
     from core.meshes import transform_mesh
     from data_synth.scenes import write_scene
 

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from core.las_io import read_las
+from core.io.las import read_las
 from scanamp.cli import main
 
 ORIGIN = [512345.6, 6789012.3, 100.0]
@@ -109,7 +109,7 @@ def test_density_under_the_middle_of_one_strip(scene, tmp_path):
 
 
 def test_terrestrial_stations_go_to_e57_with_pose_and_grid(scene, tmp_path):
-    from core.e57_io import read_e57
+    from core.io.e57 import read_e57
 
     out = tmp_path / "t"
     assert main(["capture", "lidar", str(scene), "--preset", "riegl-vz-400", "--stations",

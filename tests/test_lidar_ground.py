@@ -151,7 +151,7 @@ def test_a_knoll_under_trees_is_ground():
 
 
 def test_reconstruct_writes_the_water_it_finds_as_class_9(tmp_path):
-    from core.las_io import LasWriter, read_las
+    from core.io.las import LasWriter, read_las
     from reconstruct.lidar import LidarReconConfig, run
 
     rng = np.random.default_rng(6)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from acquire.lidar.labels import part_code
-from core.las_io import LasWriter, read_las
-from core.raster_io import Raster, read_raster, write_raster
-from core.trees_io import read_tree_table, write_tree_table
+from core.io.las import LasWriter, read_las
+from core.io.raster import Raster, read_raster, write_raster
+from core.io.trees import read_tree_table, write_tree_table
 from core.validate import InputError
 from scanamp.cli import main
 

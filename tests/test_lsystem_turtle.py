@@ -129,7 +129,7 @@ def test_plant_tubes_are_closed_oriented_manifolds(name):
 
 @pytest.mark.parametrize("suffix", [".ply", ".obj", ".gltf"])
 def test_mesh_files_round_trip(tmp_path, suffix):
-    from core.mesh_io import read_mesh, write_mesh
+    from core.io.mesh import read_mesh, write_mesh
 
     g = load_grammar("abop_1_24a")
     mesh = to_mesh(interpret(derive(g, 2), g), sides=5)

@@ -62,7 +62,7 @@ def test_clean_removes_floaters_closes_the_hole_and_stays_on_the_surface(scale):
 def test_clean_cli_writes_the_mesh_and_its_report(tmp_path, capsys):
     import json
 
-    from core.mesh_io import read_mesh, write_mesh
+    from core.io.mesh import read_mesh, write_mesh
     from scanamp.cli import main
 
     mesh, _ = _noisy_scan()

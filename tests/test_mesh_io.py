@@ -1,4 +1,4 @@
-"""core.mesh_io: the labelled-mesh PLY (colour and part label per vertex)."""
+"""core.io.mesh: the labelled-mesh PLY (colour and part label per vertex)."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from core.validate import InputError
 def test_labeled_mesh_round_trip_and_readers_agree(tmp_path):
     import open3d as o3d
 
-    from core.mesh_io import read_labeled_mesh, write_labeled_mesh
+    from core.io.mesh import read_labeled_mesh, write_labeled_mesh
 
     rng = np.random.default_rng(0)
     v, f = rng.normal(size=(40, 3)), rng.integers(0, 40, (60, 3))

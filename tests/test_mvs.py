@@ -31,7 +31,7 @@ def _exif_jpeg(path, stored: np.ndarray, orientation: int, f35=None):
     (1, lambda a: a), (3, lambda a: np.rot90(a, 2)), (6, lambda a: np.rot90(a, -1)),
     (8, lambda a: np.rot90(a, 1)), (2, lambda a: a[:, ::-1])])
 def test_images_are_read_upright_by_their_exif_orientation(tmp_path, orientation, upright_of):
-    from core.image_io import photo_info, read_image
+    from core.io.image import photo_info, read_image
 
     # blocks of flat colour survive JPEG; the stored pixels are 64 wide, 48 high
     stored = np.zeros((48, 64, 3), np.uint8)
@@ -52,7 +52,7 @@ def test_images_are_read_upright_by_their_exif_orientation(tmp_path, orientation
 
 
 def test_truncated_jpeg_and_sixteen_bit_images(tmp_path):
-    from core.image_io import photo_info, read_image, to_uint8
+    from core.io.image import photo_info, read_image, to_uint8
 
     path = _exif_jpeg(tmp_path / "p.jpg", np.full((40, 50, 3), 99, np.uint8), 1)
     data = path.read_bytes()
@@ -69,7 +69,7 @@ def test_truncated_jpeg_and_sixteen_bit_images(tmp_path):
 
 
 def test_camera_groups_by_size_and_focal_length():
-    from core.image_io import PhotoInfo
+    from core.io.image import PhotoInfo
     from reconstruct.sfm.photo_set import camera_groups
 
     infos = {"a": PhotoInfo(40, 30, 1, 50.0), "b": PhotoInfo(30, 40, 6, 50.0),

@@ -1,10 +1,11 @@
-"""core.outputs: an output never replaces what the user had, and never the input."""
+"""core.runs.outputs: an output never replaces what the user had, and never the input."""
 
 from __future__ import annotations
 
 import pytest
 
-from core.outputs import MANIFEST, check_output, check_output_file, output_dir, read_manifest
+from core.files import MANIFEST
+from core.runs.outputs import check_output, check_output_file, output_dir, read_manifest
 from core.validate import InputError
 
 
@@ -84,7 +85,7 @@ def test_single_files(tmp_path):
 
 def test_api_folders_are_replaced_by_the_api_but_not_by_a_command(tmp_path):
     from core.files import atomic_dir
-    from core.outputs import read_manifest
+    from core.runs.outputs import read_manifest
 
     with atomic_dir(tmp_path / "cap") as d:
         (d / "a").write_text("1")

@@ -5,7 +5,9 @@ import open3d as o3d
 import pytest
 
 from simulate.colliders import MeshCollider
-from simulate.emitters import (
+from simulate.forces import ForceSet, Gravity, Wind
+from simulate.particles import KillPlane, Look, NonFiniteStateError, ParticleSystem, Ramp, Sink
+from simulate.particles.emitters import (
     BoxShape,
     DiscShape,
     Emitter,
@@ -14,8 +16,6 @@ from simulate.emitters import (
     birth_count,
     birth_count_moments,
 )
-from simulate.forces import ForceSet, Gravity, Wind
-from simulate.particles import KillPlane, Look, NonFiniteStateError, ParticleSystem, Ramp, Sink
 
 
 @pytest.mark.parametrize("mean,std", [(20.0, 5.0), (1.0, 2.0)])

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from core.image_io import read_image
-from core.mesh_io import read_mesh
+from core.io.image import read_image
+from core.io.mesh import read_mesh
 from scanamp.cli import main
 
 
@@ -124,7 +124,7 @@ def test_empty_input_mesh_exits_2(tmp_path, capsys):
 
 
 def _labelled(path):
-    from core.mesh_io import read_labeled_mesh
+    from core.io.mesh import read_labeled_mesh
 
     m = read_labeled_mesh(path)
     return m, {m["names"][int(k)] for k in np.unique(m["labels"])}

@@ -1,4 +1,4 @@
-"""Range images, scan poses and E57 files (core.range_io, core.e57_io)."""
+"""Range images, scan poses and E57 files (core.io.range, core.io.e57)."""
 
 from pathlib import Path
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from core.e57_io import E57Scan, read_e57, write_e57
 from core.frames import axis_angle_matrix, rigid
-from core.range_io import (
+from core.io.e57 import E57Scan, read_e57, write_e57
+from core.io.range import (
     RangeGrid,
     ScanPose,
     conf_files,

@@ -4,9 +4,9 @@ sight, confidences, and loading scans from files, folders, E57 and .conf files."
 import numpy as np
 import pytest
 
-from core.e57_io import E57Scan, write_e57
 from core.frames import axis_angle_matrix, rigid
-from core.range_io import RangeGrid, write_conf, write_range_grid
+from core.io.e57 import E57Scan, write_e57
+from core.io.range import RangeGrid, write_conf, write_range_grid
 from core.validate import InputError
 from reconstruct.scans import (
     RangeScan,
@@ -115,7 +115,7 @@ def test_load_scans_from_files_folders_e57_and_conf(tmp_path):
     write_range_grid(folder / "a.ply", grid)
     write_range_grid(folder / "b.ply", grid, ascii=True)
     (folder / "notes.txt").write_text("not a scan")
-    from core.mesh_io import write_points
+    from core.io.mesh import write_points
 
     write_points(folder / "c.pcd", grid.points)
     rows, cols = np.nonzero(grid.index >= 0)
@@ -177,7 +177,7 @@ def _void_e57(path):
 
 
 def test_an_e57_scan_without_points(tmp_path):
-    from core.e57_io import read_e57
+    from core.io.e57 import read_e57
 
     _void_e57(tmp_path / "void.e57")
     with pytest.raises(InputError) as exc:

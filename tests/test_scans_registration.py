@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from core.frames import axis_angle_matrix, rotation_angle_deg
-from core.range_io import RangeGrid
+from core.io.range import RangeGrid
 from reconstruct.evaluation.scan_poses import compare_scan_poses
 from reconstruct.registration import (
     MultiwayOptions,
@@ -223,7 +223,7 @@ def test_pose_evaluation_recovers_a_known_gauge_despite_one_wrong_scan(blob_set)
 
 
 def test_cli_needs_two_scans(tmp_path, blob_set):
-    from core.range_io import write_range_grid
+    from core.io.range import write_range_grid
     from scanamp.cli import main
 
     scans, _, _ = blob_set
@@ -235,7 +235,7 @@ def test_cli_needs_two_scans(tmp_path, blob_set):
 
 
 def test_pipeline_writes_poses_mesh_and_pictures(tmp_path, blob_set):
-    from core.range_io import read_conf, read_poses_json, write_range_grid
+    from core.io.range import read_conf, read_poses_json, write_range_grid
     from reconstruct.scans.pipeline import ScansReconConfig, run
 
     scans, truth, foreign = blob_set
@@ -258,7 +258,7 @@ def test_pipeline_writes_poses_mesh_and_pictures(tmp_path, blob_set):
 
 
 def test_an_initial_guess_is_used_and_sets_the_model_frame(tmp_path, blob_set):
-    from core.range_io import write_conf, write_range_grid
+    from core.io.range import write_conf, write_range_grid
     from reconstruct.scans.pipeline import ScansReconConfig, run
 
     scans, truth, _ = blob_set
@@ -270,7 +270,7 @@ def test_an_initial_guess_is_used_and_sets_the_model_frame(tmp_path, blob_set):
     nudge[:3, :3] = axis_angle_matrix([0, 1, 0], np.radians(2.0))  # a rough guess
     write_conf(tmp_path / "guess.conf", [(f"{n}.ply", T @ nudge) for n, T in truth.items()])
     out = run(ScansReconConfig(seed=3), [folder], tmp_path / "rec", poses=tmp_path / "guess.conf")
-    from core.range_io import read_poses_json
+    from core.io.range import read_poses_json
 
     placed = {p.file: p.model_from_scan for p in read_poses_json(out / "poses.json")}
     # the result is in the guess's frame (fixed by the first scan's guess), the relative

@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from acquire.camera import look_at_cam_from_world
-from core.scene_cameras_io import read_meshroom_sfm, read_openmvs_scene
+from core.io.scene_cameras import read_meshroom_sfm, read_openmvs_scene
 from core.validate import InputError
 from reconstruct.camera_files import read_cameras
 

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from core.mesh_io import read_mesh
+from core.io.mesh import read_mesh
 from core.meshes import is_closed
 from data_synth.scenes import build_scene, scene_names
 from scanamp.cli import main

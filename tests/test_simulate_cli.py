@@ -89,7 +89,7 @@ def test_missing_mesh(tmp_path, mesh, capsys):
 def test_gif_and_a_mesh_without_faces_is_a_warning(tmp_path, caplog):
     import logging
 
-    from core.mesh_io import write_points
+    from core.io.mesh import write_points
 
     pts = write_points(tmp_path / "cloud.ply", np.random.default_rng(0).uniform(0, 1, (50, 3)))
     out = tmp_path / "gif"

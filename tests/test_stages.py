@@ -1,8 +1,8 @@
-"""core.stages: a stage is skipped exactly when it and the stages before it are unchanged."""
+"""core.runs.stages: a stage is skipped exactly when it and the stages before it are unchanged."""
 
 import pytest
 
-from core.stages import Stages
+from core.runs.stages import Stages
 
 
 def _pipeline(folder, calls, *, a=1, b=2, from_stage=None, reuse=None):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from acquire.camera import Camera
-from core.image_io import read_image, write_image
+from core.io.image import read_image, write_image
 
 
 @pytest.fixture(scope="session")

@@ -29,7 +29,7 @@ def sl_capture(tmp_path_factory):
 def test_decoded_projector_coordinates_match_truth(sl_capture):
     """Decoded sub-pixel projector (col, row) = true projection of the true surface point."""
     from acquire.capture_io import load_capture
-    from core.image_io import read_image
+    from core.io.image import read_image
     from reconstruct.stereo.sl_pipeline import SLOptions, decode_stack
 
     cap = load_capture(sl_capture)

@@ -236,7 +236,7 @@ def capture(scene: RenderScene, config: LaserCaptureConfig, out_dir, rng: np.ran
     Path
         ``out_dir``.
     """
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import merge_meshes, transform_mesh
 
     rig = config.rig

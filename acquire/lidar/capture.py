@@ -21,7 +21,7 @@ from acquire.lidar.platforms import PLATFORM_DEFAULTS, PLATFORMS, Leg
 from acquire.lidar.presets import ScannerPreset, get_preset
 from acquire.lidar.simulate import LidarWorld, Scanner, intensity_counts, scan_leg
 from core.config import Config, option
-from core.las_io import LasWriter, iter_las_chunks
+from core.io.las import LasWriter, iter_las_chunks
 from core.validate import InputError
 
 __all__ = ["LidarCaptureConfig", "plan_survey", "make_scanner", "scan_leg_to_las",
@@ -199,7 +199,7 @@ def _new_summary(leg: Leg, n_pulses: int) -> dict:
 def scan_leg_to_las(world: LidarWorld, scanner: Scanner, leg: Leg, index: int,
                     writer: LasWriter, *, origin: np.ndarray, seed: int, block: int,
                     intensity_range: float, area: np.ndarray | None = None) -> dict:
-    """Simulate leg ``index`` into an open :class:`core.las_io.LasWriter`; its summary
+    """Simulate leg ``index`` into an open :class:`core.io.las.LasWriter`; its summary
     (counts by return, class and part; points and first returns inside ``area``, (2, 2)
     local xy)."""
     n = int(np.floor(leg.duration * scanner.pulse_rate))
@@ -235,8 +235,8 @@ def strip_name(source_id: int, index: int) -> str:
 def e57_scan(path: str | os.PathLike, leg: Leg, origin: np.ndarray):
     """The E57 scan of a station from its LAS file (scan frame: the station, the world's
     axes; its row/column grid from the scan lines)."""
-    from core.e57_io import E57Scan
-    from core.las_io import read_las
+    from core.io.e57 import E57Scan
+    from core.io.las import read_las
 
     pts, _ = read_las(path, fields=("x", "y", "z", "intensity", "scan_row", "scan_column"))
     T = np.eye(4)

@@ -3,7 +3,7 @@
 Every triangle of a LiDAR world carries a part code (``SceneObject.part_labels``, uint8,
 an index into :data:`PARTS`); every simulated point inherits the code of the triangle it
 hit. The LAS classification follows from the part and, for vegetation, the height above
-ground (ASPRS LAS 1.4 R15, table 17):
+ground (ASPRS LAS 1.4 R15, table 17; the codes are :class:`core.io.las.AsprsClass`):
 
 ===========  ====================================================================
 part         ASPRS class
@@ -30,10 +30,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.io.las import AsprsClass
 from core.validate import InputError
 
-__all__ = ["PARTS", "VEGETATION_PARTS", "part_code", "asprs_class", "ASPRS_NAMES",
-           "LOW_VEGETATION_M", "MEDIUM_VEGETATION_M"]
+__all__ = ["PARTS", "VEGETATION_PARTS", "part_code", "asprs_class", "LOW_VEGETATION_M",
+           "MEDIUM_VEGETATION_M"]
 
 #: Part names; a part's code is its index (uint8).
 PARTS = ("unlabelled", "ground", "trunk", "branch", "leaf", "understory", "building", "road",
@@ -44,11 +45,9 @@ VEGETATION_PARTS = ("trunk", "branch", "leaf", "understory")
 LOW_VEGETATION_M = 0.5
 #: Vegetation below this height (and above the low limit) is class 4 (medium), metres.
 MEDIUM_VEGETATION_M = 2.0
-#: The ASPRS classes this module writes, by code.
-ASPRS_NAMES = {1: "unclassified", 2: "ground", 3: "low vegetation", 4: "medium vegetation",
-               5: "high vegetation", 6: "building", 9: "water", 11: "road surface"}
-
-_FIXED = {"unlabelled": 1, "ground": 2, "building": 6, "road": 11, "water": 9, "glass": 6}
+_FIXED = {"unlabelled": AsprsClass.UNCLASSIFIED, "ground": AsprsClass.GROUND,
+          "building": AsprsClass.BUILDING, "road": AsprsClass.ROAD_SURFACE,
+          "water": AsprsClass.WATER, "glass": AsprsClass.BUILDING}
 
 
 def part_code(name: str) -> int:
@@ -84,11 +83,13 @@ def asprs_class(parts: np.ndarray, height_above_ground: np.ndarray | None = None
     veg = np.isin(parts, [PARTS.index(p) for p in VEGETATION_PARTS])
     out = lut[parts.astype(np.intp)]
     if height_above_ground is None:
-        out[veg] = 5
+        out[veg] = AsprsClass.HIGH_VEGETATION
         return out
     h = np.asarray(height_above_ground, np.float64)
     if h.shape != parts.shape:
         raise InputError(f"expected shape {parts.shape} like parts, got {h.shape}",
                          field="height_above_ground")
-    out[veg] = np.where(h[veg] < LOW_VEGETATION_M, 3, np.where(h[veg] < MEDIUM_VEGETATION_M, 4, 5))
+    out[veg] = np.where(h[veg] < LOW_VEGETATION_M, AsprsClass.LOW_VEGETATION,
+                        np.where(h[veg] < MEDIUM_VEGETATION_M, AsprsClass.MEDIUM_VEGETATION,
+                                 AsprsClass.HIGH_VEGETATION))
     return out

@@ -19,14 +19,10 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from core.frames import unit
 from core.validate import check_array, check_positive
 
 __all__ = ["glyph_triangles", "render_glyphs", "heading_colors"]
-
-
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 def glyph_triangles(points: np.ndarray, headings: np.ndarray, eye: np.ndarray, *,
@@ -45,10 +41,10 @@ def glyph_triangles(points: np.ndarray, headings: np.ndarray, eye: np.ndarray, *
         Glyph length (m); the base is half as wide.
     """
     p = check_array(points, "points", shape=(None, 3))
-    h = _unit(check_array(headings, "headings", shape=(len(p), 3)))
+    h = unit(check_array(headings, "headings", shape=(len(p), 3)))
     s = check_positive(size, "size")
     view = p - check_array(eye, "eye", shape=(3,))
-    side = _unit(np.cross(h, view))
+    side = unit(np.cross(h, view))
     tip = p + 0.6 * s * h
     back = p - 0.4 * s * h
     return np.stack([tip, back + 0.25 * s * side, back - 0.25 * s * side], axis=1)
@@ -56,7 +52,7 @@ def glyph_triangles(points: np.ndarray, headings: np.ndarray, eye: np.ndarray, *
 
 def heading_colors(headings: np.ndarray) -> np.ndarray:
     """Colours ``(n, 3)`` in [0, 1] from unit headings (aligned boids share a colour)."""
-    h = _unit(check_array(headings, "headings", shape=(None, 3)))
+    h = unit(check_array(headings, "headings", shape=(None, 3)))
     return 0.25 + 0.75 * (0.5 + 0.5 * h)
 
 

@@ -196,7 +196,7 @@ def scene_dict(scene: RenderScene, camera: Camera, folder, *, spp: int = 64,
     """The Mitsuba scene dictionary of ``scene`` seen by ``camera``; meshes are written
     as PLY files into ``folder``. ``bounces``: indirect bounces after the direct light
     (0: direct only)."""
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import make_mesh
 
     if np.any(camera.dist != 0):
@@ -274,8 +274,7 @@ class Agreement:
     Attributes
     ----------
     relative_l1 : float
-        ``sum |a - b| / sum b`` of the tone-mapped images (the issue's "mean relative
-        error").
+        ``sum |a - b| / sum b`` of the tone-mapped images (the mean relative error).
     relative_l1_linear : float
         The same on linear radiance.
     pixels : int

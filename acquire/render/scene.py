@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquire.render.materials import Material
+from core.frames import transform_points
 from core.meshes import mesh_arrays
 from core.validate import check_array
 
@@ -73,7 +74,7 @@ class SceneObject:
         T = self.world_from_object
         n = np.array(self.mesh.vertex_normals, dtype=np.float64)  # a copy, normalised below
         if not np.array_equal(T, np.eye(4)):  # (a forest's thousands of objects are placed)
-            v = v @ T[:3, :3].T + T[:3, 3]
+            v = transform_points(T, v)
             n = n @ T[:3, :3].T
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         return v, f, n

@@ -1,4 +1,4 @@
-"""acquire.scans: multi-view range scanning (issue 30): a sheet-of-light scanner head on a
+"""acquire.scans: multi-view range scanning: a sheet-of-light scanner head on a
 linear sweep, with its factory geometry and on-board peak detection, placed at many
 viewpoints around and above a scene; each sweep is written as a PLY range grid in the
 scanner's own frame, the true placements for evaluation only.

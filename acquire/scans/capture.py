@@ -17,7 +17,7 @@ the range grid is the camera's pixel grid; ``--head.peak spatial`` finds the str
 each frame's image rows instead (one profile per sweep step). See
 :mod:`acquire.scans.head`. Output folder::
 
-    scans/scan_00.ply ...  PLY range grids in each scanner's frame (core.range_io); the
+    scans/scan_00.ply ...  PLY range grids in each scanner's frame (core.io.range); the
                            camera at the origin saw every point
     poses.json, poses.conf the true model_from_scan of each scan (evaluation only)
     gt/mesh.ply            the scene's surface in the model (world) frame
@@ -40,8 +40,8 @@ from acquire.sensor import Sensor
 from core.config import Config, option, to_dict
 from core.files import atomic_dir
 from core.frames import axis_angle_matrix, rigid
+from core.io.range import RangeGrid, ScanPose, write_conf, write_poses_json, write_range_grid
 from core.progress import track
-from core.range_io import RangeGrid, ScanPose, write_conf, write_poses_json, write_range_grid
 from core.validate import check_rng
 
 log = logging.getLogger(__name__)
@@ -170,7 +170,7 @@ def capture_scans(scene, config: ScansCaptureConfig, out_dir, rng: np.random.Gen
     gt_mesh : open3d.geometry.TriangleMesh, optional
         The scene's surface for ``gt/mesh.ply`` (default: its objects merged).
     """
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import merge_meshes, transform_mesh
 
     rng = check_rng(rng)

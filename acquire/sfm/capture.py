@@ -27,8 +27,8 @@ from acquire.sfm import paths as _paths
 from acquire.sfm.nerfstudio import write_transforms
 from core.config import Config, option, to_dict
 from core.files import atomic_dir
-from core.image_io import write_image
-from core.mesh_io import write_mesh
+from core.io.image import write_image
+from core.io.mesh import write_mesh
 from core.progress import track
 from core.validate import check_positive
 

@@ -142,7 +142,7 @@ def axis_board_poses(cfg: RigConfig, n: int) -> tuple[list, list]:
 
 def write_gt_meshes(out: Path, scene: RenderScene, object_name: str | None) -> dict:
     """World-frame ground-truth meshes (stage angle 0): ``gt/mesh.ply``, ``gt/object.ply``."""
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import merge_meshes, transform_mesh
 
     meshes = {o.name: transform_mesh(o.mesh, o.world_from_object) for o in scene.objects}

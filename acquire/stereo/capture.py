@@ -32,7 +32,7 @@ from acquire.stereo.patterns import random_dots
 from acquire.stereo.rig import RigConfig
 from core.config import to_dict
 from core.files import atomic_dir
-from core.image_io import write_image
+from core.io.image import write_image
 from core.progress import track
 
 __all__ = ["capture"]

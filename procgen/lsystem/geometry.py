@@ -3,7 +3,7 @@
 Tubes are the batched generalized cylinders of :func:`procgen.sweeps.segment_tubes`
 (radius = width / 2, tapering from a parent's width to its child's). Polygons (leaves)
 are triangulated as fans from their first vertex; they are open surfaces, so a mesh that
-includes leaves is not closed. Files are written with :func:`core.mesh_io.write_mesh`
+includes leaves is not closed. Files are written with :func:`core.io.mesh.write_mesh`
 (PLY, OBJ, glTF/GLB by suffix).
 """
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from core.config import Config, option
-from core.image_io import read_image
+from core.io.image import read_image
 from core.validate import InputError
 from reconstruct.calibration.camera import DIST_MODELS, CameraCalibration, calibrate_camera, to_gray
 from reconstruct.calibration.rectify import Rectification, StereoCalibration, rectify

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import transform_points
 from core.validate import InputError, check_array
 from reconstruct.calibration.camera import (
     calibrate_camera_points,
@@ -245,7 +246,7 @@ def calibrate_turntable_mount(object_points: list, image_points: list, angles_de
         Rz = np.eye(4)
         Rz[:3, :3] = _rz(np.radians(a))
         T = Rz @ Ttb
-        P.append(np.asarray(op, np.float64) @ T[:3, :3].T + T[:3, 3])
+        P.append(transform_points(T, op))
         px.append(np.asarray(ip, np.float64))
     ok, rvec, tvec = cv2.solvePnP(np.asarray(object_points[0], np.float64), px[0], K, D,
                                   flags=cv2.SOLVEPNP_IPPE)

@@ -48,6 +48,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from core.config import Config, option
+from core.frames import transform_points
 from core.sampling import sample_surface, voxel_thin
 from core.validate import check_array, check_choice, check_positive
 
@@ -107,7 +108,7 @@ class EvaluationResult:
     icp_reference_from_recon : (4, 4) tuple of tuples or None
         Rigid transform applied to the reconstruction before scoring.
     alignment : dict or None
-        How it was aligned (:meth:`reconstruct.registration.rigid.Registration.to_dict`):
+        How it was aligned (:meth:`reconstruct.registration.icp.Registration.to_dict`):
         method, threshold, and for ``global`` the coarse stage's source and fitness.
     bias : float or None
         Mean signed distance of the reconstruction's samples within ``tau`` of the
@@ -445,14 +446,15 @@ def _align(rec: _Geom, rec_pts, rec_nrm, ref_pts, ref_nrm, method: str, threshol
 
     reg = register(rec_pts, ref_pts, method=method, reference_normals=ref_nrm,
                    threshold=threshold, rng=rng)
-    rot, t = reg.transform[:3, :3], reg.transform[:3, 3]
-    rec = _Geom(rec.name, rec.vertices @ rot.T + t, rec.triangles,
+    rot = reg.transform[:3, :3]
+    rec = _Geom(rec.name, transform_points(reg.transform, rec.vertices), rec.triangles,
                 None if rec.normals is None else rec.normals @ rot.T)
     fields = dict(icp_fitness=reg.fitness, icp_inlier_rmse=reg.inlier_rmse,
                   icp_reference_from_recon=tuple(map(tuple, reg.transform.tolist())),
                   alignment={k: v for k, v in reg.to_dict().items()
                              if k not in ("reference_from_scan", "fitness", "inlier_rmse_m")})
-    return (rec, rec_pts @ rot.T + t, None if rec_nrm is None else rec_nrm @ rot.T, fields)
+    return (rec, transform_points(reg.transform, rec_pts),
+            None if rec_nrm is None else rec_nrm @ rot.T, fields)
 
 
 def _visible(reference_mask, ref_pts: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.frames import rotation_angle_deg
+from core.frames import rotation_angle_deg, transform_points
 from core.validate import check_array
 
 from .sim3 import umeyama
@@ -92,7 +92,7 @@ class ScanPoseErrors:
 
 def _disp(G, E, R, p) -> float:
     M = G @ E - R
-    return float(np.sqrt(np.mean(np.sum((p @ M[:3, :3].T + M[:3, 3]) ** 2, axis=1))))
+    return float(np.sqrt(np.mean(np.sum(transform_points(M, p) ** 2, axis=1))))
 
 
 def compare_scan_poses(estimated: Mapping[str, np.ndarray | None],
@@ -140,8 +140,8 @@ def compare_scan_poses(estimated: Mapping[str, np.ndarray | None],
         for n, ok in zip(names, inl, strict=True):
             if ok and len(names) > 1:
                 p = P[n][:: max(1, len(P[n]) // max_points)]
-                src.append(p @ E[n][:3, :3].T + E[n][:3, 3])
-                dst.append(p @ R[n][:3, :3].T + R[n][:3, 3])
+                src.append(transform_points(E[n], p))
+                dst.append(transform_points(R[n], p))
         if sum(len(s) for s in src) >= 3:
             G = umeyama(np.concatenate(src), np.concatenate(dst), with_scale=False).matrix
     rot = np.array([rotation_angle_deg((G @ E[n])[:3, :3] @ R[n][:3, :3].T) for n in names])

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acquire.camera import Camera
-from core.frames import rotation_about
+from core.frames import rotation_about, transform_points
 from reconstruct.calibration.camera import board_pose, detect_board
 from reconstruct.calibration.turntable import fit_axis
 from reconstruct.laser.stripe import StripeOptions, detect_peaks
@@ -316,7 +316,7 @@ def calibrate_turntable_axis(camera: Camera, images, angles_deg, target, *,
         out = []
         for (objp, px), phi in zip(obs, ang, strict=True):
             T = rotation_about(a, phi - ang[0], p) @ T0
-            q = objp @ T[:3, :3].T + T[:3, 3]
+            q = transform_points(T, objp)
             proj = cam.project(q)[0]
             out.append((proj - px).ravel())
         out.append([1e3 * ((p - centre0) @ a), 1e3 * (np.linalg.norm(x[:3]) - 1)])  # gauges

@@ -201,7 +201,7 @@ def _stripe_errors(cap, gt, cam, cam_gt, plane_gt, meas) -> dict:
 
 def _surface_score(cap, gt, motion, cam_gt, obj_from_cam, mesh, tau) -> dict:
     """The mesh against the scene's, in the world frame, over the surface the rig lit."""
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import transform_mesh
     from reconstruct.evaluation.evaluate import evaluate
 

@@ -26,7 +26,7 @@ from acquire.capture_io import load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
-from core.frames import rotation_about
+from core.frames import rotation_about, transform_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import DIST_MODELS, calibrate_camera
@@ -112,10 +112,10 @@ class LaserReconConfig(Config):
 
 
 def _read(path: Path, channel: int | None = None) -> np.ndarray:
-    """One frame, upright (core.image_io), as grey or one colour channel (0 = red)."""
+    """One frame, upright (core.io.image), as grey or one colour channel (0 = red)."""
     import cv2
 
-    from core.image_io import read_image
+    from core.io.image import read_image
 
     img = read_image(path)
     if img.ndim == 3:
@@ -147,12 +147,12 @@ def run(config: LaserReconConfig, capture_dir, out_dir, *,
     and its report.
 
     The work is five named stages (:data:`STAGES`), each cached in ``out_dir/stages``
-    (:class:`core.stages.Stages`): run again into the same folder, only the stages whose
+    (:class:`core.runs.stages.Stages`): run again into the same folder, only the stages whose
     options or inputs changed are recomputed (a new Poisson depth re-runs ``mesh`` and
     ``evaluate``, not the calibrations). ``from_stage`` forces a stage and the later ones.
     """
-    from core.mesh_io import write_mesh, write_points
-    from core.stages import Stages, files_key
+    from core.io.mesh import write_mesh, write_points
+    from core.runs.stages import Stages, files_key
 
     cfg = config
     t_all = time.perf_counter()
@@ -370,7 +370,7 @@ def _triangulate(cap, prep, calib, stripes, cfg) -> dict:
             M = np.eye(4)
             M[:3, 3] = -readings[k] * axis_cal.scale * axis_cal.direction
         T = obj_from_cam @ M
-        P[sel] = pc[sel] @ T[:3, :3].T + T[:3, 3]
+        P[sel] = transform_points(T, pc[sel])
         V[sel] = T[:3, 3]  # the camera centre seen from the object at that reading
     if cfg.max_range > 0 and prep["motion"] == "turntable":
         keep = np.linalg.norm(P[:, :2], axis=1) < cfg.max_range

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.raster_io import Raster
+from core.io.raster import Raster
 from core.validate import check_array
 
 __all__ = ["match_trees", "tree_scores", "dtm_errors", "evaluate_lidar", "lidar_table",
@@ -163,8 +163,8 @@ def evaluate_lidar(result_dir, truth_dir) -> dict:
     """
     from pathlib import Path
 
-    from core.raster_io import read_raster
-    from core.trees_io import read_tree_table
+    from core.io.raster import read_raster
+    from core.io.trees import read_tree_table
 
     result_dir, truth_dir = Path(result_dir), Path(truth_dir)
     det = read_tree_table(result_dir / "trees.csv", allow_empty=True)

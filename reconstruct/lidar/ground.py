@@ -179,7 +179,7 @@ def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
     """Indices of ``local`` the cloth calls ground."""
     import CSF
 
-    from core.mesh_io import native_output
+    from core.io.mesh import native_output
 
     csf = CSF.CSF()
     csf.params.bSloopSmooth = bool(o.slope_smooth)

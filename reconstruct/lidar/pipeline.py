@@ -5,7 +5,7 @@ cloth simulation filter when the file has no ground class (ASPRS 2) or with
 ``reclassify``; interpolate the DTM from the ground, the CHM from every point's height
 above it; find the trees (tops and crowns). Writes, in the file's coordinates and CRS:
 
-- ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.raster_io`);
+- ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.io.raster`);
 - ``trees.csv`` -- ``tree_id, x, y, height, crown_area``;
 - ``classified.laz`` -- the points with their ground class (2) and, when the filter ran,
   the water it found (9); others keep theirs (a point the file called ground that the
@@ -24,9 +24,9 @@ import numpy as np
 
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
-from core.las_io import LasWriter, read_las
-from core.raster_io import write_raster
-from core.trees_io import write_tree_table
+from core.io.las import AsprsClass, LasWriter, read_las
+from core.io.raster import write_raster
+from core.io.trees import write_tree_table
 from core.validate import InputError
 from reconstruct.lidar.ground import GroundOptions, classify_ground
 from reconstruct.lidar.rasters import canopy_height, dtm_from_ground
@@ -37,9 +37,8 @@ __all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
 
 log = logging.getLogger(__name__)
 
-GROUND_CLASS = 2
-WATER_CLASS = 9
-NOISE_CLASSES = (7, 18)  # low and high noise: never ground, never canopy
+#: low and high noise: never ground, never canopy
+NOISE_CLASSES = (AsprsClass.LOW_NOISE, AsprsClass.HIGH_NOISE)
 
 
 @dataclass
@@ -91,7 +90,7 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
     noise = np.isin(cls, NOISE_CLASSES) if cls is not None else np.zeros(n, bool)
     t = {}
     t0 = time.perf_counter()
-    has_ground = cls is not None and np.any(cls == GROUND_CLASS)
+    has_ground = cls is not None and np.any(cls == AsprsClass.GROUND)
     reclassified = bool(c.reclassify or not has_ground)
     if reclassified:
         last = None
@@ -106,7 +105,7 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
                                            last=None if last is None else last[keep], water=w)
             water[keep] = w
     else:
-        ground = cls == GROUND_CLASS
+        ground = cls == AsprsClass.GROUND
         water = np.zeros(n, bool)
     t["ground_s"] = time.perf_counter() - t0
     if ground.sum() < 3:
@@ -130,10 +129,10 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
 def _classified(points: dict, ground: np.ndarray, water: np.ndarray | None = None) -> np.ndarray:
     cls = points.get("classification")
     out = (np.ones(len(ground), np.uint8) if cls is None else np.asarray(cls, np.uint8).copy())
-    out[(out == GROUND_CLASS) & ~ground] = 1
+    out[(out == AsprsClass.GROUND) & ~ground] = AsprsClass.UNCLASSIFIED
     if water is not None:
-        out[water] = WATER_CLASS
-    out[ground] = GROUND_CLASS
+        out[water] = AsprsClass.WATER
+    out[ground] = AsprsClass.GROUND
     return out
 
 

@@ -5,7 +5,7 @@
 - **CHM**: every point's height above the DTM, the highest per cell; empty cells take the
   highest of their neighbours (a few passes), negative heights are 0.
 
-Rasters are :class:`core.raster_io.Raster` (cell ``[i, j]`` centred at ``x0 + j res``,
+Rasters are :class:`core.io.raster.Raster` (cell ``[i, j]`` centred at ``x0 + j res``,
 ``y0 + i res``), in the coordinates of the points.
 
 >>> import numpy as np
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.raster_io import Raster
+from core.io.raster import Raster
 from core.validate import check_array, check_positive
 
 __all__ = ["grid_for", "dtm_from_ground", "canopy_height", "height_above"]

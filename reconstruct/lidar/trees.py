@@ -8,7 +8,7 @@ tops (flooding from the highest level down), within the cells at least ``min_hei
 height is the highest raw CHM cell of its crown; its position the centre of its top cell.
 
 >>> import numpy as np
->>> from core.raster_io import Raster
+>>> from core.io.raster import Raster
 >>> xs = np.arange(40) * 0.5
 >>> X, Y = np.meshgrid(xs, xs)
 >>> bumps = [(5, 5, 20), (14, 12, 15)]
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.config import Config, option
-from core.raster_io import Raster
+from core.io.raster import Raster
 
 __all__ = ["TreeOptions", "detect_trees"]
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from core.config import Config, option
+from core.frames import transform_points
 from core.progress import track
 
 __all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface", "depth_edges",
@@ -148,8 +149,8 @@ def depth_per_pixel(cam: Camera, points: np.ndarray, rays: np.ndarray) -> np.nda
     1 along them is a step of 1 in the depth being judged. For two pinhole cameras of
     focal length f side by side at baseline b it is z^2 / (f b).
     """
-    R, t = cam.cam_from_world[:3, :3], cam.cam_from_world[:3, 3]
-    Y = points @ R.T + t
+    R = cam.cam_from_world[:3, :3]
+    Y = transform_points(cam.cam_from_world, points)
     B = rays @ R.T
     z2 = np.maximum(Y[:, 2], 1e-12) ** 2
     du = cam.fx * (B[:, 0] * Y[:, 2] - Y[:, 0] * B[:, 2]) / z2
@@ -270,7 +271,7 @@ def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_m
     idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
     # the other view's point at that pixel, back in the reference image
     pc = np.stack([(uo - other.cx) / other.fx * d, (vo - other.cy) / other.fy * d, d], 1)
-    W = pc @ other.world_from_cam[:3, :3].T + other.world_from_cam[:3, 3]
+    W = transform_points(other.world_from_cam, pc)
     Z = cam.to_camera(W)
     zr = np.maximum(Z[:, 2], 1e-12)
     pu = cam.fx * Z[:, 0] / zr + cam.cx
@@ -324,7 +325,7 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     depth = opt.poisson_depth or int(np.clip(np.ceil(np.log2(extent / max(2 * footprint,
                                                                         1e-12))), 8, 11))
     # PoissonRecon prints its warnings ("bad average roots") itself: to the log instead
-    from core.mesh_io import native_output
+    from core.io.mesh import native_output
 
     said: list[str] = []
     with native_output(said, fds=(1, 2)):

@@ -30,7 +30,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from core.config import Config, option
-from core.image_io import write_image
+from core.io.image import write_image
 from reconstruct.mvs.dense import DenseOptions, depth_maps, select_neighbors
 from reconstruct.mvs.fusion import FusionOptions, fuse_points, poisson_surface
 from reconstruct.mvs.patchmatch import PatchMatchOptions, depth_range, patchmatch, prepare_views
@@ -181,7 +181,7 @@ def fuse_stage(depth: dict, colors: Sequence[np.ndarray], out: Path,
 
     ``colors`` are the views' images at the depth maps' resolution (uint8). Returns each
     view's fused coverage and fused-pixel masks (bit-packed), and timings."""
-    from core.mesh_io import write_points
+    from core.io.mesh import write_points
 
     opt = options or MvsOptions()
     t = time.perf_counter()

@@ -1,11 +1,12 @@
 """reconstruct.registration: rigid registration: a scan to a reference from any starting
 frame, and many range scans to each other with no initial pose.
 
-Modules: ``rigid`` (a scan to a reference), ``oriented`` (oriented samples in a scan's
-canonical frame), ``features`` (FPFH, seeded RANSAC), ``verify`` (overlap, agreement and
-lines of sight of a candidate), ``pairwise`` (two scans, no initial pose), ``joint``
-(multi-view ICP), ``multiway`` (all scans: pairs, pose graph, fine alignment; the fine
-alignment alone from given poses).
+One stack: ``features`` (FPFH, matches, Kabsch, the seeded RANSAC) and ``icp`` (ICP and
+``Registration``, the result every registration returns) under ``rigid`` (a scan to a
+reference), ``pairwise`` (two scans, no initial pose) and ``multiway`` (all scans: pairs,
+pose graph, fine alignment; the fine alignment alone from given poses); beside them
+``oriented`` (oriented samples in a scan's canonical frame), ``verify`` (overlap,
+agreement and lines of sight of a candidate) and ``joint`` (multi-view ICP).
 
 Every name below is importable from the room (``from reconstruct.registration import
 NAME``), loaded on first use.
@@ -16,7 +17,10 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "ALIGN_METHODS": "rigid",
     "LOW_FITNESS": "rigid",
-    "Registration": "rigid",
+    "Registration": "icp",
+    "icp": "icp",
+    "rigid_step": "icp",
+    "score": "icp",
     "register": "rigid",
     "Oriented": "oriented",
     "canonical_frame": "oriented",
@@ -33,7 +37,6 @@ _EXPORTS = {
     "PairMatch": "pairwise",
     "prepare": "pairwise",
     "match_pair": "pairwise",
-    "icp_point_to_plane": "pairwise",
     "JointAlignment": "joint",
     "MultiwayOptions": "multiway",
     "MultiwayResult": "multiway",

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.frames import transform_points
+
 __all__ = ["fpfh", "match_features", "ransac_rigid", "kabsch"]
 
 
@@ -142,7 +144,7 @@ def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlie
     for k in order:
         if len(out) >= keep or counts[k] < 3:
             break
-        inl = np.sum((cs @ hyp[k][:3, :3].T + hyp[k][:3, 3] - cd) ** 2, axis=1) < inlier ** 2
+        inl = np.sum((transform_points(hyp[k], cs) - cd) ** 2, axis=1) < inlier ** 2
         T = kabsch(cs[inl], cd[inl])
         if all(_differ(T, o, inlier) for o in out):
             out.append(T)

@@ -29,6 +29,9 @@ import logging
 
 import numpy as np
 
+from core.frames import transform_points
+
+from .icp import rigid_step
 from .oriented import Oriented
 
 log = logging.getLogger(__name__)
@@ -65,7 +68,7 @@ class JointAlignment:
         """Correspondences of i's points to j's surface: model-frame P, Q, N."""
         rel = np.linalg.inv(poses[j]) @ poses[i]
         vi, vj = self.views[i], self.views[j]
-        p_in_j = vi.points @ rel[:3, :3].T + rel[:3, 3]
+        p_in_j = transform_points(rel, vi.points)
         d, k = self.trees[j].query(p_in_j, distance_upper_bound=threshold)
         ok = np.isfinite(d)
         ok[ok] = np.sum((vi.normals[ok] @ rel[:3, :3].T) * vj.normals[k[ok]], axis=1) \
@@ -73,8 +76,8 @@ class JointAlignment:
         src = np.flatnonzero(ok)
         conf = vi.weights[ok] * vj.weights[k[ok]]
         Xj = poses[j]
-        P = p_in_j[ok] @ Xj[:3, :3].T + Xj[:3, 3]
-        Q = vj.points[k[ok]] @ Xj[:3, :3].T + Xj[:3, 3]
+        P = transform_points(Xj, p_in_j[ok])
+        Q = transform_points(Xj, vj.points[k[ok]])
         N = vj.normals[k[ok]] @ Xj[:3, :3].T
         return src, P, Q, N, conf
 
@@ -116,8 +119,6 @@ class JointAlignment:
         Hf += 1e-9 * np.trace(Hf) / max(1, len(idx)) * np.eye(len(idx)) + 1e-12 * np.eye(len(idx))
         x = np.zeros(6 * n)
         x[idx] = -np.linalg.solve(Hf, g[idx])
-        from .pairwise import rigid_step
-
         self.last = {"sq": sq, "count": cnt, "matched": matched, "pair_rms": pair_rms,
                      "step": float(np.max(np.abs(x))) if len(x) else 0.0}
         return [rigid_step(x[6 * k:6 * k + 6]) @ poses[k] for k in range(n)]

@@ -30,12 +30,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.frames import rotation_angle_deg
+from core.frames import rotation_angle_deg, transform_points
 from core.progress import track
 
+from .icp import icp
 from .joint import JointAlignment
 from .oriented import Oriented, canonical_frame, thin_oriented
-from .pairwise import PairMatch, Prepared, icp_point_to_plane, match_pair, prepare
+from .pairwise import PairMatch, Prepared, match_pair, prepare
 from .verify import VerifyOptions, verify_pair
 
 log = logging.getLogger(__name__)
@@ -155,10 +156,10 @@ def _from_guess(a: Prepared, b: Prepared, ga, gb, vopts) -> PairMatch | None:
     """The pair aligned from the initial guess, when it verifies."""
     v = max(a.voxel, b.voxel)
     T = a.canon_from_scan @ np.linalg.inv(ga) @ gb @ np.linalg.inv(b.canon_from_scan)
-    T = icp_point_to_plane(b.samples.points, a.samples.points, a.samples.normals, T,
-                           3.0 * v, a.tree, iterations=10)
-    T = icp_point_to_plane(b.samples.points, a.samples.points, a.samples.normals, T,
-                           1.5 * v, a.tree, iterations=15)
+    T = icp(b.samples.points, a.samples.points, T, 3.0 * v, target_normals=a.samples.normals,
+            tree=a.tree, iterations=10).transform
+    T = icp(b.samples.points, a.samples.points, T, 1.5 * v, target_normals=a.samples.normals,
+            tree=a.tree, iterations=15).transform
     verdict = verify_pair(a.samples, b.samples, T, tau=v, target_map=a.view,
                           source_map=b.view, target_tree=a.tree, options=vopts)
     if not verdict.accepted:
@@ -248,7 +249,7 @@ def _fine(views: list[Oriented], poses: list, members: list[int], anchor: int,
         tree = cKDTree(coarse[i].points)
         for j in members[a + 1:]:
             rel = np.linalg.inv(poses[i]) @ poses[j]
-            d, k = tree.query(coarse[j].points @ rel[:3, :3].T + rel[:3, 3],
+            d, k = tree.query(transform_points(rel, coarse[j].points),
                               distance_upper_bound=2.0 * voxel)
             near = np.isfinite(d)
             facing = np.sum((coarse[j].normals[near] @ rel[:3, :3].T)
@@ -377,13 +378,14 @@ class _Clock:
 def _fine_view(scan, canon_from_scan: np.ndarray, fine: float) -> Oriented:
     """The scan's samples for the fine alignment, weighted by its confidence if it has one
     (VRIP's: low at grazing angles and near the scan's edges, where range images curl)."""
-    R, t = canon_from_scan[:3, :3], canon_from_scan[:3, 3]
+    R = canon_from_scan[:3, :3]
     conf = getattr(scan, "confidence", None)
     if len(scan.points) <= _RAW_POINTS:  # small scans: every sample, nothing to thin
-        return Oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T,
+        return Oriented(transform_points(canon_from_scan, scan.points), scan.normals @ R.T,
+                        scan.sight @ R.T,
                         None if conf is None else np.asarray(conf, float))
-    return thin_oriented(scan.points @ R.T + t, scan.normals @ R.T, scan.sight @ R.T, fine,
-                         conf)
+    return thin_oriented(transform_points(canon_from_scan, scan.points), scan.normals @ R.T,
+                         scan.sight @ R.T, fine, conf)
 
 
 def _result(scans, order, ss, prep, names, poses, group, stats, matches, pruned, voxel,
@@ -449,7 +451,7 @@ def refine_scans(scans, model_from_scans: list[np.ndarray], *,
     voxel = options.voxel or voxel
     fine = options.fine_voxel or min(fine, voxel)
     canon = [canonical_frame(s.points) for s in ss]
-    coarse = [thin_oriented(s.points @ C[:3, :3].T + C[:3, 3], s.normals @ C[:3, :3].T,
+    coarse = [thin_oriented(transform_points(C, s.points), s.normals @ C[:3, :3].T,
                             s.sight @ C[:3, :3].T, voxel) for s, C in zip(ss, canon, strict=True)]
     views = [_fine_view(s, C, fine) for s, C in zip(ss, canon, strict=True)]
     poses = [np.asarray(model_from_scans[k], np.float64) @ np.linalg.inv(C)

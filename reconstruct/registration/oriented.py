@@ -12,7 +12,7 @@ thins it.
 >>> R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
 >>> R *= np.linalg.det(R)
 >>> a, b = canonical_frame(p), canonical_frame(p @ R.T)
->>> bool(np.allclose(apply(a, p), apply(b, p @ R.T), atol=1e-9))
+>>> bool(np.allclose(transform_points(a, p), transform_points(b, p @ R.T), atol=1e-9))
 True
 """
 
@@ -22,9 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.frames import transform_points, unit
 from core.validate import check_array
 
-__all__ = ["Oriented", "canonical_frame", "thin_oriented", "apply", "apply_vectors"]
+__all__ = ["Oriented", "canonical_frame", "thin_oriented", "apply_vectors"]
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ class Oriented:
 
     def transformed(self, T: np.ndarray) -> Oriented:
         """The same samples in the frame ``T`` maps into (4x4 rigid)."""
-        return Oriented(apply(T, self.points), apply_vectors(T, self.normals),
+        return Oriented(transform_points(T, self.points), apply_vectors(T, self.normals),
                         apply_vectors(T, self.sight), self.confidence)
 
     @property
@@ -59,11 +60,6 @@ class Oriented:
 
     def __len__(self) -> int:
         return len(self.points)
-
-
-def apply(T: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """``T`` (4x4) applied to ``points (n, 3)``."""
-    return points @ T[:3, :3].T + T[:3, 3]
 
 
 def apply_vectors(T: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -126,17 +122,11 @@ def thin_oriented(points: np.ndarray, normals: np.ndarray, sight: np.ndarray,
         return out
 
     p = mean(points) / count[:, None]
-    n = _unit(mean(normals))
-    s = _unit(mean(sight))
+    n = unit(mean(normals), tiny=1e-12, fill=np.nan)
+    s = unit(mean(sight), tiny=1e-12, fill=np.nan)
     ok = np.all(np.isfinite(n), axis=1) & np.all(np.isfinite(s), axis=1)
     conf = None
     if confidence is not None:
         conf = np.bincount(inv, weights=np.asarray(confidence, float), minlength=k) / count
         conf = conf[ok]
     return Oriented(p[ok], n[ok], s[ok], conf)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    norm = np.linalg.norm(v, axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(norm > 1e-12, v / norm, np.nan)

@@ -28,11 +28,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import transform_points
+
 from .features import fpfh, match_features, ransac_rigid
+from .icp import icp
 from .oriented import Oriented, canonical_frame, thin_oriented
 from .verify import Verdict, VerifyOptions, ViewMap, verify_pair
 
-__all__ = ["Prepared", "PairMatch", "prepare", "match_pair", "icp_point_to_plane"]
+__all__ = ["Prepared", "PairMatch", "prepare", "match_pair"]
 
 #: a candidate is dropped after the coarse ICP when its lines of sight disagree by this
 #: many times the final bounds (``max_blocking``, ``max_backfacing``): the finer ICP
@@ -95,32 +98,11 @@ def prepare(name: str, points: np.ndarray, normals: np.ndarray, sight: np.ndarra
     from scipy.spatial import cKDTree
 
     T = canonical_frame(points)
-    samples = thin_oriented(points @ T[:3, :3].T + T[:3, 3], normals @ T[:3, :3].T,
+    samples = thin_oriented(transform_points(T, points), normals @ T[:3, :3].T,
                             sight @ T[:3, :3].T, voxel)
     feats = fpfh(samples.points, samples.normals, 5.0 * voxel)
     return Prepared(name, T, samples, feats, voxel, cKDTree(samples.points),
                     ViewMap(samples, voxel))
-
-
-def icp_point_to_plane(src: np.ndarray, dst: np.ndarray, dst_normals: np.ndarray,
-                       init: np.ndarray, threshold: float, tree, *,
-                       iterations: int = 30) -> np.ndarray:
-    """``dst_from_src`` (4x4) refined by point-to-plane ICP from ``init`` with matches
-    within ``threshold``; deterministic (linearised steps, Low 2004)."""
-    T = np.array(init, dtype=np.float64)
-    for _ in range(iterations):
-        p = src @ T[:3, :3].T + T[:3, 3]
-        d, j = tree.query(p, distance_upper_bound=threshold)
-        ok = np.isfinite(d)
-        if ok.sum() < 6:
-            break
-        p, q, n = p[ok], dst[j[ok]], dst_normals[j[ok]]
-        a = np.hstack([np.cross(p, n), n])
-        x = np.linalg.solve(a.T @ a + 1e-12 * np.eye(6), a.T @ np.einsum("ij,ij->i", q - p, n))
-        T = rigid_step(x) @ T
-        if np.linalg.norm(x[:3]) < 1e-7 and np.linalg.norm(x[3:]) < 1e-4 * threshold:
-            break
-    return T
 
 
 def _same(a: np.ndarray, b: np.ndarray, voxel: float) -> bool:
@@ -128,18 +110,6 @@ def _same(a: np.ndarray, b: np.ndarray, voxel: float) -> bool:
     d = a @ np.linalg.inv(b)
     angle = np.arccos(np.clip(0.5 * (np.trace(d[:3, :3]) - 1.0), -1.0, 1.0))
     return bool(np.linalg.norm(d[:3, 3]) < 0.1 * voxel and angle < np.radians(0.1))
-
-
-def rigid_step(x: np.ndarray) -> np.ndarray:
-    """The rigid 4x4 of a small step ``x = (rotation vector, translation)`` (6,)."""
-    from core.frames import axis_angle_matrix
-
-    T = np.eye(4)
-    angle = float(np.linalg.norm(x[:3]))
-    if angle > 0:
-        T[:3, :3] = axis_angle_matrix(x[:3] / angle, angle)
-    T[:3, 3] = x[3:]
-    return T
 
 
 def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
@@ -157,19 +127,19 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
     # pull it as far, at a third of the cost
     coarse = s.points[::max(1, len(s) // _COARSE_SAMPLES)]
     for h in hyps:
-        d, _ = target.tree.query(s.points @ h[:3, :3].T + h[:3, 3],
+        d, _ = target.tree.query(transform_points(h, s.points),
                                  distance_upper_bound=2.0 * voxel)
         if np.mean(np.isfinite(d)) < 0.5 * options.min_overlap:
             rejected.append("overlap too small at the feature match")
             continue
-        T = icp_point_to_plane(coarse, t.points, t.normals, h, 3.0 * voxel, target.tree,
-                               iterations=10)
+        T = icp(coarse, t.points, h, 3.0 * voxel, target_normals=t.normals, tree=target.tree,
+                iterations=10).transform
         if any(_same(T, o, voxel) for o in tried):
             # a basin already refined and judged: the finer ICP would end where it did
             # (measured on the dragon: 82 of 333 refinements were such repeats)
             continue
         tried.append(T)
-        d, _ = target.tree.query(s.points @ T[:3, :3].T + T[:3, 3], distance_upper_bound=voxel)
+        d, _ = target.tree.query(transform_points(T, s.points), distance_upper_bound=voxel)
         if np.mean(np.isfinite(d)) < 0.7 * options.min_overlap:  # no need to refine it
             rejected.append("overlap too small after a coarse ICP")
             continue
@@ -179,8 +149,8 @@ def match_pair(target: Prepared, source: Prepared, *, rng: np.random.Generator,
                 or rough.backfacing > _ROUGH_BACKFACING * options.max_backfacing):
             rejected.append(f"already after a coarse ICP: {rough.reason}")
             continue
-        T = icp_point_to_plane(s.points, t.points, t.normals, T, 1.5 * voxel, target.tree,
-                               iterations=30)
+        T = icp(s.points, t.points, T, 1.5 * voxel, target_normals=t.normals,
+                tree=target.tree, iterations=30).transform
         v = verify_pair(t, s, T, tau=voxel, target_map=target.view, source_map=source.view,
                         target_tree=target.tree, options=options)
         if not v.accepted:

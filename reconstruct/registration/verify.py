@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.frames import transform_points
+
 from .oriented import Oriented
 
 __all__ = ["Verdict", "VerifyOptions", "verify_pair", "ViewMap"]
@@ -184,7 +186,7 @@ def verify_pair(target: Oriented, source: Oriented, target_from_source: np.ndarr
     source_map = ViewMap(source, tau) if source_map is None else source_map
     b1, _ = _blocking(target_map, moved.points, tau)
     inv = np.linalg.inv(target_from_source)
-    b2, _ = _blocking(source_map, target.points @ inv[:3, :3].T + inv[:3, 3], tau)
+    b2, _ = _blocking(source_map, transform_points(inv, target.points), tau)
     blocking = max(b1, b2)
     reason = ""
     if overlap < options.min_overlap:

@@ -1,4 +1,4 @@
-"""reconstruct.scans: range scans from free viewpoints (issue 30): the scan as registration
+"""reconstruct.scans: range scans from free viewpoints: the scan as registration
 and merging see it (points, normals, lines of sight, confidences, the range image's
 triangles and grid) and loading scans from range images, clouds, meshes, E57 files,
 folders and ``.conf`` files.

@@ -1,6 +1,6 @@
 """Loading scans from what users have: range images, point clouds, meshes, E57 files,
-folders of them and scanalyze ``.conf`` files (the file formats are :mod:`core.range_io`,
-:mod:`core.e57_io` and :mod:`core.mesh_io`).
+folders of them and scanalyze ``.conf`` files (the file formats are :mod:`core.io.range`,
+:mod:`core.io.e57` and :mod:`core.io.mesh`).
 
 - a PLY with a ``range_grid`` element: a range image, triangulated on its grid
   (:func:`reconstruct.scans.scan.scan_from_grid`);
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.range_io import RangeGrid, conf_files, is_range_grid, read_range_grid
+from core.io.range import RangeGrid, conf_files, is_range_grid, read_range_grid
 from core.validate import InputError
 from reconstruct.scans.scan import RangeScan, scan_from_grid, scan_from_points
 
@@ -54,7 +54,7 @@ def scan_files(paths: Iterable[str | os.PathLike]) -> list[Path]:
 
 
 def _load_file(path: Path, options: dict) -> list[RangeScan]:
-    from core.mesh_io import read_geometry
+    from core.io.mesh import read_geometry
 
     suffix = path.suffix.lower()
     if suffix == ".e57":
@@ -74,7 +74,7 @@ def _load_file(path: Path, options: dict) -> list[RangeScan]:
 
 
 def _load_e57(path: Path, options: dict) -> list[RangeScan]:
-    from core.e57_io import read_e57
+    from core.io.e57 import read_e57
 
     out = []
     for i, e in enumerate(read_e57(path)):

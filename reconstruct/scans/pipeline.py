@@ -1,7 +1,7 @@
 """``scanamp reconstruct scans``: range scans from free viewpoints, registered to each
 other with no initial pose and merged into one surface.
 
-Stages (:class:`core.stages.Stages`, each skipped when its inputs and options are
+Stages (:class:`core.runs.stages.Stages`, each skipped when its inputs and options are
 unchanged): ``register`` (:func:`reconstruct.registration.register_scans`: features and a
 seeded RANSAC per pair, verification on the lines of sight, a pose graph, multi-view
 ICP), ``merge`` (:func:`reconstruct.surface.volumetric.merge_scans`, Curless and Levoy's
@@ -26,6 +26,7 @@ import numpy as np
 
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
+from core.frames import transform_points
 from core.validate import InputError
 from reconstruct.result import ReconstructionResult
 
@@ -71,7 +72,7 @@ class ScansReconConfig(Config):
 
 def read_initial_poses(path) -> dict[str, np.ndarray]:
     """``{file name: model_from_scan}`` from a ``.conf``, ``.aln`` or ``poses.json``."""
-    from core.range_io import read_aln, read_conf, read_poses_json
+    from core.io.range import read_aln, read_conf, read_poses_json
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -127,7 +128,7 @@ def _merge_mesh(scans, poses, cfg: ScansReconConfig):
         from reconstruct.surface.meshing import poisson_mesh
 
         pairs = list(zip(scans, poses, strict=True))
-        pts = np.concatenate([s.points @ T[:3, :3].T + T[:3, 3] for s, T in pairs])
+        pts = np.concatenate([transform_points(T, s.points) for s, T in pairs])
         nrm = np.concatenate([s.normals @ T[:3, :3].T for s, T in pairs])
         mesh, _ = poisson_mesh(pts, nrm, depth=9)
         return mesh, {"method": "poisson", "seconds": time.perf_counter() - t,
@@ -144,7 +145,7 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
     into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
     from core.meshes import make_mesh
-    from core.stages import Stages, files_key
+    from core.runs.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
 
     cfg = config
@@ -193,9 +194,9 @@ def _up(sights: list[np.ndarray]) -> np.ndarray:
 def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total, st) -> dict:
     """Write the mesh, poses, report and figures; the report. ``load``: the wall-clock and
     CPU seconds of reading the scans."""
-    from core.image_io import write_image
-    from core.mesh_io import write_mesh
-    from core.range_io import ScanPose, write_conf, write_poses_json
+    from core.io.image import write_image
+    from core.io.mesh import write_mesh
+    from core.io.range import ScanPose, write_conf, write_poses_json
 
     t_load, cpu_load = load
 
@@ -241,7 +242,7 @@ def _write_outputs(tmp: Path, scans, result, mesh, merge_rep, cfg, load, t_total
         for k, (s, i) in enumerate(zip(scans, sub, strict=True)):
             if result.scans[k].registered:
                 T = result.scans[k].model_from_scan
-                after_p.append(s.points[i] @ T[:3, :3].T + T[:3, 3])
+                after_p.append(transform_points(T, s.points[i]))
                 after_n.append(s.normals[i] @ T[:3, :3].T)
                 cols.append(palette[k])
         write_image(tmp / "scans_after.png", render_scans(after_p, after_n, up=_up(

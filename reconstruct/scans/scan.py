@@ -33,8 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from core.frames import transform_points, unit
+from core.io.range import RangeGrid
 from core.meshes import face_normals, vertex_normals
-from core.range_io import RangeGrid
 from core.validate import InputError, check_array, check_range
 
 __all__ = ["RangeScan", "scan_from_grid", "scan_from_points", "grid_sight"]
@@ -89,14 +90,9 @@ class RangeScan:
         ``model_from_scan (4, 4)`` (grid, triangles and confidence unchanged)."""
         T = check_array(model_from_scan, "model_from_scan", shape=(4, 4))
         R, t = T[:3, :3], T[:3, 3]
-        return dataclasses.replace(self, points=self.points @ R.T + t,
+        return dataclasses.replace(self, points=transform_points(T, self.points),
                                    normals=self.normals @ R.T, sight=self.sight @ R.T,
                                    origin=R @ self.origin + t)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 def grid_sight(grid: RangeGrid) -> tuple[np.ndarray, np.ndarray]:
@@ -105,7 +101,7 @@ def grid_sight(grid: RangeGrid) -> tuple[np.ndarray, np.ndarray]:
     p = grid.points
     if grid.obj_info.get("is_cyberware_data", "0").strip() == "1":
         return np.broadcast_to([0.0, 0.0, 1.0], p.shape).copy(), np.zeros(3)
-    return _unit(-p), np.zeros(3)
+    return unit(-p), np.zeros(3)
 
 
 def _quads(index: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -228,7 +224,7 @@ def scan_from_grid(grid: RangeGrid, *, name: str | None = None, max_jump: float 
         raise InputError("the scan has no points", path=grid.path, field="vertex")
     s, origin = grid_sight(grid)
     if sight is not None:
-        s = _unit(np.broadcast_to(np.asarray(sight, np.float64), p.shape).copy())
+        s = unit(np.broadcast_to(np.asarray(sight, np.float64), p.shape).copy())
     tris, quad = _quads(index, p)
     fn = face_normals(p, tris)
     facing = np.einsum("ij,ij->i", fn, s[tris].mean(axis=1))
@@ -276,11 +272,11 @@ def scan_from_points(points: np.ndarray, normals: np.ndarray | None = None, *,
     if not len(p):
         raise InputError("the scan has no points", path=path, field="points")
     o = check_array(origin, "origin", shape=(3,))
-    sight = _unit(o - p)
+    sight = unit(o - p)
     tris = (np.empty((0, 3), np.int32) if triangles is None else
             check_array(triangles, "triangles", shape=(None, 3), dtype=np.int64).astype(np.int32))
     if normals is not None:
-        n = _unit(check_array(normals, "normals", shape=(len(p), 3)))
+        n = unit(check_array(normals, "normals", shape=(len(p), 3)))
     elif len(tris):
         n = vertex_normals(p, tris)
         n[np.einsum("ij,ij->i", n, sight) < 0] *= -1

@@ -106,8 +106,7 @@ class EscalationOptions:
         The second bundle adjustment's rounds (:func:`refine`): in each, the largest
         reprojection error in pixels a triangulated point may keep, shrinking so that the
         matches across a merged model's joins are admitted first and the outliers dropped
-        last. COLMAP's own threshold is 4 px; ``(4.0, 4.0)`` is the former behaviour. On
-        the dino ring (seed 0) the mean rotation error went 1.21 -> 0.85 degrees.
+        last. COLMAP's own threshold is 4 px; ``(4.0, 4.0)`` keeps it throughout.
     pool_restarts : bool
         After the restarts, the runs' verified matches are pooled (for each pair, the
         run that verified the most inliers) and every run's model is refined again on

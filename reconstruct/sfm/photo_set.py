@@ -4,7 +4,7 @@ Phones store a portrait photo as landscape pixels plus an EXIF orientation tag, 
 landscape and portrait shots in one folder, and record the focal length in the EXIF
 block. COLMAP's reader ignores the tag, so the same photo would have two sizes in one
 pipeline (the sparse stage's and the dense stage's). Here every photo is read upright
-(:func:`core.image_io.read_image`), and:
+(:func:`core.io.image.read_image`), and:
 
 - :func:`scan_photos` reads each header (size, orientation, EXIF focal length) and
   refuses a missing, unreadable or truncated file by name;
@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.image_io import IMAGE_SUFFIXES, PhotoInfo, photo_info, read_image, to_uint8
+from core.io.image import IMAGE_SUFFIXES, PhotoInfo, photo_info, read_image, to_uint8
 from core.progress import track
 from core.validate import check_choice
 

@@ -43,8 +43,8 @@ from acquire.capture_io import load_capture
 from acquire.sfm.nerfstudio import write_transforms
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
-from core.image_io import read_image, to_uint8
-from core.mesh_io import read_mesh, write_mesh, write_points
+from core.io.image import read_image, to_uint8
+from core.io.mesh import read_mesh, write_mesh, write_points
 from core.validate import InputError, check_choice
 from reconstruct.calibration.io import read_camera_yaml
 from reconstruct.camera_files import (
@@ -142,7 +142,7 @@ class _Input:
     capture: object = None  # acquire.capture_io.Capture or None
     nominal: Camera | None = None
     order: str = "unknown"
-    infos: dict | None = None  # name -> core.image_io.PhotoInfo
+    infos: dict | None = None  # name -> core.io.image.PhotoInfo
     known: dict | None = None  # name -> Camera, from --cameras
 
 
@@ -337,7 +337,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     """Reconstruct cameras, sparse points and a dense mesh from images.
 
     The work is seven named stages (:data:`STAGES`), each cached in ``out_dir/stages``
-    with the files it wrote (:class:`core.stages.Stages`): run again into the same
+    with the files it wrote (:class:`core.runs.stages.Stages`): run again into the same
     folder, only the stages whose options or inputs changed are recomputed (a new
     Poisson depth re-runs ``mesh`` and ``evaluate``, not SIFT or PatchMatch).
     ``from_stage`` forces a stage and the later ones.
@@ -363,7 +363,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
         Fewer than 3 images, a missing, unreadable or truncated image, a cameras file
         that disagrees with the folder, every image textureless.
     """
-    from core.stages import Stages
+    from core.runs.stages import Stages
 
     t_all = time.perf_counter()
     input_path, out_dir = Path(input_path), Path(out_dir)
@@ -509,7 +509,7 @@ def _escalate(database, inp, groups, opts, upright, tmp, rec):
 
 def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report):
     """features -> matches -> sparse; whether enough registered, and why not."""
-    from core.stages import files_key
+    from core.runs.stages import files_key
 
     t = time.perf_counter()
     photos = files_key([inp.image_dir / n for n in inp.names])
@@ -656,7 +656,7 @@ def _true_cameras(inp) -> tuple[dict | None, dict | None]:
 def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bool, str]:
     """dense -> fuse -> mesh -> evaluate (:mod:`reconstruct.mvs.pipeline`); mesh.ply, and with
     ground truth the mesh's score."""
-    from core.stages import files_key
+    from core.runs.stages import files_key
     from reconstruct.mvs.pipeline import (
         dense_report,
         depth_stage,

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from core.files import atomic_dir, json_data, write_json
-from core.image_io import read_image
-from core.mesh_io import write_points
+from core.io.image import read_image
+from core.io.mesh import write_points
 from core.validate import InputError
 from reconstruct.calibration.camera import to_gray
 from reconstruct.calibration.rectify import rectify, rectify_pair
@@ -110,7 +110,7 @@ def run_pair(left_path, right_path, calibration_path, out_dir, *, options: Stere
         np.save(tmp / "depth.npy", depth)
         if len(pts):
             write_points(tmp / "points.ply", pts)
-        from core.image_io import write_image
+        from core.io.image import write_image
 
         write_image(tmp / "left_rect.png", lr)
         write_image(tmp / "right_rect.png", rr)

@@ -26,8 +26,8 @@ from acquire.camera import Camera
 from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
 from core.files import atomic_dir, json_data, write_json
-from core.image_io import read_image
-from core.mesh_io import write_mesh, write_points
+from core.io.image import read_image
+from core.io.mesh import write_mesh, write_points
 from core.progress import track
 from core.validate import InputError, check_choice
 from reconstruct.calibration.camera import detect_board, to_gray

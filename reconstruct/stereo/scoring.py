@@ -9,6 +9,7 @@ import numpy as np
 
 from acquire.camera import Camera
 from acquire.capture_io import Capture
+from core.frames import transform_points
 from reconstruct.calibration.rectify import Rectification, StereoCalibration
 
 __all__ = ["gt_disparity", "raw_depth_at", "reference_in_table", "depth_errors",
@@ -93,7 +94,7 @@ def reference_in_table(cap: Capture, table_from_left: np.ndarray, *, mounted: bo
     calibrated frame's origin height and heading are tied to the world through the
     true left camera (an approximation: it inherits the calibration's camera datum).
     """
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import transform_mesh
 
     gt = cap.ground_truth
@@ -113,7 +114,7 @@ def reference_in_table(cap: Capture, table_from_left: np.ndarray, *, mounted: bo
     angles = [f["stage_angle_deg"] for f in cap.frames]
 
     def visible(points_table):
-        pw = points_table @ world_from_table[:3, :3].T + world_from_table[:3, 3]
+        pw = transform_points(world_from_table, points_table)
         vis = np.zeros(len(pw), bool)
         for a, (dl, dr) in zip(angles, depths, strict=True):
             c, s = np.cos(np.radians(a)), np.sin(np.radians(a))

@@ -22,7 +22,8 @@ from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
-from core.mesh_io import write_mesh, write_points
+from core.frames import transform_points
+from core.io.mesh import write_mesh, write_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import detect_board
@@ -164,7 +165,7 @@ def run_capture(capture_path, out_dir, options: SLOptions | None = None
         Wc = world_from_cam_at(table_from_cam, fr.get("stage_angle_deg", 0.0))
         depths.append(depth)
         cams.append(cam.with_pose(np.linalg.inv(Wc)))
-        pts_all.append(P[ok] @ Wc[:3, :3].T + Wc[:3, 3])
+        pts_all.append(transform_points(Wc, P[ok]))
     voxel = opts.voxel_size or far / 1000.0
     mesh = fuse_depth_maps(depths, cams, voxel_size=voxel, sdf_trunc=4 * voxel, depth_max=far)
     report = {"kind": "structured-light", "capture": str(cap.root), "options": asdict(opts),

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from acquire.camera import Camera
+from core.frames import transform_points
 
 __all__ = ["decode_gray_code", "decode_phase", "unwrap_with_gray", "triangulate_columns",
            "projector_coords_at", "gray_bit_errors"]
@@ -163,15 +164,15 @@ def triangulate_columns(camera: Camera, pixels: np.ndarray, proj_xy: np.ndarray,
     """
     o, d = camera.rays(pixels)
     xn = projector.normalized(proj_xy)[:, 0]
-    R, t = projector.cam_from_world[:3, :3], projector.cam_from_world[:3, 3]
-    op = o @ R.T + t
+    R = projector.cam_from_world[:3, :3]
+    op = transform_points(projector.cam_from_world, o)
     dp = d @ R.T
     den = dp[:, 0] - xn * dp[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         tt = (xn * op[:, 2] - op[:, 0]) / den
     bad = ~np.isfinite(tt) | (tt <= 0) | (np.abs(den) < 1e-9)
     pts = o + tt[:, None] * d
-    zp = (pts @ R.T + t)[:, 2]
+    zp = transform_points(projector.cam_from_world, pts)[:, 2]
     bad |= zp <= 0
     pts[bad] = np.nan
     return pts

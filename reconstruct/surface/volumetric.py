@@ -42,6 +42,7 @@ import numba as nb
 import numpy as np
 
 from core.config import Config, option
+from core.frames import transform_points
 from core.validate import InputError, check_array
 
 __all__ = ["MergeOptions", "merge_scans", "sample_spacing", "scan_signed_distance",
@@ -273,11 +274,11 @@ def _virtual_view(scan, model_from_scan: np.ndarray, h: float, opt: MergeOptions
     view_from_model = view_from_scan @ np.linalg.inv(model_from_scan)
     p = np.asarray(scan.points, np.float64)
     tri = np.ascontiguousarray(np.asarray(scan.triangles, np.int64).reshape(-1, 3))
-    pv = p @ view_from_scan[:3, :3].T + view_from_scan[:3, 3]
+    pv = transform_points(view_from_scan, p)
     pitch = h / opt.oversampling
     f = pitch if kind == _ORTHO else float(np.median(pv[:, 2])) / pitch
     cv = (None if not opt.carve_misses or corners is None
-          else corners @ view_from_model[:3, :3].T + view_from_model[:3, 3])
+          else transform_points(view_from_model, corners))
     lo, hi = _image_bounds(pv, kind, pitch, f, cv)
     ids, uvs, zdepth, shape = _cast(pv, tri, kind, pitch, f, lo, hi, name)
     ok = ids >= 0
@@ -492,7 +493,7 @@ def _grid(scans, model_from_scans, h: float, opt: MergeOptions) -> _Grid:
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
     for s, T in zip(scans, model_from_scans, strict=True):
-        p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
+        p = transform_points(T, s.points)
         lo, hi = np.minimum(lo, p.min(0)), np.maximum(hi, p.max(0))
     band = opt.ramp_voxels * h
     margin = band + 2 * h
@@ -519,7 +520,7 @@ def _near_chunks(scans, model_from_scans, grid: _Grid, max_edge: float,
     shape = -(-grid.dims // chunk)
     near = np.zeros(shape, bool)
     for s, T in zip(scans, model_from_scans, strict=True):
-        p = np.asarray(s.points, np.float64) @ T[:3, :3].T + T[:3, 3]
+        p = transform_points(T, s.points)
         c = np.floor((p - grid.origin) / grid.h + 0.5).astype(np.int64) // chunk
         near[c[:, 0], c[:, 1], c[:, 2]] = True
     # a point within D of a sample lies within ceil(D / chunk) chunks of the sample's;
@@ -696,7 +697,7 @@ def merge_scans(scans: Sequence, model_from_scans: Sequence[np.ndarray],
     --------
     A 40 x 40 range image of a plane 0.3 m in front of its scanner, 1 mm apart:
 
-    >>> from core.range_io import RangeGrid
+    >>> from core.io.range import RangeGrid
     >>> from reconstruct.scans import scan_from_grid
     >>> r, c = np.mgrid[0:40, 0:40]
     >>> pts = np.stack([(c.ravel() - 20) * 1e-3, (r.ravel() - 20) * 1e-3,

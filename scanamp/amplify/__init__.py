@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from core.files import atomic_dir, write_json
-from core.image_io import write_image
-from core.mesh_io import read_mesh, write_mesh
+from core.io.image import write_image
+from core.io.mesh import read_mesh, write_mesh
 from core.meshes import mesh_arrays
 from core.progress import track
 from core.validate import InputError
@@ -130,7 +130,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
                 azimuth_deg=r["azimuth_deg"], fov_deg=r["fov_deg"])
     import open3d as o3d
 
-    from core.mesh_io import write_labeled_mesh
+    from core.io.mesh import write_labeled_mesh
     from scanamp.amplify.labels import LABELS, labelled_arrays, part_material, surface_parts
     from scanamp.amplify.scene_export import write_scene
     from scanamp.amplify.views import render_parts

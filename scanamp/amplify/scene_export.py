@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from core.files import write_toml
-from core.mesh_io import write_mesh
+from core.io.mesh import write_mesh
 from core.meshes import compact, make_mesh
 from scanamp.amplify.labels import PART_MATERIALS
 

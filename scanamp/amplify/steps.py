@@ -237,7 +237,7 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     from pathlib import Path
 
     from core.files import read_json
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from procgen.implicit import watertight
 
     if out_dir is None:
@@ -302,7 +302,7 @@ def _last_frame(state: State, sim: str, folder, mesh_from_sim: np.ndarray, mesh)
         plys = sorted(glob.glob(str(folder / "ply" / "frame_*.ply")))
         if not plys:
             return None
-        from core.mesh_io import read_mesh
+        from core.io.mesh import read_mesh
 
         cloth = read_mesh(plys[-1])
         cloth.transform(mesh_from_sim)

@@ -111,7 +111,7 @@ def contact_sheet(images, captions, *, columns: int = 4, width: int = 320) -> np
     and captioned underneath; an ``(h, w, 3) uint8`` sheet."""
     import cv2
 
-    from core.image_io import read_image
+    from core.io.image import read_image
 
     tiles = []
     for img, text in zip(images, captions, strict=True):

@@ -20,8 +20,8 @@ import numpy as np
 from core.files import atomic_dir, write_json
 from core.progress import track
 from simulate.boids import FlockState, Recipe, init_flock, step
+from simulate.boids.metrics import METRIC_NAMES, flock_metrics
 from simulate.colliders import MeshCollider
-from simulate.flock_metrics import METRIC_NAMES, flock_metrics
 from simulate.series_io import SeriesWriter
 
 log = logging.getLogger(__name__)

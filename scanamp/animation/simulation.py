@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from core.files import atomic_dir, write_json
-from core.mesh_io import read_mesh, write_mesh, write_points
+from core.io.mesh import read_mesh, write_mesh, write_points
 from core.progress import track
 from simulate.colliders import MeshCollider
 from simulate.particles import NonFiniteStateError

@@ -11,7 +11,7 @@ acquisition method, :mod:`scanamp.methods`). A module with ``CONFIG`` (its confi
 config. Errors: bad input exits 2 with one line ``error: ...``;
 an algorithm that failed or an internal error exits 1 (traceback under --debug).
 
-Outputs never destroy (:mod:`core.outputs`). A command whose parser has ``--out`` gets
+Outputs never destroy (:mod:`core.runs.outputs`). A command whose parser has ``--out`` gets
 ``--overwrite``; before it runs, its output is checked against what exists and against
 every input path among its arguments. ``OUTPUT`` says what ``--out`` is: ``"dir"``
 (default), ``"file"``, or ``"resume"`` (a folder the same command may extend without
@@ -67,7 +67,7 @@ def versions() -> dict[str, str]:
     """scanamp's version and those of its core dependencies (``scanamp --version``)."""
     from importlib import metadata
 
-    from core.outputs import version
+    from core.files import version
 
     found = {"scanamp": version()}
     for dist in ("numpy", "opencv-contrib-python-headless", "open3d", "pycolmap", "pymeshlab",
@@ -155,7 +155,7 @@ def _input_paths(args: argparse.Namespace, dest: str) -> list[Path]:
 
 def _check_outputs(args: argparse.Namespace, config=None) -> tuple[Path, str] | None:
     """Refuse an output that would destroy something; the folder to mark as ours, if any."""
-    from core.outputs import check_output, check_output_file, read_manifest
+    from core.runs.outputs import check_output, check_output_file, read_manifest
 
     mod = args._module
     dest = getattr(mod, "OUTPUT_DEST", "out")
@@ -182,7 +182,8 @@ def _check_outputs(args: argparse.Namespace, config=None) -> tuple[Path, str] | 
 
 
 def _run(args: argparse.Namespace) -> int:
-    from core import outputs
+    from core import files
+    from core.runs import outputs
 
     config = (config_from_args(args._config_cls, args) if args._config_cls is not None
               else None)
@@ -193,7 +194,7 @@ def _run(args: argparse.Namespace) -> int:
         code = int((args._run(args, config) if config is not None else args._run(args)) or 0)
         if declared is not None and code == 0 and declared[0].is_dir() and \
                 outputs.read_manifest(declared[0]) is None:
-            outputs.write_declared(declared[0], declared[0])  # written in place, not atomically
+            files.write_declared(declared[0], declared[0])  # written in place, not atomically
     return code
 
 

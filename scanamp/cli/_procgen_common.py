@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.image_io import write_image
+from core.io.image import write_image
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +98,7 @@ def write_parts(out: Path, parts, *, label_of: dict[str, str]) -> Path:
     """Write ``parts`` (``(mesh, kind, rgb)``) as one mesh: a ``.ply`` with a colour and a
     part label per vertex (``labels.json`` beside it names them, the ids of
     :data:`scanamp.amplify.labels.LABELS`); an ``.obj`` with the geometry only."""
-    from core.mesh_io import write_labeled_mesh, write_mesh
+    from core.io.mesh import write_labeled_mesh, write_mesh
     from core.meshes import compact, make_mesh, mesh_arrays
     from scanamp.amplify.labels import LABELS
 

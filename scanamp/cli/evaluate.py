@@ -45,7 +45,7 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     import numpy as np
 
     from core.files import write_json
-    from core.mesh_io import read_geometry
+    from core.io.mesh import read_geometry
     from core.validate import InputError
     from reconstruct.evaluation.evaluate import evaluate
     from reconstruct.registration.rigid import LOW_FITNESS
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
 
 def _read_poses(path: Path) -> tuple[dict, Path]:
     """``{file name: model_from_scan or None}`` and the folder its files are relative to."""
-    from core.range_io import read_conf, read_poses_json
+    from core.io.range import read_conf, read_poses_json
     from core.validate import InputError
 
     if path.is_dir():

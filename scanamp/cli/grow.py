@@ -46,7 +46,7 @@ def add_arguments(p):
 def run(args, config: GrowConfig) -> int:
     import numpy as np
 
-    from core.mesh_io import MESH_SUFFIXES, POLYLINE_SUFFIXES, write_mesh, write_polylines
+    from core.io.mesh import MESH_SUFFIXES, POLYLINE_SUFFIXES, write_mesh, write_polylines
     from procgen.lsystem import derive, interpret, load_grammar, to_mesh
 
     if args.out is None and args.lines is None and not args.stats:

@@ -34,7 +34,7 @@ def add_arguments(p):
 
 def run(args, config: CleanOptions) -> int:
     from core.files import write_json
-    from core.mesh_io import MESH_SUFFIXES, read_mesh, write_mesh
+    from core.io.mesh import MESH_SUFFIXES, read_mesh, write_mesh
     from core.validate import InputError
     from reconstruct.surface.clean import clean_mesh
 

@@ -95,7 +95,7 @@ def _render(args, c: FractalConfig) -> np.ndarray:
 
 
 def run(args, config: FractalConfig) -> int:
-    from core.image_io import write_image
+    from core.io.image import write_image
 
     out = check_out(args.out, (".png",))
     img = _render(args, config)

@@ -66,7 +66,7 @@ def _polyline(text: str):
 
 
 def run(args, config: HypertextureConfig) -> int:
-    from core.mesh_io import read_mesh, write_mesh
+    from core.io.mesh import read_mesh, write_mesh
     from procgen.implicit import egg_sdf, hypertexture, sphere_sdf, sweep_sdf
 
     out = check_out(args.out, MESH_OUT)

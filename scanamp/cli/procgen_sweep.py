@@ -77,7 +77,7 @@ def _path(kind: str, n: int) -> tuple[np.ndarray, bool]:
 
 
 def run(args, config: SweepConfig) -> int:
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import make_mesh
     from procgen.sweeps import sweep
 

@@ -55,7 +55,7 @@ def add_arguments(p):
 
 
 def run(args, config: TerrainConfig) -> int:
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from procgen.terrain import (
         check_grid_size,
         fractal_terrain,

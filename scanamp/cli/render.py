@@ -10,7 +10,7 @@ from acquire.render.renderer import render
 from acquire.sensor import Sensor
 from core.config import Config, option
 from core.files import atomic_dir
-from core.image_io import write_image
+from core.io.image import write_image
 from data_synth.scenes import build_scene
 
 NAME = "render"

@@ -40,7 +40,7 @@ def add_arguments(p):
 
 
 def run(args, config: BoidsOptions) -> int:
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from scanamp.animation.boids import run_boids
     from simulate.boids import load_recipe
     from simulate.stand_ins import stand_in_mesh

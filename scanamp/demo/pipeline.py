@@ -279,6 +279,8 @@ class _Setup:
 
 def _laser(st: DemoSettings, seed: int) -> _Setup:
     from acquire.laser.rig import LaserCaptureConfig, LaserRig
+    from core.io.mesh import read_mesh
+    from core.meshes import transform_mesh
     from reconstruct.laser.pipeline import LaserReconConfig
     from reconstruct.surface.meshing import MeshingOptions
 
@@ -304,6 +306,8 @@ def _laser(st: DemoSettings, seed: int) -> _Setup:
 def _stereo(st: DemoSettings, seed: int) -> _Setup:
     from acquire.stereo.rig import RigConfig
     from core.config import with_options
+    from core.io.mesh import read_mesh
+    from core.meshes import transform_mesh
     from scanamp.methods import get_method
 
     w, h = st.stereo_size
@@ -324,6 +328,7 @@ def _stereo(st: DemoSettings, seed: int) -> _Setup:
 
 def _sfm(st: DemoSettings, seed: int) -> _Setup:
     from acquire.sfm.capture import PathConfig
+    from core.io.mesh import read_mesh
     from reconstruct.sfm.pipeline import SfmConfig
 
     w, h = st.sfm_size
@@ -344,7 +349,7 @@ _SETUPS = {"laser": _laser, "stereo": _stereo, "sfm": _sfm}
 def _acquire(name: str, bundle, st: DemoSettings, root: Path, seed: int) -> _Method:
     """Capture and reconstruct with method ``name`` of the registry; the mesh carried into
     the world frame by the method (:meth:`scanamp.methods.Method.world_from_output`)."""
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from core.meshes import transform_mesh
     from scanamp.methods import get_method
 
@@ -373,7 +378,7 @@ def _scaled_mesh_file(mesh, path: Path, size: float, *, base_at_zero: bool = Tru
     """Write ``mesh`` scaled so its largest horizontal extent is ``size`` metres, centred
     on the origin (its lowest point at z = 0 when ``base_at_zero``): the simulation
     recipes are authored for metres-sized worlds, the scene is 20 cm."""
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from core.meshes import make_mesh, mesh_arrays
 
     v, f = mesh_arrays(mesh)
@@ -401,7 +406,7 @@ def collider_proxy(mesh, *, cells: int = 80):
 
 
 def _animate(mesh, st: DemoSettings, root: Path, seed: int, timings: dict) -> dict:
-    from core.mesh_io import read_mesh
+    from core.io.mesh import read_mesh
     from scanamp.animation.boids import run_boids
     from scanamp.animation.simulation import run_simulation
     from simulate.boids import load_recipe
@@ -499,7 +504,7 @@ def run(out_dir: str | os.PathLike, *, seed: int = 0, scale: str = "default",
 
 
 def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> dict:
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from data_synth.scenes import build_scene, write_scene
     from reconstruct.evaluation.evaluate import default_tau
     from scanamp.demo import report as demo_report
@@ -578,7 +583,7 @@ def _run(out: Path, seed: int, scale: str, methods: tuple, st: DemoSettings) -> 
                               seed=seed, turntable=st.turntable)
         timings["amplify"] = time.perf_counter() - t
         from core.files import read_json
-        from core.mesh_io import read_mesh
+        from core.io.mesh import read_mesh
 
         amp_rep = read_json(amp_dir / "report.json")
         if Path(recipe).suffix == ".toml":  # keep the recipe with the results

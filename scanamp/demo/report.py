@@ -74,7 +74,7 @@ def figures(root: Path, bundle, gt, methods: dict, amplified, dists: dict, *, ta
             size=(400, 300), best: str) -> dict:
     """Write the renders and plots under ``root/figures``; returns their relative paths
     (``renders``, ``errors``, ``amplify``, ``plots``) and the F-score curves."""
-    from core.image_io import write_image
+    from core.io.image import write_image
     from core.meshes import surface_distance
     from core.progress import track
 

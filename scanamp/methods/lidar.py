@@ -47,7 +47,7 @@ from acquire.lidar.presets import get_preset
 from acquire.lidar.simulate import LidarWorld
 from core.config import to_dict
 from core.files import atomic_dir, write_json
-from core.las_io import LasWriter
+from core.io.las import LasWriter
 from core.progress import track
 from core.validate import InputError
 from reconstruct.lidar.pipeline import LidarReconConfig
@@ -189,7 +189,7 @@ def run_lidar_capture(scene: str, config: LidarCaptureConfig, out_dir: str | os.
                 summaries = [r["summary"] for r in _run_parallel(tasks, config.workers, client)]
             merge_las(paths, tmp / "points.laz", origin=sv.origin, crs_wkt=sv.crs)
             if stations:
-                from core.e57_io import write_e57
+                from core.io.e57 import write_e57
 
                 scans = [e57_scan(p, leg, sv.origin) for p, leg in zip(paths, legs, strict=True)
                          if _has_points(p)]
@@ -209,7 +209,7 @@ def run_lidar_capture(scene: str, config: LidarCaptureConfig, out_dir: str | os.
 
 
 def _has_points(path: Path) -> bool:
-    from core.las_io import iter_las_chunks
+    from core.io.las import iter_las_chunks
 
     try:
         next(iter_las_chunks(path, 1, fields=("x",)))

@@ -71,7 +71,7 @@ class Scans(Method):
 
     def _pose_errors(self, capture_dir: Path, result):
         """The estimated poses against the capture's true ones (gauge fitted robustly)."""
-        from core.range_io import read_poses_json
+        from core.io.range import read_poses_json
         from reconstruct.evaluation.scan_poses import compare_scan_poses
         from reconstruct.scans.load import load_scans
 
@@ -89,7 +89,7 @@ class Scans(Method):
     def evaluate(self, capture_dir, result, bundle) -> dict:
         """The poses' errors after the gauge fit, and the merged mesh, carried into the
         world by that gauge, against the ground truth at :data:`SCANS_TAU`."""
-        from core.mesh_io import read_mesh
+        from core.io.mesh import read_mesh
         from reconstruct.evaluation.evaluate import evaluate
 
         est, true, errors = self._pose_errors(Path(capture_dir), result)

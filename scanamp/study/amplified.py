@@ -42,7 +42,7 @@ def run_amplified(bundle, cap_cfg: AmplifiedLaserConfig, rec_cfg, *, seed: int, 
     reconstruct; the reconstruction's report with ``amplify`` added, plus ``ok`` and
     ``message``."""
     from core.files import read_json
-    from core.mesh_io import write_mesh
+    from core.io.mesh import write_mesh
     from data_synth.scenes import build_scene
     from scanamp.amplify import load_recipe
     from scanamp.amplify import run as amplify_run

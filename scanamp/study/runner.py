@@ -36,9 +36,9 @@ import time
 import traceback
 from pathlib import Path
 
-from core.files import read_json, write_json
-from core.outputs import read_manifest, write_declared
+from core.files import read_json, write_declared, write_json
 from core.progress import track
+from core.runs.outputs import read_manifest
 from core.validate import InputError
 from scanamp.cluster import connect
 

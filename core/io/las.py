@@ -16,7 +16,7 @@ number_of_returns         uint8       1 .. 15
 gps_time                  float64     seconds (adjusted standard GPS time, GPS - 1e9)
 scan_angle                float32     degrees (stored in steps of 0.006 degree)
 point_source_id           uint16      the strip (flight line) or station
-classification            uint8       ASPRS class (2 ground, 3-5 vegetation, 6 building)
+classification            uint8       ASPRS class (:class:`AsprsClass`)
 <extra>                   any         named extra dimensions ("extra bytes")
 ========================  ==========  ==================================================
 
@@ -37,6 +37,7 @@ Every reader error is an :class:`core.validate.InputError` naming the file and f
 from __future__ import annotations
 
 import datetime
+import enum
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -48,7 +49,31 @@ from core.files import atomic_file
 from core.validate import InputError
 
 __all__ = ["LasWriter", "LasInfo", "read_las", "iter_las_chunks", "STANDARD_FIELDS",
-           "SCAN_ANGLE_STEP_DEG", "gps_date"]
+           "SCAN_ANGLE_STEP_DEG", "gps_date", "AsprsClass", "ASPRS_NAMES"]
+
+
+class AsprsClass(enum.IntEnum):
+    """The ASPRS standard point classes (LAS 1.4 R15, table 17) that scanamp writes or
+    reads: the one definition of their codes.
+
+    >>> int(AsprsClass.GROUND), ASPRS_NAMES[AsprsClass.ROAD_SURFACE]
+    (2, 'road surface')
+    """
+
+    UNCLASSIFIED = 1
+    GROUND = 2
+    LOW_VEGETATION = 3
+    MEDIUM_VEGETATION = 4
+    HIGH_VEGETATION = 5
+    BUILDING = 6
+    LOW_NOISE = 7
+    WATER = 9
+    ROAD_SURFACE = 11
+    HIGH_NOISE = 18
+
+
+#: The name of each class, by code.
+ASPRS_NAMES = {int(c): c.name.lower().replace("_", " ") for c in AsprsClass}
 
 #: The standard dimensions the writer fills (others of point format 6 stay zero).
 STANDARD_FIELDS = ("x", "y", "z", "intensity", "return_number", "number_of_returns",

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.frames import unit
 from core.validate import check_array, check_positive
 from simulate.neighbours import neighbour_lists
 
@@ -27,11 +28,6 @@ __all__ = ["polarization", "milling", "nearest_neighbour_distances", "groups",
            "flock_metrics", "METRIC_NAMES"]
 
 METRIC_NAMES = ("polarization", "milling", "nearest_neighbour", "groups")
-
-
-def _unit(v):
-    n = np.linalg.norm(v, axis=1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
 
 
 def polarization(velocities: np.ndarray) -> float:
@@ -43,7 +39,7 @@ def polarization(velocities: np.ndarray) -> float:
         Boids with zero velocity count as headings of length 0.
     """
     v = check_array(velocities, "velocities", shape=(None, 3), min_rows=1)
-    return float(np.linalg.norm(_unit(v).mean(axis=0)))
+    return float(np.linalg.norm(unit(v).mean(axis=0)))
 
 
 def milling(positions: np.ndarray, velocities: np.ndarray) -> float:
@@ -55,8 +51,8 @@ def milling(positions: np.ndarray, velocities: np.ndarray) -> float:
     """
     x = check_array(positions, "positions", shape=(None, 3), min_rows=1)
     v = check_array(velocities, "velocities", shape=(len(x), 3))
-    r = _unit(x - x.mean(axis=0))
-    return float(np.linalg.norm(np.cross(r, _unit(v)).mean(axis=0)))
+    r = unit(x - x.mean(axis=0))
+    return float(np.linalg.norm(np.cross(r, unit(v)).mean(axis=0)))
 
 
 def nearest_neighbour_distances(positions: np.ndarray) -> np.ndarray:

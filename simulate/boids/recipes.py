@@ -11,12 +11,12 @@ from pathlib import Path
 
 from core.files import read_toml, require
 from core.validate import InputError, check_array
-from simulate.boids import BoidParams
+from simulate.boids.flock import BoidParams
 
 __all__ = ["Recipe", "load_recipe", "recipe_names"]
 
 # --- recipes -----------------------------------------------------------------------------
-_RECIPES = Path(__file__).parent / "boid_recipes"
+_RECIPES = Path(__file__).parent / "recipes"
 _FIELDS = {f.name: f for f in dataclasses.fields(BoidParams)}
 _OBSTACLES = ("none", "sphere", "torus", "scan")
 

@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 
 
 def _version() -> str:
-    from core.outputs import version
+    from core.files import version
 
     return version()
 

@@ -2,7 +2,7 @@
 
 Meshes: PLY, OBJ, glTF/GLB (``.gltf``/``.glb``), STL, OFF. Point clouds: PLY, PCD, XYZ.
 Polylines (curves): OBJ ``l`` records, PLY edges. Every writer is atomic. Images are
-:mod:`core.image_io`.
+:mod:`core.io.image`.
 """
 
 from __future__ import annotations
@@ -361,7 +361,7 @@ def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
     if Path(path).suffix.lower() != ".ply":
         raise ValueError(f"points: an empty cloud can only be written as .ply, got {path}")
     props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals else [])
-    header = ["ply", "format binary_little_endian 1.0", "comment written by core.mesh_io",
+    header = ["ply", "format binary_little_endian 1.0", "comment written by core.io.mesh",
               "element vertex 0", *(f"property double {p}" for p in props),
               *([f"property uchar {c}" for c in ("red", "green", "blue")] if colors else []),
               "end_header"]

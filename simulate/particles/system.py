@@ -9,7 +9,7 @@ generic integrators of :mod:`simulate.integrators` over the whole state.
 
 Note on numba's cache: the fused kernel inlines the force kernel of :mod:`simulate.forces` when it
 is compiled, but numba keys its on-disk cache on this file only. After changing the
-force kernels, touch this file (or clear ``simulate/__pycache__``) so it recompiles.
+force kernels, touch this file (or clear ``simulate/particles/__pycache__``) so it recompiles.
 
 Attributes (colour, size, opacity, mass) are :class:`Ramp` functions of age, life
 fraction or temperature; temperature relaxes to ``ambient`` with time constant
@@ -28,11 +28,11 @@ import numpy as np
 
 from core.validate import check_choice, check_int, check_positive
 from simulate.collisions import CollisionStats, ContactParams, collide
-from simulate.emitters import Emitter
 from simulate.forces import ForceSet, _accel_inline
 from simulate.integrators import METHODS, check_step, integrate_adaptive
 from simulate.integrators import step as generic_step
 from simulate.neighbours import threads_for
+from simulate.particles.emitters import Emitter
 
 log = logging.getLogger(__name__)
 

@@ -11,88 +11,23 @@ sentence that says what to do, before anything is written.
 :func:`output_dir` checks, then yields a temporary sibling folder that replaces the
 output on success (an interrupted or failed run leaves the old folder as it was); with
 ``reuse=True`` the temporary folder starts as a copy of the old one, so pipeline stages
-whose inputs did not change can be skipped (:mod:`core.stages`).
+whose inputs did not change can be skipped (:mod:`core.runs.stages`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import json
 import os
 import shutil
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from core.files import atomic_dir
+from core.config import to_dict
+from core.files import API, MANIFEST, atomic_dir, declare_output, write_manifest
 from core.validate import InputError
 
-__all__ = ["MANIFEST", "read_manifest", "check_output", "check_output_file", "output_dir",
-           "version", "writing", "write_manifest", "declared_manifest", "write_declared",
-           "CONFIG_FILE"]
-
-#: the manifest file inside every output folder scanamp writes
-MANIFEST = ".scanamp.json"
-
-
-def version() -> str:
-    """scanamp's installed version ("unknown" when run from a bare checkout)."""
-    from importlib import metadata
-
-    try:
-        return metadata.version("scanamp")
-    except metadata.PackageNotFoundError:  # pragma: no cover - not installed
-        return "unknown"
-
-
-#: the "command" of a folder written through the Python API rather than the CLI
-API = "api"
-#: the output folder the running command declared (set by :func:`writing`)
-_DECLARED: contextvars.ContextVar[tuple[Path, str, object] | None] = contextvars.ContextVar(
-    "scanamp_declared_output", default=None)
-#: the effective configuration of a command, beside its manifest in the output folder
-CONFIG_FILE = "config.toml"
-
-
-def _manifest(command: str) -> dict:
-    # no time stamp: the same run gives the same bytes, the manifest included
-    return {"format": "scanamp.output/1", "command": command, "version": version()}
-
-
-def write_manifest(folder: str | os.PathLike, command: str) -> Path:
-    """Write the manifest that marks ``folder`` as written by ``scanamp command``."""
-    m = Path(folder) / MANIFEST
-    m.write_text(json.dumps(_manifest(command), indent=2) + "\n")
-    return m
-
-
-def declared_manifest(path: str | os.PathLike) -> dict:
-    """The manifest for folder ``path``: the running command's if ``path`` is the output it
-    declared, else the Python API's (``"command": "api"``).
-
-    :func:`core.files.atomic_dir` calls this to put the manifest into the folder before
-    it is renamed into place, so a command's output is marked as ours atomically.
-    """
-    declared = _DECLARED.get()
-    if declared is None or Path(path).resolve() != declared[0]:
-        return _manifest(API)
-    return _manifest(declared[1])
-
-
-def write_declared(folder: str | os.PathLike, path: str | os.PathLike) -> None:
-    """Into ``folder`` (the temporary folder that becomes ``path``), write the manifest and,
-    when ``path`` is the running command's declared output and it has a config, the
-    effective ``config.toml`` (re-running with ``--config`` it reproduces the output)."""
-    folder = Path(folder)
-    if not (folder / MANIFEST).exists():
-        (folder / MANIFEST).write_text(json.dumps(declared_manifest(path), indent=2) + "\n")
-    declared = _DECLARED.get()
-    if declared is not None and declared[2] is not None and \
-            Path(path).resolve() == declared[0] and not (folder / CONFIG_FILE).exists():
-        from core.config import write_config
-
-        write_config(folder / CONFIG_FILE, declared[2])
-
+__all__ = ["read_manifest", "check_output", "check_output_file", "output_dir", "writing"]
 
 @contextlib.contextmanager
 def writing(path: str | os.PathLike, command: str, config=None) -> Iterator[None]:
@@ -100,13 +35,10 @@ def writing(path: str | os.PathLike, command: str, config=None) -> Iterator[None
     :class:`core.config.Config`, if it has one) for the duration of a run.
 
     Any :func:`core.files.atomic_dir` that writes exactly ``path`` then adds the manifest
-    and ``config.toml`` (:func:`write_declared`).
+    and ``config.toml`` (:func:`core.files.write_declared`).
     """
-    token = _DECLARED.set((Path(path).resolve(), command, config))
-    try:
+    with declare_output(path, command, None if config is None else to_dict(config)):
         yield
-    finally:
-        _DECLARED.reset(token)
 
 
 def read_manifest(path: str | os.PathLike) -> dict | None:

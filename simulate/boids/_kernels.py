@@ -1,17 +1,14 @@
-"""The compiled kernels of :mod:`simulate.boids`: parameters packed into one array, the
-grid neighbour sums and steering of both rule sets, the all-pairs reference sums, and the
-integration step. The model and its documentation are :mod:`simulate.boids`."""
+"""The compiled kernels of the boids: parameters packed into one array, the grid neighbour
+sums and steering of both rule sets, the all-pairs reference sums, and the integration
+step. The model and its documentation are :mod:`simulate.boids.flock`, which imports this
+module (never the reverse)."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
-
-if TYPE_CHECKING:
-    from simulate.boids import BoidParams
 
 # --- parameters packed for the kernels -------------------------------------------------
 _RS2, _RA2, _RC2, _WS, _WA, _WC, _VMAX, _VMIN, _FMAX, _FOVCOS = range(10)
@@ -20,7 +17,10 @@ _TURN, _SPEED, _DT, _BOUNDED, _LOX, _LOY, _LOZ, _HIX, _HIY, _HIZ, _MARGIN, _WB =
 _NPARAM = 33
 
 
-def _pack(p: BoidParams) -> np.ndarray:
+def _pack(p) -> np.ndarray:
+    """The fields of ``p`` (a :class:`simulate.boids.flock.BoidParams`) the kernels read,
+    squared or in radians as they use them, in one float64 array indexed by the constants
+    above."""
     out = np.zeros(_NPARAM)
     out[_RS2] = p.separation_radius ** 2
     out[_RA2] = p.alignment_radius ** 2

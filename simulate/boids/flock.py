@@ -21,8 +21,8 @@ direction closest to its heading. Then every step's motion is cast as a swept se
 a boid whose segment meets the mesh stops ``skin`` before the surface and its velocity
 is reflected, so no boid passes through a mesh.
 
-The model is this module; its compiled kernels are :mod:`simulate.boid_kernels` and the
-recipe loader :mod:`simulate.boid_loader` (``load_recipe`` is served from here too).
+The model is this module; its compiled kernels are :mod:`simulate.boids._kernels`, and
+named recipes of parameters are :mod:`simulate.boids.recipes`.
 
 :func:`step` runs on the grid; ``method="reference"`` finds neighbours by testing all
 n^2 pairs in numpy (tests compare the two to 1e-10; benchmarks use it as the naive peer).
@@ -45,8 +45,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.frames import unit
 from core.validate import check_array, check_choice, check_int, check_range
-from simulate.boid_kernels import (
+from simulate.boids._kernels import (
     _finish_all,
     _gather,
     _integrate,
@@ -59,9 +60,8 @@ from simulate.neighbours import build_grid, threads_for
 
 log = logging.getLogger(__name__)
 
-# the recipe loader's names are served lazily from simulate.boid_loader (__getattr__)
-__all__ = ["BoidParams", "FlockState", "init_flock", "step", "perception_radius",  # noqa: F822
-           "load_recipe", "recipe_names", "Recipe"]
+__all__ = ["BoidParams", "FlockState", "init_flock", "step", "perception_radius", "MODELS",
+           "METHODS"]
 
 MODELS = ("reynolds", "couzin")
 METHODS = ("grid", "reference")
@@ -220,13 +220,8 @@ class FlockState:
         self.wander = check_array(self.wander, "wander", shape=(n, 3)).copy()
 
 
-def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
-
-
 def _random_unit(rng, n):
-    return _unit(rng.standard_normal((n, 3)))
+    return unit(rng.standard_normal((n, 3)))
 
 
 def init_flock(n: int, params: BoidParams, *, rng: np.random.Generator,
@@ -273,7 +268,7 @@ def _cone(rays: int, half_angle: float) -> np.ndarray:
 def _frame(h):
     """Two unit vectors ``(n, 3)`` perpendicular to unit ``h`` and each other."""
     ref = np.where(np.abs(h[:, 0:1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-    u = _unit(np.cross(h, ref))
+    u = unit(np.cross(h, ref))
     return u, np.cross(h, u)
 
 
@@ -284,7 +279,7 @@ def _avoidance(collider, x, v, params: BoidParams):
     urgency grows from 0 (hit at the probe's end) to 1 (hit at the boid).
     """
     sp = np.linalg.norm(v, axis=1)
-    h = _unit(v)
+    h = unit(v)
     length = params.look_ahead * np.maximum(sp, 1e-9)
     hits = collider.cast(x, h * length[:, None])
     idx = np.nonzero(hits.hit & (hits.t <= 1.0))[0]
@@ -384,7 +379,7 @@ def _step(state, params, rng, collider, method):
     couzin = params.model == "couzin"
     if params.wander_weight > 0 and not couzin:
         jitter = math.radians(params.wander_jitter_deg)
-        state.wander = _unit(state.wander + jitter * rng.standard_normal((n, 3)))
+        state.wander = unit(state.wander + jitter * rng.standard_normal((n, 3)))
     steer = np.empty((n, 3))
     if method == "grid":
         lo = hi = None
@@ -431,11 +426,3 @@ def _step(state, params, rng, collider, method):
     state.time += params.dt
     state.steps += 1
     return state
-
-
-def __getattr__(name):  # the recipe loader lives in simulate.boid_loader
-    if name in ("Recipe", "load_recipe", "recipe_names"):
-        from simulate import boid_loader
-
-        return getattr(boid_loader, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

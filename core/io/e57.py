@@ -90,7 +90,7 @@ def _value(node, *names, default=None):
 def _pose(node) -> np.ndarray:
     from pye57.utils import get_node
 
-    from core.range_io import _quat_matrix
+    from core.io.range import _quat_matrix
 
     T = np.eye(4)
     if not node.isDefined("pose"):
@@ -176,7 +176,7 @@ def write_e57(path: str | os.PathLike, scans: Sequence[E57Scan]) -> Path:
     """
     import pye57
 
-    from core.range_io import _matrix_quat
+    from core.io.range import _matrix_quat
 
     path = Path(path)
     if path.suffix.lower() != ".e57":
