@@ -209,20 +209,6 @@ def test_no_private_name_across_rooms():
     assert not private, "\n".join(private)
 
 
-# What another branch of the same issue is moving: xfail (strict) until it lands, so the
-# case fails as soon as the package complies and its mark can go.
-PENDING_TOP_LEVEL = {
-    "core": "core/io/ for the file formats is being moved on the house-base branch",
-    "simulate": "simulate/ rooms (particles/, boids/, cloth/) are being made on the "
-                "house-base branch",
-}
-
-
-def _pending(cases: dict[str, str]):
-    return [pytest.param(p, marks=pytest.mark.xfail(reason=cases[p], strict=True))
-            if p in cases else p for p in PACKAGES]
-
-
 def _code_rooms(pkg: str):
     """The package's sub-packages that hold code (not data folders such as studies/)."""
     for init in sorted((ROOT / pkg).glob("*/__init__.py")):
@@ -230,7 +216,7 @@ def _code_rooms(pkg: str):
             yield init.parent
 
 
-@pytest.mark.parametrize("pkg", _pending(PENDING_TOP_LEVEL))
+@pytest.mark.parametrize("pkg", PACKAGES)
 def test_at_most_8_modules_at_every_packages_top_level(pkg):
     top = sorted(p.stem for p in (ROOT / pkg).glob("*.py")
                  if p.name not in ("__init__.py", "__main__.py"))
@@ -332,12 +318,6 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 CIRCLES = _circles(_import_graph())
 
-PENDING_CIRCLES = {
-    "core": "core config <-> files <-> outputs is being cut on the house-base branch",
-    "data_synth": "data_synth forest <-> scenes is being cut on the house-base branch",
-    "simulate": "simulate boids <-> boid_kernels <-> boid_loader is being cut on the "
-                "house-base branch",
-}
 
 
 def test_the_circle_finder_finds_a_circle():
@@ -345,7 +325,7 @@ def test_the_circle_finder_finds_a_circle():
     assert _circles({"a": {"b"}, "b": set()}) == []
 
 
-@pytest.mark.parametrize("pkg", _pending(PENDING_CIRCLES))
+@pytest.mark.parametrize("pkg", PACKAGES)
 def test_no_import_circle_between_a_packages_modules(pkg):
     # imports only go down the layers, so a circle never spans two packages
     mine = [c for c in CIRCLES if c[0].split(".")[0] == pkg]
