@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from core.files import Busy, hold, remove_stale, scratch_dir, stale_temporaries
@@ -180,3 +181,58 @@ def test_a_study_killed_mid_run_and_resumed_leaves_nothing_anywhere(tmp_path):
     assert len(list((out / "runs").glob("*.json"))) == 6
     assert _ours(tmp_path) == []
     assert sorted(os.listdir(private)) == []
+
+
+def _seamed_sphere():
+    """A sphere cut along its equator into two halves that share no vertex: every vertex
+    on the cut has a coincident twin (same position, colour and normal)."""
+    import open3d as o3d
+
+    from core.meshes import mesh_arrays
+
+    v, f = mesh_arrays(o3d.geometry.TriangleMesh.create_sphere(1.0, 12))
+    top = v[f].mean(axis=1)[:, 2] > 0
+    shared = np.intersect1d(f[top], f[~top])
+    twin = np.full(len(v), -1)
+    twin[shared] = len(v) + np.arange(len(shared))
+    f = f.copy()
+    g = f[top]
+    f[top] = np.where(np.isin(g, shared), twin[g], g)
+    v = np.vstack([v, v[shared]])
+    colors = 0.5 + 0.5 * v / np.linalg.norm(v, axis=1, keepdims=True)
+    return v, f, colors, len(shared)
+
+
+def test_the_canonical_order_is_invariant_to_any_permutation(tmp_path):
+    from core.mesh_io import write_mesh
+    from core.meshes import make_mesh, mesh_arrays, sorted_mesh
+
+    v, f, colors, twins = _seamed_sphere()
+    assert twins >= 12
+    rng = np.random.default_rng(5)
+    perm = rng.permutation(len(v))  # new index of each old vertex
+    inv = np.argsort(perm)
+    f2 = perm[f][rng.permutation(len(f))]
+    f2 = np.take_along_axis(f2, (rng.integers(0, 3, len(f2))[:, None] + np.arange(3)) % 3,
+                            axis=1)  # each triangle from another corner, winding kept
+    a = sorted_mesh(make_mesh(v, f, vertex_colors=colors, compute_normals=False))
+    b = sorted_mesh(make_mesh(v[inv], f2, vertex_colors=colors[inv]), recompute_normals=True)
+    # normals given as data are carried over exactly
+    n = rng.normal(size=v.shape)
+    c = sorted_mesh(make_mesh(v, f, vertex_colors=colors, vertex_normals=n))
+    d = sorted_mesh(make_mesh(v[inv], f2, vertex_colors=colors[inv], vertex_normals=n[inv]))
+    assert np.array_equal(np.asarray(c.vertex_normals), np.asarray(d.vertex_normals))
+    for name in ("vertices", "triangles", "vertex_colors", "vertex_normals"):
+        assert np.array_equal(np.asarray(getattr(a, name)), np.asarray(getattr(b, name))), name
+    pa, pb = write_mesh(tmp_path / "a.ply", a), write_mesh(tmp_path / "b.ply", b)
+    assert pa.read_bytes() == pb.read_bytes()
+    # the same surface: every triangle's corners, and its normal (so its winding), kept
+    va, fa = mesh_arrays(a)
+
+    assert len(fa) == len(f) and len(va) == len(v)
+    assert sorted(map(tuple, np.round(np.sort(va[fa].reshape(-1, 9), axis=1), 12))) == \
+        sorted(map(tuple, np.round(np.sort(v[f].reshape(-1, 9), axis=1), 12)))
+    assert np.allclose(np.sort(np.cross(va[fa[:, 1]] - va[fa[:, 0]],
+                                        va[fa[:, 2]] - va[fa[:, 0]]), axis=0),
+                       np.sort(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+                               axis=0))

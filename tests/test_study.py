@@ -189,7 +189,8 @@ def test_dask_local_cluster_runs_the_study(tmp_path):
 
     spec = _spec(tmp_path, GRID.replace("sleep = 0.0", "sleep = 0.0\nfail_above = 2.5"))
     with LocalCluster(n_workers=1, threads_per_worker=1, host="127.0.0.1",
-                      dashboard_address=None, processes=True) as cluster:
+                      dashboard_address=None, processes=True,
+                      local_directory=tmp_path / "dask") as cluster:  # not the system temp
         res = run_study(load_study(spec), tmp_path / "out", scheduler=cluster.scheduler_address)
         with Client(cluster.scheduler_address) as client:
             assert len(client.scheduler_info()["workers"]) == 1

@@ -45,6 +45,7 @@ from core.config import Config, option
 from core.files import atomic_dir, scratch_dir, write_json
 from core.image_io import read_image, to_uint8
 from core.mesh_io import read_mesh, write_mesh, write_points
+from core.meshes import sorted_mesh
 from core.validate import InputError, check_choice
 from reconstruct.calibration.io import read_camera_yaml
 from reconstruct.camera_files import (
@@ -704,7 +705,7 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
         tm = time.perf_counter()
         mesh, surface = mesh_stage(depth, fused, working(), v["points"], tmp, mvs)
         if mesh is not None:
-            mesh = _clean_mesh(mesh)
+            mesh = sorted_mesh(_clean_mesh(mesh), recompute_normals=True)  # canonical order
             if len(mesh.triangles):
                 write_mesh(tmp / "mesh.ply", mesh)
         n = 0 if mesh is None else len(mesh.triangles)

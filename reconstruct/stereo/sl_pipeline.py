@@ -23,6 +23,7 @@ from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, write_json
 from core.mesh_io import write_mesh, write_points
+from core.meshes import sorted_mesh
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import detect_board
@@ -193,6 +194,6 @@ def run_capture(capture_path, out_dir, options: SLOptions | None = None) -> Path
         P = np.concatenate(pts_all)
         write_points(tmp / "points.ply", P)
         if len(mesh.vertices):
-            write_mesh(tmp / "mesh.ply", mesh)
+            write_mesh(tmp / "mesh.ply", sorted_mesh(mesh))  # canonical order
         write_json(tmp / "report.json", report)
     return out
