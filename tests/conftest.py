@@ -42,14 +42,16 @@ def _without_timings(obj, roots):
 def output_differences():
     """``f(a, b)``: the files of output folders ``a`` and ``b`` whose bytes differ (JSON
     reports compared without their timings), or whose set differs: ``[]`` when two runs
-    with the same seed wrote the same outputs."""
+    with the same seed wrote the same outputs. The stage caches (``stages/``: each
+    stage's result pickled with its own timings, and its signature) are left out: what
+    they hold is compared in the outputs made from them."""
     import json
     from pathlib import Path
 
     def differ(a, b):
         a, b = Path(a), Path(b)
-        fa = {p.relative_to(a) for p in a.rglob("*") if p.is_file()}
-        fb = {p.relative_to(b) for p in b.rglob("*") if p.is_file()}
+        fa, fb = ({p.relative_to(x) for p in x.rglob("*")
+                   if p.is_file() and p.relative_to(x).parts[0] != "stages"} for x in (a, b))
         out = sorted(str(p) for p in fa ^ fb)
         roots = (str(a), str(b))
         for rel in sorted(fa & fb):
