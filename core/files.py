@@ -157,10 +157,13 @@ def hold(path: str | os.PathLike, *, wait: bool = False) -> Iterator[None]:
     :class:`Busy` (an InputError naming ``path`` and that process); with it, the call
     waits its turn. The lock file is removed on release (and the kernel drops the lock of
     a killed process; :func:`remove_stale` removes its file), so nothing is left behind.
-    On a file system without ``flock`` the lock is skipped.
+    On a file system (or an OS) without ``flock`` the lock is skipped.
     """
-    import fcntl
-
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
     path = Path(path)
     key = os.path.join(os.path.realpath(path.parent), path.name)  # one per lock file
     with _HELD_GUARD:
@@ -192,6 +195,8 @@ def hold(path: str | os.PathLike, *, wait: bool = False) -> Iterator[None]:
                        path=path) from None
         except OSError as exc:  # no flock here (some network file systems)
             os.close(fd)
+            with contextlib.suppress(OSError):
+                lock.unlink()
             logging.getLogger(__name__).debug("no lock for %s: %s", path, exc)
             fd = None
             break
@@ -280,7 +285,10 @@ def stale_temporaries(folder: str | os.PathLike) -> list[Path]:
 
 def _busy(path: Path) -> bool:
     """Whether some process holds the lock of ``path`` (a probe: creates nothing)."""
-    import fcntl
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return False
 
     try:
         fd = os.open(_lock_path(path), os.O_RDWR | os.O_CLOEXEC)
