@@ -21,7 +21,7 @@ def rng():
     return np.random.default_rng(12345)
 
 
-_TIMING = ("time", "second", "elapsed", "cpu")
+_TIMING = ("time", "timing", "second", "elapsed", "cpu")
 
 
 def _without_timings(obj, roots):
