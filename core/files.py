@@ -83,6 +83,8 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     ['.scanamp.json', 'a.txt']
     """
     path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        path.parent.mkdir(parents=True, exist_ok=True)  # a folder to hold the lock in
     with hold(path), _replace_dir(path) as tmp:
         yield tmp
 
@@ -157,7 +159,10 @@ def hold(path: str | os.PathLike, *, wait: bool = False) -> Iterator[None]:
     :class:`Busy` (an InputError naming ``path`` and that process); with it, the call
     waits its turn. The lock file is removed on release (and the kernel drops the lock of
     a killed process; :func:`remove_stale` removes its file), so nothing is left behind.
-    On a file system (or an OS) without ``flock`` the lock is skipped.
+    Nothing is created to take the lock: a path whose folder does not exist yet (or
+    cannot be written) is not locked here, and :func:`atomic_dir`, :func:`atomic_file`
+    lock it once they have made its folder. On a file system (or an OS) without
+    ``flock`` the lock is skipped.
     """
     try:
         import fcntl
@@ -181,9 +186,12 @@ def hold(path: str | os.PathLike, *, wait: bool = False) -> Iterator[None]:
                 _HELD[key][2] -= 1
         return
     lock = _lock_path(path)
-    lock.parent.mkdir(parents=True, exist_ok=True)
     while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666 & ~_umask())
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666 & ~_umask())
+        except OSError:  # no such folder yet (the writer that makes it locks there), or
+            fd = None    # not ours to write in (the writer fails with its own message)
+            break
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
         except BlockingIOError:
