@@ -13,10 +13,14 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import json
+import logging
 import os
+import re
+import secrets
 import shutil
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -31,6 +35,12 @@ else:  # pragma: no cover
 __all__ = [
     "atomic_dir",
     "atomic_file",
+    "temp_prefix",
+    "hold",
+    "Busy",
+    "scratch_dir",
+    "stale_temporaries",
+    "remove_stale",
     "write_json",
     "read_text",
     "read_json",
@@ -143,6 +153,9 @@ def declare_output(path: str | os.PathLike, command: str,
 def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary sibling folder; on success it replaces ``path``.
 
+    One writer at a time: the lock of ``path`` (:func:`hold`) is held from the check to
+    the rename, so a second process writing the same folder raises :class:`Busy`.
+
     On an exception the temporary folder is removed and ``path`` is left as it was.
     Only an empty folder or one scanamp wrote (with its manifest,
     :data:`MANIFEST`) is ever replaced: anything else at ``path`` raises
@@ -158,9 +171,17 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     ['.scanamp.json', 'a.txt']
     """
     path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        path.parent.mkdir(parents=True, exist_ok=True)  # a folder to hold the lock in
+    with hold(path), _replace_dir(path) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _replace_dir(path: Path) -> Iterator[Path]:
     _check_replaceable(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=path.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=temp_prefix(path), dir=path.parent))
     try:
         yield tmp
     except BaseException:
@@ -175,11 +196,224 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         raise
     old = None
     if path.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=path.parent))
+        old = Path(tempfile.mkdtemp(prefix=temp_prefix(path, "old"), dir=path.parent))
         os.replace(path, old / "x")
     os.replace(tmp, path)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+#: the mark of scanamp's transient names: ``.NAME.scanamp-tmp-XXXXXXXX[.SUFFIX]`` (a file or
+#: folder being written, renamed to NAME on success), ``.NAME.scanamp-old-XXXXXXXX`` (the
+#: folder NAME replaced, removed right after), ``.NAME.scanamp-lock`` (the lock of NAME)
+#: and ``.scanamp-scratch-XXXXXXXX`` (a run's scratch folder)
+TAG = "scanamp"
+_RANDOM = "[a-z0-9_]{8}"  # tempfile's random part
+#: a temporary name inside a message or a path (the CLI shows the final name instead)
+TEMP_NAME = re.compile(rf"\.([^/\s]+?)\.{TAG}-(?:tmp|old)-{_RANDOM}(?:\.[A-Za-z0-9]+(?![\w-]))?")
+_TEMP_ENTRY = re.compile(
+    rf"\.(?P<base>.+?)\.{TAG}-(?:tmp|old)-{_RANDOM}(?P<suffix>\.[^./]+)?")
+_LOCK_ENTRY = re.compile(rf"\.(?P<base>.+)\.{TAG}-lock")
+_SCRATCH_ENTRY = re.compile(rf"\.{TAG}-scratch-{_RANDOM}")
+
+
+def temp_prefix(path: str | os.PathLike, kind: str = "tmp") -> str:
+    """The prefix of a temporary sibling of ``path`` (``tempfile.mkdtemp(prefix=...,
+    dir=path.parent)``): a name :func:`remove_stale` knows as ours."""
+    return f".{Path(path).name}.{TAG}-{kind}-"
+
+
+class Busy(InputError):
+    """Another process holds the lock of this output (:func:`hold`)."""
+
+
+# the locks this process holds: absolute path -> [pid, file descriptor, depth]
+_HELD: dict[str, list] = {}
+_HELD_GUARD = threading.Lock()
+
+
+def _lock_path(path: Path) -> Path:
+    return path.parent / f".{path.name}.{TAG}-lock"
+
+
+@contextlib.contextmanager
+def hold(path: str | os.PathLike, *, wait: bool = False) -> Iterator[None]:
+    """Hold the advisory lock of ``path`` (``fcntl.flock`` on ``.NAME.scanamp-lock`` beside
+    it): one writer per output across processes.
+
+    Re-entrant within a process. Without ``wait``, a lock another process holds raises
+    :class:`Busy` (an InputError naming ``path`` and that process); with it, the call
+    waits its turn. The lock file is removed on release (and the kernel drops the lock of
+    a killed process; :func:`remove_stale` removes its file), so nothing is left behind.
+    Nothing is created to take the lock: a path whose folder does not exist yet (or
+    cannot be written) is not locked here, and :func:`atomic_dir`, :func:`atomic_file`
+    lock it once they have made its folder. On a file system (or an OS) without
+    ``flock`` the lock is skipped.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    path = Path(path)
+    key = os.path.join(os.path.realpath(path.parent), path.name)  # one per lock file
+    with _HELD_GUARD:
+        held = _HELD.get(key)
+        if held is not None and held[0] == os.getpid():
+            held[2] += 1
+            mine = False
+        else:
+            mine = True
+    if not mine:
+        try:
+            yield
+        finally:
+            with _HELD_GUARD:
+                _HELD[key][2] -= 1
+        return
+    lock = _lock_path(path)
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666 & ~_umask())
+        except OSError:  # no such folder yet (the writer that makes it locks there), or
+            fd = None    # not ours to write in (the writer fails with its own message)
+            break
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+        except BlockingIOError:
+            owner = os.pread(fd, 32, 0).decode(errors="replace").strip()
+            os.close(fd)
+            who = f" (pid {owner})" if owner.isdigit() else ""
+            raise Busy(f"is being written by another scanamp process{who}; wait for it to "
+                       "finish or choose another output (nothing was written)",
+                       path=path) from None
+        except OSError as exc:  # no flock here (some network file systems)
+            os.close(fd)
+            with contextlib.suppress(OSError):
+                lock.unlink()
+            logging.getLogger(__name__).debug("no lock for %s: %s", path, exc)
+            fd = None
+            break
+        try:  # the file may have been removed by its last holder meanwhile: lock anew
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, str(os.getpid()).encode(), 0)
+            break
+        os.close(fd)
+    with _HELD_GUARD:
+        _HELD[key] = [os.getpid(), fd, 1]
+    try:
+        yield
+    finally:
+        with _HELD_GUARD:
+            _HELD[key][2] -= 1
+            last = _HELD[key][2] == 0
+            if last:
+                del _HELD[key]
+        if last and fd is not None:
+            with contextlib.suppress(FileNotFoundError):
+                lock.unlink()  # while still locked: a waiter then finds it gone and retries
+            os.close(fd)
+
+
+@contextlib.contextmanager
+def scratch_dir(parent: str | os.PathLike) -> Iterator[Path]:
+    """A scratch folder ``PARENT/.scanamp-scratch-XXXXXXXX``, removed on success and on
+    failure; one left by a killed process is removed by :func:`remove_stale` (a study does
+    that when it resumes). Held (:func:`hold`) while in use, so a cleaner spares it."""
+    parent = Path(parent)
+    parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        name = f".{TAG}-scratch-{secrets.token_hex(4)}"
+        with hold(parent / name):
+            try:
+                (parent / name).mkdir()
+            except FileExistsError:
+                continue
+            try:
+                yield parent / name
+            finally:
+                shutil.rmtree(parent / name, ignore_errors=True)
+            return
+
+
+def _ours(entry: Path) -> Path | None:
+    """The path whose lock guards ``entry`` if ``entry`` is one of our transient names."""
+    name = entry.name
+    m = _TEMP_ENTRY.fullmatch(name)
+    if m and (m["suffix"] is None or m["base"].endswith(m["suffix"])):
+        return entry.parent / m["base"]
+    m = _LOCK_ENTRY.fullmatch(name)
+    if m and entry.is_file() and not entry.is_symlink():
+        return entry.parent / m["base"]
+    if _SCRATCH_ENTRY.fullmatch(name) and entry.is_dir() and not entry.is_symlink():
+        return entry
+    return None
+
+
+def stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Our transient files and folders under ``folder`` (recursively; not inside one
+    another) that no running process holds: what a killed run left behind.
+
+    Only names that scanamp makes (:data:`TAG`) count: a user's ``notes.tmp`` or
+    ``.draft.tmp-1`` is never one.
+    """
+    found = []
+    for root, dirs, files in os.walk(folder):
+        base = Path(root)
+        for name in sorted(dirs + files):
+            entry = base / name
+            guard = _ours(entry)
+            if guard is None:
+                continue
+            if name in dirs:
+                dirs.remove(name)  # removed whole, not walked
+            if not _busy(guard):
+                found.append(entry)
+        dirs.sort()
+    return found
+
+
+def _busy(path: Path) -> bool:
+    """Whether some process holds the lock of ``path`` (a probe: creates nothing)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return False
+
+    try:
+        fd = os.open(_lock_path(path), os.O_RDWR | os.O_CLOEXEC)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # no flock on this file system: nothing can be known to be in use
+        return False
+    finally:
+        os.close(fd)  # closing drops a lock this probe took
+    return False
+
+
+def remove_stale(folder: str | os.PathLike) -> list[Path]:
+    """Remove :func:`stale_temporaries` of ``folder``; returns what was removed."""
+    removed = []
+    for entry in stale_temporaries(folder):
+        guard = _ours(entry)
+        try:
+            with hold(guard):  # not taken up by a new writer meanwhile
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink(missing_ok=True)
+        except Busy:
+            continue
+        removed.append(entry)
+    return removed
 
 
 def _check_replaceable(path: Path) -> None:
@@ -202,16 +436,18 @@ def atomic_file(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.tmp-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        yield tmp
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    os.chmod(tmp, 0o666 & ~_umask())
-    os.replace(tmp, path)
+    with hold(path, wait=True):  # concurrent writers of one file take turns
+        fd, name = tempfile.mkstemp(prefix=temp_prefix(path), suffix=path.suffix,
+                                    dir=path.parent)
+        os.close(fd)
+        tmp = Path(name)
+        try:
+            yield tmp
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
 
 
 def _jsonable(obj: Any) -> Any:

@@ -134,11 +134,19 @@ def compact(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return used, inverse.reshape(-1, 3)
 
 
-def sorted_mesh(mesh) -> "o3d.geometry.TriangleMesh":
+def sorted_mesh(mesh, *, recompute_normals: bool = False) -> "o3d.geometry.TriangleMesh":
     """The same surface in an order that depends only on its geometry: vertices sorted by
-    (x, y, z), each triangle rotated to start at its smallest index (winding kept), the
-    triangles sorted. Extractors that walk a hash map (Open3D's ``VoxelBlockGrid``) return
-    the same mesh in a different order from run to run; this makes their bytes repeat.
+    (x, y, z) (then colour and normal; coincident twins by the first triangle, in
+    geometric order, that uses them), each triangle rotated to start at its smallest
+    index (winding kept), the triangles sorted. Any permutation of the vertices or of the
+    triangles gives the same bytes. Extractors that walk a hash map (Open3D's
+    ``VoxelBlockGrid``) return the same mesh in a different order from run to run, and
+    the order of other meshers follows their input; every reconstruction writes its mesh
+    in this order.
+
+    Vertex normals are carried over; a mesh without them, or ``recompute_normals=True``,
+    gets them computed from the sorted triangles (normals summed over the triangles in
+    another order differ in their last bits).
 
     >>> import open3d as o3d
     >>> m = sorted_mesh(make_mesh(np.array([[1., 0, 0], [0, 0, 0], [0, 1, 0]]),
@@ -147,17 +155,39 @@ def sorted_mesh(mesh) -> "o3d.geometry.TriangleMesh":
     ([[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]], [[0, 2, 1]])
     """
     v, f = mesh_arrays(mesh)
-    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
+    colors = np.asarray(mesh.vertex_colors) if mesh.has_vertex_colors() else None
+    normals = (np.asarray(mesh.vertex_normals)
+               if mesh.has_vertex_normals() and not recompute_normals else None)
+    key = np.column_stack([v] + [a for a in (colors, normals) if a is not None])
+    order = np.lexsort(key.T[::-1])
+    k = key[order]
+    if len(k) > 1 and np.any(np.all(k[1:] == k[:-1], axis=1)):  # coincident twins
+        order = np.lexsort(np.column_stack([key, _first_triangle(v, f)]).T[::-1])
     rank = np.empty(len(v), np.int64)
     rank[order] = np.arange(len(v))
     f = rank[f]
     roll = np.argmin(f, axis=1)
     f = np.take_along_axis(f, (roll[:, None] + np.arange(3)) % 3, axis=1)
     f = f[np.lexsort((f[:, 2], f[:, 1], f[:, 0]))]
-    colors = np.asarray(mesh.vertex_colors)[order] if mesh.has_vertex_colors() else None
-    normals = np.asarray(mesh.vertex_normals)[order] if mesh.has_vertex_normals() else None
-    return make_mesh(v[order], f, vertex_colors=colors, vertex_normals=normals,
+    return make_mesh(v[order], f, vertex_colors=None if colors is None else colors[order],
+                     vertex_normals=None if normals is None else normals[order],
                      compute_normals=normals is None)
+
+
+def _first_triangle(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``(n,) int64``: for each vertex, the rank of the first triangle using it when the
+    triangles are ordered by their corners' positions (``len(f)`` if none does): what
+    tells coincident vertices apart independently of the order of the input."""
+    sig = np.full(len(v), len(f), np.int64)
+    if not len(f):
+        return sig
+    place = np.unique(v, axis=0, return_inverse=True)[1].reshape(-1)  # twins share a place
+    t = place[f]
+    roll = np.argmin(t, axis=1)  # each triangle from its smallest place, winding kept
+    t = np.take_along_axis(t, (roll[:, None] + np.arange(3)) % 3, axis=1)
+    t_rank = np.unique(t, axis=0, return_inverse=True)[1].reshape(-1)
+    np.minimum.at(sig, f.reshape(-1), np.repeat(t_rank, 3))
+    return sig
 
 
 def submesh(vertices: np.ndarray, triangles: np.ndarray):

@@ -289,7 +289,7 @@ def test_bad_input(world, capsys, name, argv, needs):
     lines = err.strip("\n").split("\n")
     assert code == 2, err
     assert len(lines) == 1 and lines[0].startswith("error: "), err
-    assert "Traceback" not in err and ".tmp-" not in err
+    assert "Traceback" not in err and "scanamp-tmp-" not in err
     for needle in needs:
         assert needle.replace("{root}", str(root)) in lines[0], (needle, err)
     assert _tree_state(root) == before  # nothing left behind, nothing changed

@@ -235,3 +235,10 @@ def test_cli_capture_and_its_bad_inputs(tmp_path, capsys):
     assert main([*argv, "--head.sweep-length", "0.9", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sweep-length" in err[0] and not (tmp_path / "bad").exists()
+
+
+def test_reconstruction_same_seed_same_bytes(captured, tmp_path, output_differences):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert main(["-q", "reconstruct", "scans", str(captured), "--out", str(out)]) == 0
+    assert output_differences(a, b) == []

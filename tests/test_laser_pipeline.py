@@ -183,3 +183,9 @@ def test_stages_rerun_only_what_changed(laser_scan, tmp_path):
     rep = json.loads((out / "report.json").read_text())
     assert rep["stages"]["ran"] == ["triangulate", "mesh", "evaluate"]
     assert (fresh / "mesh.ply").read_bytes() == (out / "mesh.ply").read_bytes()
+
+
+def test_same_seed_same_bytes_for_every_output(laser_scan, tmp_path, output_differences):
+    cap, out, _ = laser_scan
+    again = run(LaserReconConfig(tau=0.002), cap, tmp_path / "rec")
+    assert output_differences(out, again) == []

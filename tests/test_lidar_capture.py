@@ -136,3 +136,11 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(scene, tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and field in err[0]
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_reconstruction_same_seed_same_bytes(survey, tmp_path, output_differences):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert main(["-q", "reconstruct", "lidar", str(survey / "points.laz"), "--out",
+                     str(out)]) == 0
+    assert output_differences(a, b) == []

@@ -257,3 +257,13 @@ def test_named_stages_rerun_only_what_changed(small_capture, small_recon, tmp_pa
     assert again.report["stages"]["reused"] == ["features", "matches", "sparse", "dense",
                                                 "fuse"]
     assert (out / "mesh.ply").read_bytes() == first  # the same inputs, the same bytes
+
+
+@pytest.mark.slow
+def test_same_seed_same_bytes_for_every_output(small_capture, small_recon, tmp_path,
+                                               output_differences):
+    from reconstruct.sfm.pipeline import SfmConfig, run
+
+    again = run(SfmConfig(seed=0, num_threads=1), small_capture, tmp_path / "rec")
+    assert again.ok and small_recon.ok
+    assert output_differences(small_recon.out_dir, again.out_dir) == []

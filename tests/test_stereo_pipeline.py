@@ -182,3 +182,13 @@ def test_board_never_detected_names_the_images(stereo_capture, tmp_path, capsys)
     code, err = _cli(["reconstruct", "stereo", cap_dir, "--out", tmp_path / "x"], capsys)
     assert code == 2 and len(err) == 1
     assert "calibration[0].images" in err[0] and "cal_000_L.png" in err[0]
+
+
+@pytest.mark.slow
+def test_same_seed_same_bytes_for_every_output(stereo_capture, stereo_recon, tmp_path,
+                                               output_differences):
+    from reconstruct.stereo.options import StereoOptions
+    from reconstruct.stereo.pipeline import run_capture
+
+    run_capture(stereo_capture, tmp_path / "rec", StereoOptions(compare=True))
+    assert output_differences(stereo_recon, tmp_path / "rec") == []

@@ -70,3 +70,10 @@ def test_cli_rejects_a_stereo_capture_as_structured_light(sl_capture, tmp_path, 
     code = main(["-q", "reconstruct", "stereo", str(sl_capture), "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "expected a stereo capture" in err[0]
+
+
+def test_same_seed_same_bytes_for_every_output(sl_capture, tmp_path, output_differences):
+    from reconstruct.stereo.sl_pipeline import run_capture
+
+    a, b = run_capture(sl_capture, tmp_path / "a"), run_capture(sl_capture, tmp_path / "b")
+    assert output_differences(a, b) == []

@@ -185,11 +185,15 @@ def test_resume_after_kill_9_runs_every_run_exactly_once(tmp_path, capsys):
 
 
 def test_dask_local_cluster_runs_the_study(tmp_path):
+    import dask
     from distributed import Client, LocalCluster
 
     spec = _spec(tmp_path, GRID.replace("sleep = 0.0", "sleep = 0.0\nfail_above = 2.5"))
-    with LocalCluster(n_workers=1, threads_per_worker=1, host="127.0.0.1",
-                      dashboard_address=None, processes=True) as cluster:
+    # the cluster's scratch (scheduler and workers) in the test's folder, not the system's
+    with dask.config.set({"temporary-directory": str(tmp_path / "dask")}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, host="127.0.0.1",
+                         dashboard_address=None, processes=True,
+                         local_directory=tmp_path / "dask") as cluster:
         res = run_study(load_study(spec), tmp_path / "out", scheduler=cluster.scheduler_address)
         with Client(cluster.scheduler_address) as client:
             assert len(client.scheduler_info()["workers"]) == 1

@@ -71,20 +71,23 @@ def write_mesh(path: str | os.PathLike, mesh, *, ascii: bool = False):
     import shutil
     import tempfile
 
+    from core.files import hold, temp_prefix
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.tmp-", dir=path.parent))
-    try:
-        target = tmpdir / path.name
-        ok = o3d.io.write_triangle_mesh(str(target), mesh, write_ascii=ascii,
-                                        print_progress=False)
-        if not ok:
-            raise RuntimeError(f"open3d failed to write {path}")
-        for f in sorted(tmpdir.iterdir()):
-            if f.name != path.name:
-                os.replace(f, path.parent / f.name)
-        os.replace(target, path)
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)
+    with hold(path, wait=True):
+        tmpdir = Path(tempfile.mkdtemp(prefix=temp_prefix(path), dir=path.parent))
+        try:
+            target = tmpdir / path.name
+            ok = o3d.io.write_triangle_mesh(str(target), mesh, write_ascii=ascii,
+                                            print_progress=False)
+            if not ok:
+                raise RuntimeError(f"open3d failed to write {path}")
+            for f in sorted(tmpdir.iterdir()):
+                if f.name != path.name:
+                    os.replace(f, path.parent / f.name)
+            os.replace(target, path)
+        finally:
+            shutil.rmtree(tmpdir, ignore_errors=True)
     return path
 
 

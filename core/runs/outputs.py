@@ -11,7 +11,8 @@ sentence that says what to do, before anything is written.
 :func:`output_dir` checks, then yields a temporary sibling folder that replaces the
 output on success (an interrupted or failed run leaves the old folder as it was); with
 ``reuse=True`` the temporary folder starts as a copy of the old one, so pipeline stages
-whose inputs did not change can be skipped (:mod:`core.runs.stages`).
+whose inputs did not change can be skipped (:mod:`core.runs.stages`). One process writes an
+output at a time: an advisory lock beside it is held from the check to the rename.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ import shutil
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from core.files import API, MANIFEST, atomic_dir, declare_output, hold, write_manifest
 from core.config import to_dict
-from core.files import API, MANIFEST, atomic_dir, declare_output, write_manifest
 from core.validate import InputError
 
 __all__ = ["read_manifest", "check_output", "check_output_file", "output_dir", "writing"]
@@ -134,7 +135,8 @@ def output_dir(path: str | os.PathLike, *, command: str,
                inputs: Sequence[str | os.PathLike] = (), overwrite: bool = False,
                reuse: bool = False) -> Iterator[Path]:
     """Check ``path`` (:func:`check_output`), yield a temporary sibling, then write the
-    manifest and rename it into place.
+    manifest and rename it into place. The lock of ``path`` (:func:`core.files.hold`) is
+    held throughout: a second writer of the same folder raises :class:`core.files.Busy`.
 
     Parameters
     ----------
@@ -148,9 +150,10 @@ def output_dir(path: str | os.PathLike, *, command: str,
     reuse : bool
         Start the temporary folder as a copy of that folder (stages skip unchanged work).
     """
-    path = check_output(path, command=command, inputs=inputs, overwrite=overwrite)
-    with atomic_dir(path) as tmp:
-        if reuse and path.is_dir() and read_manifest(path) is not None:
-            _copy_into(path, tmp)
-        yield tmp
-        write_manifest(tmp, command)
+    with hold(path):  # one writer from the check to the rename
+        path = check_output(path, command=command, inputs=inputs, overwrite=overwrite)
+        with atomic_dir(path) as tmp:
+            if reuse and path.is_dir() and read_manifest(path) is not None:
+                _copy_into(path, tmp)
+            yield tmp
+            write_manifest(tmp, command)

@@ -395,12 +395,14 @@ def _mesh(points, viewpoints, meshing) -> dict:
 
 
 def _with_mesh(m: dict) -> dict:
-    from core.meshes import make_mesh
+    """The stage's arrays as a mesh, in the canonical order (:func:`core.meshes.sorted_mesh`)
+    that the report's samples and the written bytes then follow."""
+    from core.meshes import make_mesh, sorted_mesh
 
     a = m["mesh_arrays"]
     mesh = make_mesh(a["vertices"], a["triangles"], vertex_normals=a["vertex_normals"],
                      vertex_colors=a["vertex_colors"], compute_normals=False)
-    return {**m, "mesh": mesh}
+    return {**m, "mesh": sorted_mesh(mesh, recompute_normals=True)}
 
 
 def _report(cap, prep, calib, stripes, tri, m, cfg) -> dict:

@@ -144,7 +144,7 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
         from_stage: str | None = None) -> ReconstructionResult:
     """Register and merge the scans named by ``inputs`` (files, folders, E57, ``.conf``)
     into ``out_dir`` (module docstring); ``poses``: an optional initial guess file."""
-    from core.meshes import make_mesh
+    from core.meshes import make_mesh, sorted_mesh
     from core.runs.stages import Stages, files_key
     from reconstruct.scans.load import load_scans, scan_files
 
@@ -172,7 +172,7 @@ def run(config: ScansReconConfig, inputs, out_dir, *, poses=None,
             [result.scans[k].model_from_scan for k in placed], cfg,
             depends={"merge": cfg.merge, "resolution": cfg.resolution,
                      "fill_holes": cfg.fill_holes})
-        mesh = make_mesh(verts, tris)
+        mesh = sorted_mesh(make_mesh(verts, tris, compute_normals=False))  # canonical order
         report = _write_outputs(tmp, scans, result, mesh, merge_rep, cfg, (t_load, cpu_load),
                                 time.perf_counter() - t0, st)
     return ReconstructionResult(out_dir, json_data(report))

@@ -28,9 +28,9 @@ of the ground-truth scene.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -42,9 +42,10 @@ from acquire.camera import Camera
 from acquire.capture_io import load_capture
 from acquire.sfm.nerfstudio import write_transforms
 from core.config import Config, option
-from core.files import atomic_dir, json_data, write_json
+from core.files import atomic_dir, json_data, scratch_dir, write_json
 from core.io.image import read_image, to_uint8
 from core.io.mesh import read_mesh, write_mesh, write_points
+from core.meshes import sorted_mesh
 from core.validate import InputError, check_choice
 from reconstruct.calibration.io import read_camera_yaml
 from reconstruct.camera_files import (
@@ -390,7 +391,7 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
                   "camera_mode": config.camera_mode, "seed": config.seed,
                   "num_threads": config.num_threads},
               "timings": {"imports": t_imports}}
-    with atomic_dir(out_dir) as tmp, _Upright(inp) as upright:
+    with atomic_dir(out_dir) as tmp, _Upright(inp, tmp) as upright:
         st = Stages(tmp, STAGES, from_stage=from_stage,
                     reuse=out_dir if out_dir.is_dir() else None)
         ok, message, views = _sparse_stages(st, config, inp, groups, opts, upright, tmp,
@@ -405,26 +406,27 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
 
 
 class _Upright:
-    """A temporary folder of upright 8-bit photos for COLMAP, made on first use (a run
-    whose sparse stages are all reused never reads the photos for them)."""
+    """A scratch folder of upright 8-bit photos for COLMAP under ``root`` (the output's
+    temporary folder), made on first use (a run whose sparse stages are all reused never
+    reads the photos for them) and removed on leaving."""
 
-    def __init__(self, inp: _Input):
-        self.inp, self._tmp, self._path = inp, None, None
+    def __init__(self, inp: _Input, root: Path):
+        self.inp, self.root, self._path = inp, root, None
+        self._scratch = contextlib.ExitStack()
 
     @property
     def path(self) -> Path:
         if self._path is None:
-            self._tmp = tempfile.TemporaryDirectory(prefix="scanamp-upright-")
+            folder = self._scratch.enter_context(scratch_dir(self.root))
             self._path = upright_folder(self.inp.image_dir, self.inp.names, self.inp.infos,
-                                        self._tmp.name)
+                                        folder)
         return self._path
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        if self._tmp is not None:
-            self._tmp.cleanup()
+        self._scratch.close()
 
 
 def _timed(fn, *args, **kwargs) -> dict:
@@ -694,7 +696,7 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
         tm = time.perf_counter()
         mesh, surface = mesh_stage(depth, fused, working(), v["points"], tmp, mvs)
         if mesh is not None:
-            mesh = _clean_mesh(mesh)
+            mesh = sorted_mesh(_clean_mesh(mesh), recompute_normals=True)  # canonical order
             if len(mesh.triangles):
                 write_mesh(tmp / "mesh.ply", mesh)
         n = 0 if mesh is None else len(mesh.triangles)

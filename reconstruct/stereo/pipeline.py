@@ -28,6 +28,7 @@ from acquire.targets import target_from_dict
 from core.files import atomic_dir, json_data, write_json
 from core.io.image import read_image
 from core.io.mesh import write_mesh, write_points
+from core.meshes import sorted_mesh
 from core.progress import track
 from core.validate import InputError, check_choice
 from reconstruct.calibration.camera import detect_board, to_gray
@@ -270,7 +271,7 @@ def run_capture(capture_path, out_dir, options: StereoOptions | None = None
         if len(P):
             write_points(tmp / "points.ply", P)
         if len(mesh_main.vertices):
-            write_mesh(tmp / "mesh.ply", mesh_main)
+            write_mesh(tmp / "mesh.ply", sorted_mesh(mesh_main))  # canonical order
         (tmp / "depth").mkdir()
         for i, d in enumerate(depth_main):
             np.save(tmp / "depth" / f"{i:03d}.npy", d)

@@ -169,8 +169,10 @@ def coarse_align(mesh, ref, size):
     import copy
 
     import open3d as o3d
+    from scipy.spatial import cKDTree
 
     from core.sampling import sample_surface
+    from reconstruct.registration.pairwise import icp_point_to_plane
 
     rng = np.random.default_rng(0)
     pts = [sample_surface(np.asarray(m.vertices), np.asarray(m.triangles), 30000, rng=rng)
@@ -178,13 +180,14 @@ def coarse_align(mesh, ref, size):
     src, dst = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
         np.asarray(p[0] if isinstance(p, tuple) else p, np.float64))) for p in pts)
     dst.estimate_normals()
+    # our point-to-plane ICP, not Open3D's: its multithreaded sums vary in the last bits
+    # from run to run, and the same seed must give the same report
+    p_dst = np.asarray(dst.points)
+    tree = cKDTree(p_dst)
     T = np.eye(4)
-    reg = o3d.pipelines.registration
     for frac in (0.1, 0.03, 0.01):
-        r = reg.registration_icp(src, dst, frac * size, T,
-                                 reg.TransformationEstimationPointToPlane(),
-                                 reg.ICPConvergenceCriteria(max_iteration=50))
-        T = r.transformation
+        T = icp_point_to_plane(np.asarray(src.points), p_dst, np.asarray(dst.normals), T,
+                               frac * size, tree, iterations=50)
     out = copy.deepcopy(mesh)
     out.transform(T)
     return out, np.asarray(T)

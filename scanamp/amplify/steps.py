@@ -233,10 +233,9 @@ def _fit(mesh, simulation: str, size: float):
 
 def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
     import dataclasses
-    import tempfile
     from pathlib import Path
 
-    from core.files import read_json
+    from core.files import read_json, scratch_dir
     from core.io.mesh import write_mesh
     from procgen.implicit import watertight
 
@@ -273,8 +272,8 @@ def _animate(state: State, step, rng, *, recipe=None, out_dir=None, **_):
 
         size = p["size"] if p["size"] is not None else 0.6
         collider, T = (_fit(solid, sim, size) if p["fit"] else (solid, np.eye(4)))
-        with tempfile.TemporaryDirectory(prefix="scanamp-amplify-") as td:
-            mesh_path = write_mesh(Path(td) / "collider.ply", collider)
+        with scratch_dir(out_dir) as td:
+            mesh_path = write_mesh(td / "collider.ply", collider)
             run_simulation(sim, sub, out_dir / name, mesh_path=mesh_path,
                            frames=p["frames"], render=p["render"], width=p["width"],
                            height=p["height"], seed=seed)

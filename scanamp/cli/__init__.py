@@ -28,7 +28,6 @@ import importlib
 import logging
 import os
 import pkgutil
-import re
 import sys
 import traceback
 from pathlib import Path
@@ -50,16 +49,16 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-# core.files writes into ".NAME.tmp-XXXXXXXX" beside NAME and renames it into place:
-# messages name the final path, never the temporary one.
-_TEMP_NAME = re.compile(r"\.([^/\s]+?)\.(?:tmp|old)-[A-Za-z0-9_]{8}")
-
-
 class _FinalPaths(logging.Filter):
+    """core.files writes into ".NAME.scanamp-tmp-XXXXXXXX" beside NAME and renames it into
+    place: messages name the final path, never the temporary one."""
+
     def filter(self, record: logging.LogRecord) -> bool:
+        from core.files import TEMP_NAME
+
         msg = record.getMessage()
-        if ".tmp-" in msg or ".old-" in msg:
-            record.msg, record.args = _TEMP_NAME.sub(r"\1", msg), None
+        if "-tmp-" in msg or "-old-" in msg:
+            record.msg, record.args = TEMP_NAME.sub(r"\1", msg), None
         return True
 
 
@@ -145,7 +144,7 @@ def _input_paths(args: argparse.Namespace, dest: str) -> list[Path]:
     """Every existing path among the arguments other than the output: the inputs."""
     found = []
     for key, value in vars(args).items():
-        if key == dest or key.startswith("_"):
+        if key in (dest, "command", "kind") or key.startswith("_"):  # not the subcommand
             continue
         for v in value if isinstance(value, (list, tuple)) else [value]:
             if isinstance(v, (str, Path)) and str(v) and os.path.exists(v):
@@ -181,14 +180,25 @@ def _check_outputs(args: argparse.Namespace, config=None) -> tuple[Path, str] | 
     return out, args._command
 
 
+def _hold_output(args: argparse.Namespace, stack: contextlib.ExitStack) -> None:
+    """Hold the output's lock (:func:`core.files.hold`) from its check to the command's end:
+    a second process on the same output exits 2 and the first loses nothing."""
+    from core.files import hold
+
+    out = getattr(args, getattr(args._module, "OUTPUT_DEST", "out"), None)
+    if isinstance(out, (str, Path)) and str(out):
+        stack.enter_context(hold(out))
+
+
 def _run(args: argparse.Namespace) -> int:
     from core import files
     from core.runs import outputs
 
     config = (config_from_args(args._config_cls, args) if args._config_cls is not None
               else None)
-    declared = _check_outputs(args, config)
     with contextlib.ExitStack() as stack:
+        _hold_output(args, stack)
+        declared = _check_outputs(args, config)
         if declared is not None:
             stack.enter_context(outputs.writing(*declared, config))
         code = int((args._run(args, config) if config is not None else args._run(args)) or 0)

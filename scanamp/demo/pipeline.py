@@ -183,22 +183,13 @@ def visible_from_above(mesh, *, elevations_deg=(20.0, 45.0, 70.0), azimuths: int
 
 
 def canonical_mesh(mesh):
-    """``mesh`` with its vertices sorted lexicographically and its triangles in a fixed
-    order (orientation kept): reconstructions fused on several threads (TSDF extraction)
-    list the same triangles in a varying order, which would change the evaluation's
-    random samples from run to run."""
-    from core.meshes import make_mesh, mesh_arrays
+    """The bare geometry of ``mesh`` (no colours, normals recomputed) in the canonical
+    order of :func:`core.meshes.sorted_mesh`: reconstructions fused on several threads
+    (TSDF extraction) list the same triangles in a varying order, which would change the
+    evaluation's random samples from run to run."""
+    from core.meshes import make_mesh, mesh_arrays, sorted_mesh
 
-    v, f = mesh_arrays(mesh)
-    order = np.lexsort(v.T[::-1])
-    rank = np.empty(len(v), np.int64)
-    rank[order] = np.arange(len(v))
-    f = rank[f]
-    roll = np.argmin(f, axis=1)  # start each triangle at its smallest index (same winding)
-    idx = (roll[:, None] + np.arange(3)[None, :]) % 3
-    f = np.take_along_axis(f, idx, axis=1)
-    f = f[np.lexsort(f.T[::-1])]
-    return make_mesh(v[order], f)
+    return sorted_mesh(make_mesh(*mesh_arrays(mesh), compute_normals=False))
 
 
 def score(recon, reference, *, tau: float, mask, rng_seed: int = 0,

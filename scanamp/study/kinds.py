@@ -196,15 +196,17 @@ def material_overrides(overrides: dict) -> dict:
 def validate_run(study, run) -> None:
     """Build one run's configs now; errors name the study file and the override key."""
     kind = KINDS[study.kind]
-    with tempfile.TemporaryDirectory(prefix="scanamp-study-") as tmp:
-        try:
+    try:
+        # the overrides go through the capture command's own TOML loader; the file lives
+        # only as long as that (the scene is built after it is gone)
+        with tempfile.TemporaryDirectory(prefix="scanamp-study-") as tmp:
             build_configs(kind, run.overrides, Path(tmp) / "capture.toml")
-            material_overrides(run.overrides)
-            if study.kind != "_test":
-                _scene(study.scene, material_overrides(run.overrides))
-        except InputError as exc:
-            raise InputError(exc.message, path=study.path,
-                             field=_locate(exc.field, study, run)) from None
+        material_overrides(run.overrides)
+        if study.kind != "_test":
+            _scene(study.scene, material_overrides(run.overrides))
+    except InputError as exc:
+        raise InputError(exc.message, path=study.path,
+                         field=_locate(exc.field, study, run)) from None
 
 
 def _locate(field: str | None, study, run) -> str | None:

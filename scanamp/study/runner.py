@@ -26,6 +26,7 @@ seconds is an input error.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -36,7 +37,8 @@ import time
 import traceback
 from pathlib import Path
 
-from core.files import read_json, write_declared, write_json
+from core.files import hold, read_json, remove_stale, scratch_dir, write_declared, write_json
+from core.runs.outputs import read_manifest, write_declared
 from core.progress import track
 from core.runs.outputs import read_manifest
 from core.validate import InputError
@@ -54,7 +56,8 @@ def _task(study, run, record_dir: Path | None, keep_dir: Path | None) -> dict:
     return {"run_id": run.run_id, "kind": study.kind, "scene": study.scene, "seed": run.seed,
             "params": run.params, "overrides": run.overrides, "metrics": list(study.metrics),
             "record_path": str(record_dir / f"{run.run_id}.json") if record_dir else None,
-            "keep_dir": str(keep_dir) if keep_dir else None}
+            "keep_dir": str(keep_dir) if keep_dir else None,
+            "scratch_root": str(record_dir.parent) if record_dir else None}
 
 
 def execute_run(task: dict) -> dict:
@@ -81,8 +84,8 @@ def execute_run(task: dict) -> dict:
         work.mkdir(parents=True)
         cleanup = None
     else:
-        cleanup = tempfile.TemporaryDirectory(prefix=f"scanamp-run-{task['run_id'][:40]}-")
-        work = Path(cleanup.name)
+        cleanup = contextlib.ExitStack()
+        work = Path(cleanup.enter_context(_scratch(task)))
     try:
         cap_cfg, rec_cfg = build_configs(kind, task["overrides"], work / "capture.toml")
         report = kind.execute(cap_cfg, rec_cfg, scene=task["scene"], seed=task["seed"],
@@ -95,12 +98,21 @@ def execute_run(task: dict) -> dict:
                    report=getattr(exc, "report", None) if isinstance(exc, RunFailed) else None)
     finally:
         if cleanup is not None:
-            cleanup.cleanup()
+            cleanup.close()
     rec["seconds"] = round(time.perf_counter() - t0, 3)
     rec["metrics"] = {m: get_metric(rec.get("report") or {}, m) for m in task["metrics"]}
     if task.get("record_path"):
         write_json(task["record_path"], rec)
     return rec
+
+
+def _scratch(task: dict):
+    """The run's scratch folder: under the study folder (:func:`core.files.scratch_dir`,
+    removed on success and failure, and by the next resume after a kill), or, on a Dask
+    worker that does not share that folder, a temporary folder of the worker's machine."""
+    if task.get("scratch_root"):
+        return scratch_dir(task["scratch_root"])
+    return tempfile.TemporaryDirectory(prefix=f"scanamp-run-{task['run_id'][:40]}-")
 
 
 def load_records(out_dir: str | os.PathLike) -> dict[str, dict]:
@@ -165,7 +177,8 @@ def _run_dask(tasks: list[dict], client, done_cb) -> None:
 
     futs = {}
     for t in tasks:
-        t = {**t, "record_path": None, "keep_dir": None}  # workers may not see this folder
+        t = {**t, "record_path": None, "keep_dir": None,  # workers may not see this folder
+             "scratch_root": None}
         futs[client.submit(execute_run, t, key=f"scanamp-study-{t['run_id']}", pure=False)] = t
     with client.as_current():
         for fut in as_completed(list(futs)):
@@ -211,7 +224,15 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
     if client is None and scheduler:  # before touching the folder: a bad address leaves none
         client = own_client = connect(scheduler, timeout=timeout)
     out = Path(out_dir)
+    with hold(out):  # one study process per folder
+        return _run_study(study, out, workers=workers, client=client, own_client=own_client,
+                          keep=keep)
+
+
+def _run_study(study, out: Path, *, workers, client, own_client, keep) -> dict:
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    for left in remove_stale(out):  # scratch and temporaries of a study killed before
+        log.info("removed %s, left by an earlier run that was killed", left)
     if read_manifest(out) is None:  # ours from the first run on, so a killed study resumes
         write_declared(out, out)
     if study.path is not None:
