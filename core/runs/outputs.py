@@ -24,8 +24,8 @@ import shutil
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from core.files import API, MANIFEST, atomic_dir, declare_output, hold, write_manifest
 from core.config import to_dict
+from core.files import API, MANIFEST, atomic_dir, declare_output, hold, write_manifest
 from core.validate import InputError
 
 __all__ = ["read_manifest", "check_output", "check_output_file", "output_dir", "writing"]

@@ -22,9 +22,9 @@ from acquire.capture_io import Capture, load_capture
 from acquire.targets import target_from_dict
 from core.config import Config, option
 from core.files import atomic_dir, json_data, write_json
+from core.frames import transform_points
 from core.io.mesh import write_mesh, write_points
 from core.meshes import sorted_mesh
-from core.frames import transform_points
 from core.progress import track
 from core.validate import InputError
 from reconstruct.calibration.camera import detect_board

@@ -270,8 +270,6 @@ class _Setup:
 
 def _laser(st: DemoSettings, seed: int) -> _Setup:
     from acquire.laser.rig import LaserCaptureConfig, LaserRig
-    from core.io.mesh import read_mesh
-    from core.meshes import transform_mesh
     from reconstruct.laser.pipeline import LaserReconConfig
     from reconstruct.surface.meshing import MeshingOptions
 
@@ -297,8 +295,6 @@ def _laser(st: DemoSettings, seed: int) -> _Setup:
 def _stereo(st: DemoSettings, seed: int) -> _Setup:
     from acquire.stereo.rig import RigConfig
     from core.config import with_options
-    from core.io.mesh import read_mesh
-    from core.meshes import transform_mesh
     from scanamp.methods import get_method
 
     w, h = st.stereo_size
@@ -319,7 +315,6 @@ def _stereo(st: DemoSettings, seed: int) -> _Setup:
 
 def _sfm(st: DemoSettings, seed: int) -> _Setup:
     from acquire.sfm.capture import PathConfig
-    from core.io.mesh import read_mesh
     from reconstruct.sfm.pipeline import SfmConfig
 
     w, h = st.sfm_size

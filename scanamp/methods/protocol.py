@@ -125,7 +125,8 @@ class Method(abc.ABC):
 
 
 def add_from_stage(parser: argparse.ArgumentParser, stages) -> None:
-    """``--from STAGE`` of a staged pipeline's reconstruct command (:class:`core.runs.stages.Stages`)."""
+    """``--from STAGE`` of a staged pipeline's reconstruct command
+    (:class:`core.runs.stages.Stages`)."""
     parser.add_argument("--from", dest="from_stage", choices=stages, default=None,
                         help="re-run from this stage on (" + " -> ".join(stages) + "); without "
                              "it a stage whose options and inputs are unchanged is reused from "

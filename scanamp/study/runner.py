@@ -38,7 +38,6 @@ import traceback
 from pathlib import Path
 
 from core.files import hold, read_json, remove_stale, scratch_dir, write_declared, write_json
-from core.runs.outputs import read_manifest, write_declared
 from core.progress import track
 from core.runs.outputs import read_manifest
 from core.validate import InputError
