@@ -27,17 +27,18 @@ def _colored(v, f, rgb):
 
 
 def city(out: Path, seed: int = 0) -> Path:
-    from procgen.city import CityConfig, generate_city
-    from scanamp.commands.procgen_city import _COLORS
+    from procgen.city import ELEMENTS, CityConfig, generate_city
+    from scanamp.commands.procgen_city import COLORS
 
-    c = generate_city(np.random.default_rng(seed), CityConfig(voxel=2.0))
-    kinds = np.array(["building", "road", "highway"])[c.part]
-    rgb = np.array([_COLORS[k] for k in kinds])
+    c = generate_city(np.random.default_rng(seed), CityConfig(size=1000, max_segments=250))
+    rgb = np.array([COLORS[k] for k in ELEMENTS])[c.element]
+    v = c.vertices[c.triangles].reshape(-1, 3)       # a colour per triangle
+    f = np.arange(len(v)).reshape(-1, 3)
     pl = pv.Plotter(off_screen=True, window_size=(960, 720))
-    pl.add_mesh(_colored(c.vertices, c.triangles, rgb), scalars="rgb", rgb=True)
+    pl.add_mesh(_colored(v, f, np.repeat(rgb, 3, axis=0)), scalars="rgb", rgb=True)
     lo, hi = c.vertices[:, :2].min(0), c.vertices[:, :2].max(0)
     ground = pv.Plane(center=(*(lo + hi) / 2, 0.0), i_size=hi[0] - lo[0], j_size=hi[1] - lo[1])
-    pl.add_mesh(ground, color=_COLORS["ground"])
+    pl.add_mesh(ground, color=COLORS["ground"])
     pl.set_background("white")
     pl.view_isometric()
     pl.camera.elevation = 10
