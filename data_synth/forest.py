@@ -459,7 +459,7 @@ def _roads_and_buildings(cfg, dtm, V, F, parts, rng, objects, meshes):
     city = generate_city(rng, CityConfig(size=max(extent, 100.0), highway_length=extent / 3,
                                          street_length=extent / 4, snap_radius=extent / 10,
                                          river_width=0.0, parks=0, max_segments=12,
-                                         lot_width=14.0, lot_depth=14.0, voxel=1.0))
+                                         lot_width=14.0, lot_depth=14.0))
     shift = np.array([dtm.x0 + extent / 2, dtm.y0 + extent / 2])
     if len(city.edges) == 0:
         return

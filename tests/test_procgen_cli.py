@@ -130,18 +130,46 @@ def _labelled(path):
     return m, {m["names"][int(k)] for k in np.unique(m["labels"])}
 
 
-def test_city_cli_writes_roads_and_buildings_labelled(tmp_path):
+def test_city_cli_writes_roads_buildings_and_gis_files(tmp_path):
+    import json
+
+    from procgen.city import check_cityjson
+
     out = tmp_path / "city" / "c.ply"
     out.parent.mkdir()
     assert main(["-q", "procgen", "city", "--size", "600", "--max-segments", "60",
-                 "--voxel", "3", "--out", str(out)]) == 0
+                 "--pattern", "grid", "--out", str(out)]) == 0
     m, names = _labelled(out)
-    assert names == {"road", "building", "ground"}
+    assert names == {"road", "building", "roof", "window", "ground"}
     # roads lie flat just above the ground, buildings rise from it
     road = m["vertices"][m["labels"] == 6]
     assert np.allclose(road[:, 2], 0.05)
-    assert m["vertices"][m["labels"] == 7][:, 2].max() > 6.0
+    assert m["vertices"][m["labels"] == 8][:, 2].max() > 6.0
     assert read_image(out.with_name("c.preview.png")).std() > 1
+    roads = json.loads(out.with_name("c.roads.geojson").read_text())
+    assert roads["type"] == "FeatureCollection" and len(roads["features"]) > 10
+    buildings = json.loads(out.with_name("c.buildings.geojson").read_text())
+    assert all(f["properties"]["floors"] >= 1 for f in buildings["features"])
+    doc = json.loads(out.with_name("c.city.json").read_text())
+    assert check_cityjson(doc) == [] and len(doc["CityObjects"]) == len(buildings["features"])
+
+
+def test_city_cli_bad_rule_file_and_map_exit_2_writing_nothing(tmp_path, capsys):
+    rules = tmp_path / "rules.toml"
+    rules.write_text('[rules]\nLot = { op = "extrude", then = "M" }\nM = { op = "explode" }\n')
+    out = tmp_path / "a" / "c.ply"
+    assert main(["-q", "procgen", "city", "--size", "400", "--rules", str(rules),
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "rules.toml" in err and "rules.M.op" in err and "explode" in err
+    assert len(err.strip().splitlines()) == 1 and not out.parent.exists()
+    pop = tmp_path / "pop.npy"
+    np.save(pop, np.ones((16, 24)))
+    assert main(["-q", "procgen", "city", "--size", "400", "--population", str(pop),
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "pop.npy" in err and "population" in err and "(16, 24)" in err
+    assert not out.parent.exists()
 
 
 def test_plant_cli_bark_and_leaves_same_seed_same_bytes(tmp_path):

@@ -21,7 +21,7 @@ __all__ = ["LABELS", "COLORS", "PART_MATERIALS", "label_of_part", "part_material
 # label id -> name; fixed, so a label means the same thing in every output
 LABELS = {0: "surface", 1: "ground", 2: "object", 3: "plant", 4: "vine", 5: "snow",
           6: "road", 7: "building", 8: "roof", 9: "bark", 10: "leaf", 11: "shell",
-          12: "cloth", 13: "boid"}
+          12: "cloth", 13: "boid", 14: "window"}
 _IDS = {name: k for k, name in LABELS.items()}
 _PART_KIND = {"plants": "plant", "vines": "vine", "snow": "snow", "cloth": "cloth",
               "boids": "boid"}
@@ -37,6 +37,7 @@ PART_MATERIALS = {"leaf": {"brdf": "translucent", "transmission": 0.3},
                   "vine": {"brdf": "dielectric", "roughness": 0.45},
                   "building": {"brdf": "dielectric", "roughness": 0.6},
                   "roof": {"brdf": "dielectric", "roughness": 0.35},
+                  "window": {"brdf": "dielectric", "roughness": 0.05},
                   "snow": {"brdf": "subsurface", "mfp": 2e-3},
                   "boid": {"brdf": "conductor", "roughness": 0.3}}
 
