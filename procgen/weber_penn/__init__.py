@@ -3,7 +3,7 @@
 - :mod:`~procgen.weber_penn.params`: the parameter table and the species' TOML files
   (:func:`load_species`, :func:`species_names`);
 - :mod:`~procgen.weber_penn.shapes`: crown shapes 0-8, pruning envelope, taper, flare;
-- :mod:`~procgen.weber_penn.grow`: :func:`grow` a :class:`Tree` (skeleton and leaves);
+- :mod:`~procgen.weber_penn.growth`: :func:`grow` a :class:`Tree` (skeleton and leaves);
 - :mod:`~procgen.weber_penn.appearance`: :func:`tree_mesh` (bark, leaves, seasons, LOD);
 - :mod:`~procgen.weber_penn.qsm`: :func:`tree_qsm`, the skeleton as TreeQSM cylinders;
 - :mod:`~procgen.weber_penn.laws`: Leonardo's rule, taper, angles, allometry, crown
@@ -19,8 +19,8 @@ from core.lazy import lazy_exports
 _EXPORTS = {
     "TreeParams": "params", "load_species": "params", "species_names": "params",
     "parse_params": "params", "params_to_dict": "params", "write_species": "params",
-    "shape_ratio": "shapes", "Tree": "grow", "Skeleton": "grow", "Leaves": "grow",
-    "grow": "grow", "TreeMesh": "appearance", "tree_mesh": "appearance",
+    "shape_ratio": "shapes", "Tree": "growth", "Skeleton": "growth", "Leaves": "growth",
+    "grow": "growth", "TreeMesh": "appearance", "tree_mesh": "appearance",
     "TREE_LABELS": "appearance", "bark_texture": "appearance", "tree_qsm": "qsm",
     "leonardo_exponents": "laws", "allometric_exponent": "laws", "crown_profile": "laws",
 }

@@ -23,7 +23,7 @@ import numpy as np
 
 from core.validate import check_choice, check_rng
 from procgen.noise import fbm
-from procgen.weber_penn.grow import Tree
+from procgen.weber_penn.growth import Tree
 from procgen.weber_penn.params import leaf_shape_name
 from procgen.weber_penn.shapes import flare_factor
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from core.qsm_io import QSM, check_qsm
-from procgen.weber_penn.grow import Tree
+from procgen.weber_penn.growth import Tree
 from procgen.weber_penn.shapes import flare_factor
 
 __all__ = ["tree_qsm"]
