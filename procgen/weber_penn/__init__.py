@@ -6,6 +6,7 @@
 - :mod:`~procgen.weber_penn.growth`: :func:`grow` a :class:`Tree` (skeleton and leaves);
 - :mod:`~procgen.weber_penn.appearance`: :func:`tree_mesh` (bark, leaves, seasons, LOD);
 - :mod:`~procgen.weber_penn.qsm`: :func:`tree_qsm`, the skeleton as TreeQSM cylinders;
+- :mod:`~procgen.weber_penn.stand`: :func:`grow_stand`, forests by instancing;
 - :mod:`~procgen.weber_penn.laws`: Leonardo's rule, taper, angles, allometry, crown
   envelope, measured on any QSM.
 
@@ -23,6 +24,7 @@ _EXPORTS = {
     "grow": "growth", "TreeMesh": "appearance", "tree_mesh": "appearance",
     "TREE_LABELS": "appearance", "bark_texture": "appearance", "tree_qsm": "qsm",
     "leonardo_exponents": "laws", "allometric_exponent": "laws", "crown_profile": "laws",
+    "Stand": "stand", "grow_stand": "stand",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
