@@ -115,7 +115,7 @@ def write_qsm_csv(path: str | os.PathLike, qsm: QSM) -> Path:
     buf.write(",".join(QSM_COLUMNS) + "\n")
     ints = np.stack([qsm.id, qsm.parent, qsm.extension, qsm.branch, qsm.branch_order], 1)
     floats = np.column_stack([qsm.start, qsm.axis, qsm.length, qsm.radius])
-    for i_row, f_row in zip(ints.tolist(), floats.tolist()):
+    for i_row, f_row in zip(ints.tolist(), floats.tolist(), strict=False):
         buf.write(",".join(str(int(v)) for v in i_row) + ","
                   + ",".join(repr(float(v)) for v in f_row) + "\n")
     with atomic_file(path) as tmp:
@@ -163,9 +163,9 @@ def read_qsm_csv(path: str | os.PathLike) -> QSM:
         branch = col("branchID", int) + 1 if "branchID" in header else np.ones(len(ids), int)
         ext = np.zeros(len(ids), int)
         same = {}
-        for i, (pa, br) in enumerate(zip(parent, branch)):
+        for i, (pa, br) in enumerate(zip(parent, branch, strict=False)):
             same[(pa, br)] = ids[i]
-        for i, (me, br) in enumerate(zip(ids, branch)):
+        for i, (me, br) in enumerate(zip(ids, branch, strict=False)):
             ext[i] = same.get((me, br), 0)
         qsm = QSM(ids, parent, ext, branch, order, start,
                   d / np.maximum(length, 1e-12)[:, None], length, col("radius"))

@@ -13,6 +13,7 @@ from core.qsm_io import QSM, check_qsm, read_qsm_csv, write_qsm_csv
 from core.validate import InputError
 from procgen.weber_penn import (
     grow,
+    laws,
     load_species,
     params_to_dict,
     parse_params,
@@ -21,7 +22,6 @@ from procgen.weber_penn import (
     tree_qsm,
     write_species,
 )
-from procgen.weber_penn import laws
 from procgen.weber_penn.shapes import shape_ratio, taper_radius
 
 # The published parameter sets as the reference tables give them (Weber & Penn 1995, in
@@ -407,7 +407,7 @@ def test_cli_tree_laws_refuses_a_qsm_that_is_no_tree(tmp_path, capsys):
     q = _qsm([0, 1, 4, 3])
     rows = ["id,parent,extension,branch,branch_order,start_x,start_y,start_z,axis_x,axis_y,"
             "axis_z,length,radius"]
-    rows += [f"{i},{p},0,1,0,0,0,0,0,0,1,1,0.1" for i, p in zip(q.id, q.parent)]
+    rows += [f"{i},{p},0,1,0,0,0,0,0,0,1,1,0.1" for i, p in zip(q.id, q.parent, strict=False)]
     bad.write_text("\n".join(rows) + "\n")
     out = tmp_path / "laws.json"
     assert _cli(["procgen", "tree-laws", str(bad), "--out", str(out)]) == 2

@@ -196,7 +196,7 @@ def _leaf_geometry(tree: Tree, rng):
              + np.sin(spread) * (np.cos(ang)[..., None] * side[:, None, :]
                                  + np.sin(ang)[..., None] * lv.normal[:, None, :]))
         tip = lv.position[:, None, :] + lv.length[:, None, None] * d
-        wid = 0.0015 * (np.cos(ang)[..., None] * lv.normal[:, None, :]
+        wid = 0.004 * (np.cos(ang)[..., None] * lv.normal[:, None, :]
                         - np.sin(ang)[..., None] * side[:, None, :])
         b0 = lv.position[:, None, :] + wid
         b1 = lv.position[:, None, :] - wid
@@ -233,7 +233,7 @@ def _leaf_cards(tree: Tree, colours: np.ndarray):
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
     spread = np.zeros(n)
     np.maximum.at(spread, inv, np.linalg.norm(lv.position - centre[inv], axis=1))
-    half = np.maximum(spread, lv.length[0]) + 0.5 * lv.length.max()
+    half = 0.5 * np.maximum(spread, lv.length[0]) + 0.5 * lv.length.max()
     a = np.cross(normal, [1.0, 0.0, 0.0])
     bad = np.linalg.norm(a, axis=1) < 1e-6
     a[bad] = [0.0, 1.0, 0.0]

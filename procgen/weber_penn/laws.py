@@ -24,7 +24,8 @@ import numpy as np
 from core.qsm_io import QSM
 
 __all__ = ["leonardo_exponents", "taper", "branching_angles", "divergence_angles", "dbh",
-           "allometric_exponent", "crown_profile", "crown_silhouette", "envelope_correlation", "BREAST_HEIGHT"]
+           "allometric_exponent", "crown_profile", "crown_silhouette", "envelope_correlation",
+           "BREAST_HEIGHT"]
 
 BREAST_HEIGHT = 1.3  # metres above the stem's base
 
@@ -47,7 +48,8 @@ def leonardo_exponents(qsm: QSM, *, min_radius: float = 0.0) -> np.ndarray:
         return np.zeros(0)
     k = (hi - lo)[forks]
     rep = np.repeat(np.arange(len(forks)), k)
-    kid = order[np.concatenate([np.arange(a, b) for a, b in zip(lo[forks], hi[forks])])]
+    kid = order[np.concatenate([np.arange(a, b)
+                                for a, b in zip(lo[forks], hi[forks], strict=True)])]
     ratio = qsm.radius[kid] / qsm.radius[forks][rep]
 
     def f(D):

@@ -6,7 +6,7 @@ The shape ratio scales a first-order branch by where it leaves the trunk: ``rati
 the crown base and 0 at the top (``(length_trunk - offset) / (length_trunk - base)``).
 
 >>> import numpy as np
->>> shape_ratio(0, np.array([0.0, 0.5, 1.0])).tolist()   # conical: longest at the base
+>>> shape_ratio(0, np.array([0.0, 0.5, 1.0])).round(6).tolist()  # conical: longest at the base
 [0.2, 0.6, 1.0]
 >>> float(shape_ratio(5, 0.7))                             # flame: widest at 70 %
 1.0

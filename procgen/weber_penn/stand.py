@@ -39,7 +39,7 @@ class Stand:
     def mesh(self) -> TreeMesh:
         """Every tree of the stand as one mesh."""
         V, T, C, L, n = [], [], [], [], 0
-        for k, M in zip(self.template, self.world_from_tree):
+        for k, M in zip(self.template, self.world_from_tree, strict=False):
             m = self.templates[k]
             V.append(m.vertices @ M[:3, :3].T + M[:3, 3])
             T.append(m.triangles + n)
