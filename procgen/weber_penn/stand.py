@@ -37,17 +37,24 @@ class Stand:
         return t + self.template.nbytes + self.world_from_tree.nbytes
 
     def mesh(self) -> TreeMesh:
-        """Every tree of the stand as one mesh."""
-        V, T, C, L, n = [], [], [], [], 0
-        for k, M in zip(self.template, self.world_from_tree, strict=False):
+        """Every tree of the stand as one mesh (filled in place: no per-tree copies)."""
+        nv = np.array([len(m.vertices) for m in self.templates])[self.template]
+        nt = np.array([len(m.triangles) for m in self.templates])[self.template]
+        v0 = np.concatenate([[0], np.cumsum(nv)])
+        t0 = np.concatenate([[0], np.cumsum(nt)])
+        V = np.empty((v0[-1], 3))
+        T = np.empty((t0[-1], 3), np.int64)
+        C = np.empty((v0[-1], 3))
+        L = np.empty(v0[-1], np.int64)
+        for i, (k, M) in enumerate(zip(self.template, self.world_from_tree, strict=True)):
             m = self.templates[k]
-            V.append(m.vertices @ M[:3, :3].T + M[:3, 3])
-            T.append(m.triangles + n)
-            C.append(m.colors)
-            L.append(m.labels)
-            n += len(m.vertices)
-        return TreeMesh(np.concatenate(V), np.concatenate(T), np.concatenate(C),
-                        np.concatenate(L))
+            vs, ts = slice(v0[i], v0[i + 1]), slice(t0[i], t0[i + 1])
+            x = m.vertices  # x R^T + t, column by column (a 3x3 matmul is slower)
+            V[vs] = x[:, :1] * M[:3, 0] + x[:, 1:2] * M[:3, 1] + x[:, 2:3] * M[:3, 2] + M[:3, 3]
+            np.add(m.triangles, v0[i], out=T[ts])
+            C[vs] = m.colors
+            L[vs] = m.labels
+        return TreeMesh(V, T, C, L)
 
 
 def grow_stand(species, positions, heights, *, rng: np.random.Generator, variants: int = 4,
