@@ -21,7 +21,6 @@ from procgen.weber_penn import (
     tree_mesh,
     tree_qsm,
 )
-from procgen.weber_penn.shapes import shape_ratio
 
 REAL_QSM = Path(os.environ.get("SCANAMP_SHARED", "/work/shared")) / "data/reference/qsm/QSM.csv"
 HEIGHTS = (6.0, 10.0, 15.0, 20.0, 28.0)
@@ -39,8 +38,7 @@ def species_row(name: str) -> dict:
     D = laws.leonardo_exponents(q)
     ang = laws.branching_angles(q)
     div = laws.divergence_angles(q)
-    ratio, reach = laws.crown_profile(q, base=p["BaseSize"] * tree.height)
-    corr = laws.envelope_correlation(ratio, reach, shape_ratio(p["Shape"], ratio))
+    corr, _ = laws.species_envelope(q, p, leaves=tree.leaves.position)
     return dict(name=name, D=np.median(D) if len(D) else np.nan, forks=len(D),
                 b=laws.allometric_exponent(HEIGHTS, dbhs), mono=laws.taper(q)["monotone"],
                 a1=np.median(ang[1]) if 1 in ang else np.nan,

@@ -25,7 +25,7 @@ from core.qsm_io import QSM
 
 __all__ = ["leonardo_exponents", "taper", "branching_angles", "divergence_angles", "dbh",
            "allometric_exponent", "crown_profile", "crown_silhouette", "envelope_correlation",
-           "BREAST_HEIGHT"]
+           "species_envelope", "BREAST_HEIGHT"]
 
 BREAST_HEIGHT = 1.3  # metres above the stem's base
 
@@ -170,9 +170,10 @@ def crown_silhouette(qsm: QSM, *, base: float, bins: int = 10, extra_points=None
     return (top - mid) / max(top - base, 1e-9), prof
 
 
-def crown_profile(qsm: QSM, *, base: float, bins: int = 10):
+def crown_profile(qsm: QSM, *, base_size: float, bins: int = 10):
     """The crown's radius along the stem, as Weber & Penn's shape function sets it: for each
-    of ``bins`` slices of the stem from ``base`` (m above its base) to the top, the largest
+    of ``bins`` slices of the stem from ``base_size`` (a fraction of the stem's height, the
+    species' ``BaseSize``) to its top, the largest
     reach (3-D distance from the limb's base to its farthest cylinder end) of the limbs
     (order-1 branches and all that grows on them) leaving that slice.
 
@@ -193,6 +194,7 @@ def crown_profile(qsm: QSM, *, base: float, bins: int = 10):
     stem = qsm.branch_order == 0
     z0 = qsm.start[stem, 2].min()
     top = qsm.end[stem, 2].max() - z0
+    base = base_size * top
     sel = np.flatnonzero(limb >= 0)
     reach = np.linalg.norm(qsm.end[sel] - qsm.start[limb[sel]], axis=1)
     best = np.zeros(len(qsm))
@@ -218,3 +220,22 @@ def envelope_correlation(ratio, reach, shape_values) -> float:
     if len(a) < 3 or np.std(b) < 1e-9 or np.std(a) < 1e-12:
         return float("nan")
     return float(np.corrcoef(a, b)[0, 1])
+
+
+def species_envelope(qsm: QSM, tree_params, *, leaves=None) -> tuple[float, str]:
+    """The correlation between a tree's crown and its species' shape function, and which
+    profile was compared: the limbs' reach against ``Shape`` (:func:`crown_profile`), or for
+    a pruned species (``PruneRatio`` > 0) the crown's silhouette (:func:`crown_silhouette`,
+    with ``leaves`` (k, 3) if given) against the pruning envelope, which bounds the
+    silhouette. NaN for a constant shape (cylindrical), where no correlation is defined."""
+    from procgen.weber_penn.shapes import shape_ratio
+
+    p = tree_params
+    if p["PruneRatio"] > 0:
+        stem = qsm.branch_order == 0
+        top = qsm.end[stem, 2].max() - qsm.start[stem, 2].min()
+        ratio, prof = crown_silhouette(qsm, base=p["BaseSize"] * top, extra_points=leaves)
+        return (envelope_correlation(ratio, prof, shape_ratio(8, ratio, prune=p.tree)),
+                "silhouette / envelope")
+    ratio, reach = crown_profile(qsm, base_size=p["BaseSize"])
+    return envelope_correlation(ratio, reach, shape_ratio(p["Shape"], ratio)), "limbs / shape"
