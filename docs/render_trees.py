@@ -55,6 +55,18 @@ def gallery(out: Path):
     pl.close()
 
 
+def thumbnails(out: Path):
+    """One small render a species (docs/trees.md puts each beside the species' name)."""
+    (out / "trees").mkdir(exist_ok=True)
+    for name in species_names():
+        p = load_species(name)
+        t = grow(p, height=p["Scale"], rng=np.random.default_rng(1))
+        pl = pv.Plotter(off_screen=True, window_size=(220, 280))
+        _add(pl, tree_mesh(t, rng=np.random.default_rng(2)), "")
+        pl.screenshot(str(out / "trees" / f"{name}.png"))
+        pl.close()
+
+
 def seasons(out: Path):
     cases = [("european_beech", "summer", "full"), ("european_beech", "autumn", "full"),
              ("european_beech", "winter", "full"), ("european_beech", "summer", "cards"),
@@ -83,5 +95,6 @@ if __name__ == "__main__":
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "img"
     out.mkdir(parents=True, exist_ok=True)
     gallery(out)
+    thumbnails(out)
     seasons(out)
     barks(out)
