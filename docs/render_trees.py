@@ -21,23 +21,9 @@ from procgen.weber_penn import (  # noqa: E402
     species_names,
     tree_mesh,
 )
+from scanamp.commands.procgen_tree import add_tree  # noqa: E402
 
 pv.OFF_SCREEN = True
-
-
-def _add(pl, mesh, title):
-    faces = np.hstack([np.full((len(mesh.triangles), 1), 3), mesh.triangles]).ravel()
-    poly = pv.PolyData(mesh.vertices, faces)
-    poly.point_data["rgb"] = np.round(mesh.colors * 255).astype(np.uint8)
-    pl.add_mesh(poly, scalars="rgb", rgb=True)
-    pl.add_text(title, font_size=10, color="black")
-    pl.set_background("white")
-    lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
-    c = (lo + hi) / 2
-    span = float(max(hi - lo))
-    pl.camera_position = [(c[0] + 1.5 * span, c[1] - 1.5 * span, c[2] + 0.15 * span),
-                          tuple(c), (0, 0, 1)]
-    pl.camera.view_angle = 30
 
 
 def gallery(out: Path):
@@ -49,7 +35,7 @@ def gallery(out: Path):
         p = load_species(name)
         t = grow(p, height=p["Scale"], rng=np.random.default_rng(1))
         pl.subplot(i // cols, i % cols)
-        _add(pl, tree_mesh(t, rng=np.random.default_rng(2)),
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(2)),
              f"{p.species['common']}, {t.height:.0f} m")
     pl.screenshot(str(out / "trees_gallery.png"))
     pl.close()
@@ -62,7 +48,7 @@ def thumbnails(out: Path):
         p = load_species(name)
         t = grow(p, height=p["Scale"], rng=np.random.default_rng(1))
         pl = pv.Plotter(off_screen=True, window_size=(220, 280))
-        _add(pl, tree_mesh(t, rng=np.random.default_rng(2)), "")
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(2)), "")
         pl.screenshot(str(out / "trees" / f"{name}.png"))
         pl.close()
 
@@ -75,7 +61,7 @@ def seasons(out: Path):
     for i, (name, season, lod) in enumerate(cases):
         t = grow(load_species(name), height=18.0, rng=np.random.default_rng(3))
         pl.subplot(0, i)
-        _add(pl, tree_mesh(t, rng=np.random.default_rng(4), season=season, lod=lod),
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(4), season=season, lod=lod),
              f"{name.replace('_', ' ')}: {season}{', leaf cards' if lod == 'cards' else ''}")
     pl.screenshot(str(out / "trees_seasons.png"))
     pl.close()

@@ -49,6 +49,25 @@ def add_arguments(p):
     p.add_argument("--no-preview", action="store_true", help="do not write preview.png")
 
 
+def add_tree(plotter, mesh, title: str = "") -> None:
+    """Add a :class:`procgen.weber_penn.TreeMesh` with its vertex colours to a pyvista
+    plotter (the active subplot), on white, seen from a three-quarter view that fits it."""
+    from core.meshes import make_mesh, to_pyvista
+
+    poly = to_pyvista(make_mesh(mesh.vertices, mesh.triangles, vertex_colors=mesh.colors,
+                                compute_normals=False))
+    plotter.add_mesh(poly, scalars="rgb", rgb=True)
+    if title:
+        plotter.add_text(title, font_size=10, color="black")
+    plotter.set_background("white")
+    lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
+    c = (lo + hi) / 2
+    span = float(max(hi - lo))
+    plotter.camera_position = [(c[0] + 1.5 * span, c[1] - 1.5 * span, c[2] + 0.15 * span),
+                               tuple(c), (0, 0, 1)]
+    plotter.camera.view_angle = 30
+
+
 def render_tree(mesh, path: Path, *, size=(640, 800)) -> Path:
     """Render a :class:`procgen.weber_penn.TreeMesh` with its vertex colours to a PNG
     (pyvista off-screen; matplotlib when there is no OpenGL)."""
@@ -59,30 +78,20 @@ def render_tree(mesh, path: Path, *, size=(640, 800)) -> Path:
         import pyvista as pv
 
         pl = pv.Plotter(off_screen=True, window_size=size)
-        faces = np.hstack([np.full((len(mesh.triangles), 1), 3), mesh.triangles]).ravel()
-        poly = pv.PolyData(mesh.vertices, faces)
-        poly.point_data["rgb"] = np.round(mesh.colors * 255).astype(np.uint8)
-        pl.add_mesh(poly, scalars="rgb", rgb=True)
-        pl.set_background("white")
-        lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
-        c = (lo + hi) / 2
-        span = float(max(hi - lo))
-        pl.camera_position = [(c[0] + 1.6 * span, c[1] - 1.6 * span, c[2] + 0.2 * span),
-                              tuple(c), (0, 0, 1)]
-        pl.camera.view_angle = 30
+        add_tree(pl, mesh)
         img = pl.screenshot(return_img=True)
         pl.close()
-    except Exception as exc:  # no OpenGL: the shared matplotlib preview by part
-        log.debug("pyvista preview failed (%s); using matplotlib", exc)
+    except Exception as exc:  # no OpenGL: the shared preview, one colour a part
+        log.debug("pyvista preview failed (%s); using the parts' preview", exc)
         from core.meshes import make_mesh
-        from scanamp.commands._procgen_common import _matplotlib_preview
+        from scanamp.commands._procgen_common import render_preview
 
         parts = []
         for lab in np.unique(mesh.labels):
             v, f = mesh.part(int(lab))
             if len(f):
                 parts.append((make_mesh(v, f), tuple(mesh.colors[f[:, 0]].mean(0))))
-        img = _matplotlib_preview(parts, size)
+        return render_preview(parts, path, size=size)
     write_image(path, np.ascontiguousarray(img[..., :3]).astype(np.uint8))
     return path
 
