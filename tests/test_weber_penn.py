@@ -413,3 +413,37 @@ def test_cli_tree_laws_refuses_a_qsm_that_is_no_tree(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("error:") and str(bad) in err and "parent" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name, rotate", [("european_beech", 137.5), ("sycamore_maple", 90.0),
+                                          ("quaking_aspen", 140.0)])
+def test_divergence_between_successive_limbs_is_the_species_rotation(name, rotate):
+    # spiral phyllotaxis at the golden angle (beech), decussate pairs (sycamore), the
+    # paper's 140 (aspen); RotateV and the stem's curvature spread it a little
+    q = tree_qsm(grow(load_species(name), height=10.0, rng=np.random.default_rng(1)))
+    assert np.median(laws.divergence_angles(q)) == pytest.approx(rotate, abs=8.0)
+
+
+def test_a_negative_curve_v_grows_a_helix():
+    d = params_to_dict(load_species("lombardy_poplar"))
+    d["level"]["0"].update(CurveV=-20.0, CurveRes=16)
+    t = grow(parse_params(d), height=10.0, rng=np.random.default_rng(0))
+    trunk = t.skeleton.points[t.skeleton.ptr[0]:t.skeleton.ptr[1]]
+    xy = trunk[:, :2] - trunk[:, :2].mean(0)
+    r = np.linalg.norm(xy, axis=1)
+    turn = np.diff(np.unwrap(np.arctan2(xy[:, 1], xy[:, 0])))
+    # a circle about the axis, walked one way: one turn over the stem
+    assert r.std() < 0.1 * r.mean() and np.all(turn > 0)
+    assert turn.sum() == pytest.approx(2 * np.pi, rel=0.1)
+    # the helix leans |CurveV| off the vertical: rise over run = 1 / tan(20 deg)
+    step = np.diff(trunk, axis=0)
+    lean = np.degrees(np.arctan2(np.linalg.norm(step[:, :2], axis=1), step[:, 2]))
+    assert np.median(lean) == pytest.approx(20.0, abs=1.0)
+
+
+def test_cli_refuses_a_height_out_of_range(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _cli(["procgen", "tree", "--species", "palm", "--height", "-3",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "height" in err[0] and not out.exists()
