@@ -447,3 +447,20 @@ def test_cli_refuses_a_height_out_of_range(tmp_path, capsys):
                  "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "height" in err[0] and not out.exists()
+
+
+def test_pruning_keeps_the_stems_inside_the_envelope():
+    from procgen.weber_penn.shapes import inside_envelope
+
+    share = {}
+    for ratio in (1.0, 0.0):
+        d = params_to_dict(load_species("weeping_willow"))
+        d["tree"]["PruneRatio"] = ratio
+        p = parse_params(d)
+        t = grow(p, rng=np.random.default_rng(0))
+        sk = t.skeleton
+        branches = sk.level[sk.stem_of_point()] >= 1
+        scale = sk.stem_length[0] / p.levels[0]["Length"]   # the tree's scale, as grown
+        share[ratio] = inside_envelope(sk.points[branches], scale=scale,
+                                       base_size=p["BaseSize"], prune=p.tree).mean()
+    assert share[1.0] > 0.999 and share[0.0] < 0.9
