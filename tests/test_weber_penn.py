@@ -464,3 +464,19 @@ def test_pruning_keeps_the_stems_inside_the_envelope():
         share[ratio] = inside_envelope(sk.points[branches], scale=scale,
                                        base_size=p["BaseSize"], prune=p.tree).mean()
     assert share[1.0] > 0.999 and share[0.0] < 0.9
+
+
+def test_leaf_colour_varies_within_a_crown_and_between_trees():
+    p = load_species("quaking_aspen")
+    means, spreads, tops = [], [], []
+    for seed in (1, 2, 3):
+        t = grow(p, height=6.0, rng=np.random.default_rng(seed))
+        m = tree_mesh(t, rng=np.random.default_rng(seed))
+        leaf = m.labels == 4
+        c, z = m.colors[leaf], m.vertices[leaf, 2]
+        means.append(c.mean(0))
+        spreads.append(c.std(0).mean())
+        tops.append(c[z > np.percentile(z, 80)].mean() - c[z < np.percentile(z, 20)].mean())
+    assert min(spreads) > 0.01                                   # leaf to leaf
+    assert np.ptp(np.array(means), axis=0).max() > 0.01          # tree to tree
+    assert min(tops) > 0                                         # lighter at the top
