@@ -480,3 +480,46 @@ def test_leaf_colour_varies_within_a_crown_and_between_trees():
     assert min(spreads) > 0.01                                   # leaf to leaf
     assert np.ptp(np.array(means), axis=0).max() > 0.01          # tree to tree
     assert min(tops) > 0                                         # lighter at the top
+
+
+def test_flare_widens_the_trunk_base_and_lobes_ripple_it():
+    from procgen.weber_penn.shapes import flare_factor
+
+    p = load_species("ca_black_oak")                  # Flare 1.2, 5 lobes of depth 0.1
+    t = grow(p, height=6.0, rng=np.random.default_rng(2))
+    q = tree_qsm(t)
+    r0 = q.radius[0]
+    own = t.skeleton.radius[0]                         # the pipe radius, before the flare
+    assert r0 == pytest.approx(own * flare_factor(0.0, p["Flare"]))
+    assert flare_factor(0.0, 1.2) == pytest.approx(1 + 1.2 * 0.99)
+    m = tree_mesh(t, rng=np.random.default_rng(0))
+    ring = m.vertices[:20 * 1]                         # the trunk's first ring (20 sides)
+    rr = np.linalg.norm(ring[:, :2] - t.skeleton.points[0, :2], axis=1)
+    assert rr.max() / rr.min() == pytest.approx(1.1 / 0.9, rel=0.05)
+
+
+def test_conifers_carry_needle_tufts():
+    from procgen.weber_penn.appearance import NEEDLES_PER_TUFT
+
+    t = grow(load_species("norway_spruce"), height=5.0, rng=np.random.default_rng(0))
+    m = tree_mesh(t, rng=np.random.default_rng(0))
+    needles = (m.labels[m.triangles[:, 0]] == 4).sum()
+    assert needles == NEEDLES_PER_TUFT * len(t.leaves) > 0
+
+
+def test_a_stand_instances_its_templates_at_the_heights_asked():
+    from procgen.weber_penn import grow_stand
+
+    pos = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 1.0], [0.0, 10.0, 0.0]])
+    heights = np.array([5.0, 6.0, 4.0])
+    stand = grow_stand(["lombardy_poplar", "lombardy_poplar", "palm"], pos, heights,
+                       rng=np.random.default_rng(0), variants=2)
+    mesh = stand.mesh()
+    assert len(stand.templates) == 4 and len(stand.template) == 3
+    for k in range(3):
+        m = stand.templates[stand.template[k]]
+        start = sum(len(stand.templates[j].vertices) for j in stand.template[:k])
+        v = mesh.vertices[start:start + len(m.vertices)]
+        wood = m.labels != 4
+        top = v[wood, 2].max() - pos[k, 2]
+        assert top == pytest.approx(heights[k], rel=1e-9)      # the skeleton's top, scaled
