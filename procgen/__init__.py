@@ -5,7 +5,8 @@
 box counting), :mod:`procgen.terrain`, :mod:`procgen.implicit` (hypertexture, marching
 cubes), :mod:`procgen.lsystem` (grammars, derivation, turtle, geometry),
 :mod:`procgen.sweeps`, :mod:`procgen.shells`, :mod:`procgen.shape_grammar`,
-:mod:`procgen.city`, and :mod:`procgen.amplify` (mesh amplification operators).
+:mod:`procgen.city`, :mod:`procgen.weber_penn` (Weber & Penn trees, species files, QSM and
+the laws of real trees), and :mod:`procgen.amplify` (mesh amplification operators).
 
 procgen imports only :mod:`core`.
 """

@@ -7,6 +7,7 @@
 - :mod:`core.io.las`    LAS/LAZ point clouds, streamed by chunk
 - :mod:`core.io.raster` GeoTIFF rasters with their CRS
 - :mod:`core.io.trees`  tree inventories (CSV)
+- :mod:`core.io.qsm`    quantitative structure models: TreeQSM cylinder tables (CSV)
 - :mod:`core.io.scene_cameras` other tools' scene cameras (OpenMVS ``.mvs``, Meshroom
   ``cameras.sfm``)
 
@@ -34,6 +35,7 @@ _MODULES = {
             "SCAN_ANGLE_STEP_DEG", "gps_date", "AsprsClass", "ASPRS_NAMES"],
     "raster": ["Raster", "write_raster", "read_raster"],
     "trees": ["read_tree_table", "write_tree_table", "TEXT_COLUMNS"],
+    "qsm": ["QSM_COLUMNS", "QSM", "check_qsm", "read_qsm_csv", "write_qsm_csv"],
     "scene_cameras": ["ViewCamera", "read_openmvs_scene", "read_meshroom_sfm",
                       "OPENMVS_VERSIONS"],
 }

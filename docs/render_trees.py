@@ -1,0 +1,86 @@
+"""Render the Weber & Penn species gallery, the seasons and the bark swatches of
+docs/trees.md with pyvista off-screen (EGL).
+
+Usage: ``python docs/render_trees.py [OUT_DIR]`` (default ``docs/img``).
+"""
+
+import os
+import sys
+from pathlib import Path
+
+os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+import pyvista as pv  # noqa: E402
+
+from procgen.weber_penn import (  # noqa: E402
+    bark_texture,
+    grow,
+    load_species,
+    species_names,
+    tree_mesh,
+)
+from scanamp.cli.procgen_tree import add_tree  # noqa: E402
+
+pv.OFF_SCREEN = True
+
+
+def gallery(out: Path):
+    names = species_names()
+    cols = 5
+    rows = (len(names) + cols - 1) // cols
+    pl = pv.Plotter(off_screen=True, shape=(rows, cols), window_size=(300 * cols, 380 * rows))
+    for i, name in enumerate(names):
+        p = load_species(name)
+        t = grow(p, height=p["Scale"], rng=np.random.default_rng(1))
+        pl.subplot(i // cols, i % cols)
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(2)),
+             f"{p.species['common']}, {t.height:.0f} m")
+    pl.screenshot(str(out / "trees_gallery.png"))
+    pl.close()
+
+
+def thumbnails(out: Path):
+    """One small render a species (docs/trees.md puts each beside the species' name)."""
+    (out / "trees").mkdir(exist_ok=True)
+    for name in species_names():
+        p = load_species(name)
+        t = grow(p, height=p["Scale"], rng=np.random.default_rng(1))
+        pl = pv.Plotter(off_screen=True, window_size=(220, 280))
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(2)), "")
+        pl.screenshot(str(out / "trees" / f"{name}.png"))
+        pl.close()
+
+
+def seasons(out: Path):
+    cases = [("european_beech", "summer", "full"), ("european_beech", "autumn", "full"),
+             ("european_beech", "winter", "full"), ("european_beech", "summer", "cards"),
+             ("european_larch", "autumn", "full")]
+    pl = pv.Plotter(off_screen=True, shape=(1, len(cases)), window_size=(300 * len(cases), 380))
+    for i, (name, season, lod) in enumerate(cases):
+        t = grow(load_species(name), height=18.0, rng=np.random.default_rng(3))
+        pl.subplot(0, i)
+        add_tree(pl, tree_mesh(t, rng=np.random.default_rng(4), season=season, lod=lod),
+             f"{name.replace('_', ' ')}: {season}{', leaf cards' if lod == 'cards' else ''}")
+    pl.screenshot(str(out / "trees_seasons.png"))
+    pl.close()
+
+
+def barks(out: Path):
+    from core.io.image import write_image
+
+    names = species_names()
+    tiles = [bark_texture(load_species(n), size=(128, 128), extent=0.4) for n in names]
+    row = np.concatenate([np.pad(t, ((4, 4), (4, 4), (0, 0)), constant_values=1.0)
+                          for t in tiles], 1)
+    write_image(out / "trees_bark.png", np.round(row * 255).astype(np.uint8))
+
+
+if __name__ == "__main__":
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "img"
+    out.mkdir(parents=True, exist_ok=True)
+    gallery(out)
+    thumbnails(out)
+    seasons(out)
+    barks(out)
