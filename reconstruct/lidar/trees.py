@@ -47,16 +47,11 @@ class TreeOptions(Config):
                                help="tops and crowns are at least this tall")
     smooth: float = option(0.5, unit="m", range="[0, 10]",
                            help="Gaussian sigma of the CHM smoothing before detection")
-    window_base: float = option(2.0, unit="m", range="[0, 50]",
+    window_base: float = option(1.0, unit="m", range="[0, 50]",
                                 help="local-maximum window diameter at height 0")
     window_slope: float = option(0.1, range="[0, 2]",
                                  help="window diameter grows by this many metres per metre "
                                       "of height")
-    prominence: float = option(0.0, unit="m", range="[0, 100]",
-                               help="also a top: a peak of the smoothed CHM this far above "
-                                    "the highest pass to a taller peak, outside the other "
-                                    "tops' windows (a crown's tip showing beside a taller "
-                                    "neighbour); 0: none")
 
 
 def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
@@ -132,8 +127,6 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     for r in np.unique(radii[tall]):
         sel = tall & (radii == r)
         top |= sel & (s >= _disc_max(s, int(r)))
-    if o.prominence > 0:
-        top |= _prominent_peaks(s, tall, o.prominence) & ~_near(top, radii, res)
     # a flat plateau gives several equal maxima: keep one per connected plateau
     from scipy.ndimage import label
 
@@ -165,60 +158,6 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     return {"x": chm.x0 + tj * res, "y": chm.y0 + ti * res, "height": height,
             "crown_area": area.astype(np.float64), "stem_z": stem_z,
             "crowns": crowns.astype(np.int32)}
-
-
-def _near(top: np.ndarray, radii: np.ndarray, res: float) -> np.ndarray:
-    """Cells within the window (its radius in cells, ``radii``) of a top of ``top``."""
-    from scipy.ndimage import maximum_filter
-
-    out = np.zeros(top.shape, bool)
-    for r in np.unique(radii[top]):
-        out |= _disc_max((top & (radii == r)).astype(np.float64), int(r)) > 0
-    return out
-
-
-def _prominent_peaks(z: np.ndarray, mask: np.ndarray, prominence: float) -> np.ndarray:
-    """Peaks of ``z`` within ``mask`` that rise at least ``prominence`` above the highest
-    pass (8-connected) to a higher peak; the highest peak of each connected part of
-    ``mask`` always. The 0-dimensional persistence of the superlevel sets, by union-find
-    over the cells from the highest down."""
-    rows, cols = z.shape
-    cells = np.flatnonzero(mask.ravel())
-    order = cells[np.argsort(-z.ravel()[cells], kind="stable")]
-    zf = z.ravel()
-    parent = np.full(z.size, -1, np.int64)
-    peak = np.full(z.size, -1, np.int64)  # a root's peak cell
-    out = np.zeros(z.size, bool)
-
-    def root(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    offs = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
-    for c in order.tolist():
-        i, j = divmod(c, cols)
-        roots = set()
-        for di, dj in offs:
-            a, b = i + di, j + dj
-            if 0 <= a < rows and 0 <= b < cols and parent[a * cols + b] >= 0:
-                roots.add(root(a * cols + b))
-        parent[c] = c
-        if not roots:
-            peak[c] = c
-            continue
-        best = max(roots, key=lambda r: zf[peak[r]])
-        for r in roots:
-            if r != best:
-                if zf[peak[r]] - zf[c] >= prominence:
-                    out[peak[r]] = True
-                parent[r] = best
-        parent[c] = best
-    for c in order.tolist():
-        if parent[c] == c:
-            out[peak[c]] = True
-    return out.reshape(z.shape)
 
 
 def _highest(z: np.ndarray, crowns: np.ndarray, ti, tj) -> tuple:
