@@ -148,6 +148,33 @@ def fly(forest_kw: dict, *, slope: float = 0.0, density: float = 10.0, seed: int
             "first/m2": float(first.sum() / SIZE ** 2), "seconds": t_fly}
 
 
+def understory_for_cover(cover: float, species: str) -> float:
+    """Understory stems per hectare whose crowns, at random, cover ``cover`` of the ground:
+    ``-ln(1 - cover) / E[crown area]``, the crowns those of ``data_synth.forest`` (saplings
+    of the stand's shade-tolerant species, shrubs of the rest's share)."""
+    from data_synth.forest import (
+        SAPLING_HEIGHT,
+        SHRUB_HEIGHT,
+        parse_species_mix,
+        regeneration_species,
+    )
+    from procgen.trees import species_for
+
+    codes, shares = parse_species_mix(species)
+    rng = np.random.default_rng(0)
+    sp = rng.choice(codes, size=20000, p=shares)
+    tol, tshare = regeneration_species(sp)
+    lo, hi, scale = SAPLING_HEIGHT
+    h = lo - scale * np.log1p(-rng.random(20000) * (1 - np.exp(-(hi - lo) / scale)))
+    w = np.array([species_for(c).crown_width for c in rng.choice(tol, 20000, p=np.array(
+        tshare) / sum(tshare))]) if tol else np.zeros(20000)
+    sap = float(np.mean(np.pi * (w * h) ** 2))
+    a, b = SHRUB_HEIGHT
+    shrub = np.pi * 0.16 * (b ** 3 - a ** 3) / (3 * (b - a))
+    share = sum(tshare)
+    return float(-np.log1p(-cover) * 1e4 / (share * sap + (1 - share) * shrub))
+
+
 def _row(name, r):
     print(f"   {name:34s} trees {r['trees']:3d} (tops seen {r['seen']:3d}) found "
           f"{r['found']:3d}  F {r['F']:.3f} (against the tops seen {r['F seen']:.3f})  "
@@ -156,11 +183,15 @@ def _row(name, r):
 
 
 def main():
+    from data_synth.forest import UNDERSTORY_DENSITY
+
     quick = "--quick" in sys.argv
     print("trees against the truth (10 pts/m2, riegl-lms-q560, the file's ground class):")
+    print(f"   (understory default {UNDERSTORY_DENSITY:.0f}/ha; the third of each: crowns "
+          "covering 50 % of the ground at random)")
     for density in ((600.0,) if quick else (300.0, 600.0)):
         for slope in (0.0, 35.0):
-            for under in (None, 0.0):
+            for under in (None, 0.0, understory_for_cover(0.5, MIX)):
                 kw = {"density": density, "species": MIX, "understory": under}
                 r = fly(kw, slope=slope)
                 _row(f"{density:.0f}/ha, {slope:.0f} deg, understory "

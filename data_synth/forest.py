@@ -53,8 +53,8 @@ from core.raster_io import Raster, write_raster
 from core.trees_io import read_tree_table, write_tree_table
 from core.validate import InputError
 from data_synth.scenes import SceneBundle
-from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.allometry import stand_crowns
+from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
     NEEDLE_CLUSTER,
     NEEDLE_DENSITY,

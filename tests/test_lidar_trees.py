@@ -17,7 +17,6 @@ import pytest
 from core.las_io import LasWriter
 from core.trees_io import read_tree_table
 from reconstruct.lidar import (
-    LidarReconConfig,
     detect_trees,
     point_in_polygons,
     polygon_area,

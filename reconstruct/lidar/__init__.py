@@ -2,8 +2,9 @@
 
 Modules: ``ground`` (the cloth simulation filter, TIN densification, water), ``rasters``
 (DTM by TIN, CHM, DSM), ``trees`` (tops by a variable-window local maximum, crowns by
-watershed, heights from the ground at the stem), ``crowns`` (crowns as polygons), ``evaluation`` (lidaRtRee's tree matching, detection scores, DTM errors),
-``pipeline`` (``scanamp reconstruct lidar``).
+watershed, heights from the ground at the stem), ``crowns`` (crowns as polygons),
+``evaluation`` (lidaRtRee's tree matching, detection scores, DTM errors), ``pipeline``
+(``scanamp reconstruct lidar``).
 
 Every name below is importable from the room (``from reconstruct.lidar import NAME``),
 loaded on first use.

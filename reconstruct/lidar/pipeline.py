@@ -30,10 +30,10 @@ from core.files import atomic_dir, write_json
 from core.las_io import LasWriter, read_las
 from core.raster_io import write_raster
 from core.trees_io import write_tree_table
-from core.vector_io import write_polygons
 from core.validate import InputError
-from reconstruct.lidar.ground import GroundOptions, classify_ground
+from core.vector_io import write_polygons
 from reconstruct.lidar.crowns import crown_polygons
+from reconstruct.lidar.ground import GroundOptions, classify_ground
 from reconstruct.lidar.rasters import canopy_height, dtm_from_ground, surface_model
 from reconstruct.lidar.trees import TreeOptions, detect_trees
 
