@@ -295,7 +295,7 @@ def _species_logged(names, path) -> np.ndarray:
     return np.array(codes, str)[inv.ravel()] if len(codes) else np.empty(0, str)
 
 
-def _allometric_crowns(cfg, t, dtm_local, xl, yl, zg, origin, area_ha) -> dict:
+def _allometric_crowns(t, dtm_local, xl, yl, zg, origin, area_ha) -> dict:
     """Crown ratios and radii of the listed trees from the species' allometries
     (:func:`procgen.allometry.stand_crowns`; NaN for species they do not cover), with the
     slope and aspect of the ground at each stem."""
@@ -334,7 +334,7 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     dtm_local = _terrain(cfg, lo - origin[:2], hi - origin[:2], rng)
     xl, yl = t["x"] - origin[0], t["y"] - origin[1]
     zg = terrain_height(dtm_local, xl, yl)
-    allo = _allometric_crowns(cfg, t, dtm_local, xl, yl, zg, origin,
+    allo = _allometric_crowns(t, dtm_local, xl, yl, zg, origin,
                               max(float(np.prod(hi - lo)), 100.0) / 1e4)
     t["allometric_ratio"] = allo["crown_ratio"]
     t["allometric_radius"] = allo["crown_radius"]
@@ -535,7 +535,8 @@ def _understory(cfg, density, species, dtm, lo, hi, rng, objects, meshes, *, obj
     share = sum(shares) if cfg.regeneration is None else cfg.regeneration
     saplings = {}
     if share > 0 and codes:
-        # their own generator: the shrubs keep their draws whatever the saplings' share
+        # their own generator, seeded by one draw: every share above 0 gives the shrubs the
+        # same draws (and a share of 0, no saplings, draws nothing: the stand of before)
         srng = np.random.default_rng(rng.integers(2 ** 63))
         is_sap = srng.random(m) < share
         w = np.array(shares) / np.sum(shares)
