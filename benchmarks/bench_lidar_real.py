@@ -286,9 +286,14 @@ def _timed(fn):
     return time.perf_counter() - t
 
 
-#: The shrubs :func:`data_synth.forest.build_forest` grows: 0.5-2.5 m tall (uniform), crown
-#: radius 0.4 x height, so a mean crown area of pi 0.16 E[h^2] = pi 0.16 (2.5^3 - 0.5^3) / 6.
-SHRUB_CROWN_AREA = np.pi * 0.16 * (2.5 ** 3 - 0.5 ** 3) / 6.0
+def _shrub_crown_area():
+    """The mean crown area of the shrubs :func:`data_synth.forest.build_forest` grows:
+    heights uniform on ``SHRUB_HEIGHT`` (0.5-2.5 m), crown radius 0.4 x height, so
+    pi 0.16 E[h^2] = pi 0.16 (hi^3 - lo^3) / (3 (hi - lo))."""
+    from data_synth.forest import SHRUB_HEIGHT
+
+    lo, hi = SHRUB_HEIGHT
+    return np.pi * 0.16 * (hi ** 3 - lo ** 3) / (3.0 * (hi - lo))
 
 
 def _shrub_cover(first, h):
@@ -319,7 +324,7 @@ def vegetation_not_listed(pts, res, species):
       cover of the open ground: the pulses that reach under 2 m fall on it at random;
       by cells it would be overstated, a shrub of 1.3 m2 touching several 1 m cells),
       per hectare as ``-ln(1 - cover)`` over a shrub's mean crown area
-      (:data:`SHRUB_CROWN_AREA`): shrubs stand anywhere, so that many cover that share
+      (:func:`_shrub_crown_area`): shrubs stand anywhere, so that many cover that share
       of any open patch.
 
     Returns a dict: ``unlisted`` (1/ha), ``unlisted_height``, ``unlisted_height_sd`` (m),
@@ -347,7 +352,7 @@ def vegetation_not_listed(pts, res, species):
     shrub_cover = _shrub_cover(pts["return_number"] == 1, h)
     return {"unlisted": cover * 1e4 / crown_area, "unlisted_height": mu,
             "unlisted_height_sd": sd, "unlisted_cover": cover, "unlisted_patches": n,
-            "understory": -np.log1p(-shrub_cover) * 1e4 / SHRUB_CROWN_AREA,
+            "understory": -np.log1p(-shrub_cover) * 1e4 / _shrub_crown_area(),
             "shrub_cover": shrub_cover}
 
 
@@ -383,7 +388,8 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
     # tile names no species: a mixed conifer stand of the interior West is ponderosa
     # pine, Douglas-fir and white fir, drawn here in equal shares (seeded)
     species = np.random.default_rng(7).choice(["PIPO", "PSME", "ABCO"], size=len(ref))
-    fkw = {"understory": 200.0}
+    # what the tile shows under 2 m is shrubs (the stand's regeneration is not measured)
+    fkw = {"understory": 200.0, "regeneration": 0.0}
     if estimate:
         est = vegetation_not_listed(real_pts, real_res, species)
         print(f"   measured on the tile (what its crowns leave out): {est['unlisted_patches']} "
@@ -393,6 +399,7 @@ def simulation_vs_reality(real_pts, real_res, ref, *, receivers=None, forest=Non
               f"{est['shrub_cover']:.1%} -> {est['understory']:.0f} shrubs/ha")
         fkw = {k: est[k] for k in ("unlisted", "unlisted_height", "unlisted_height_sd",
                                    "understory")}
+        fkw["regeneration"] = 0.0
     fkw.update(forest or {})
     sims, times = {}, {}
     with tempfile.TemporaryDirectory() as d:

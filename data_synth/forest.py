@@ -52,6 +52,8 @@ from core.io.raster import Raster, write_raster
 from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
 from core.validate import InputError
+from data_synth.scenes import SceneBundle
+from procgen.allometry import stand_crowns
 from data_synth.bundle import SceneBundle
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
@@ -63,15 +65,37 @@ from procgen.trees import (
     crown_years,
     grow_tree,
     place_tree,
+    species_fallback,
     species_for,
 )
 
 __all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse_species_mix",
-           "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS"]
+           "terrain_height", "write_forest", "forest_from_spec", "MATERIALS", "PART_COLORS",
+           "UNDERSTORY_DENSITY", "SHADE_TOLERANT", "SAPLING_HEIGHT", "SHRUB_HEIGHT",
+           "regeneration_species"]
 
 log = logging.getLogger(__name__)
 
 STEM_SINK = 0.3  # metres: stems start this far below the ground (no gap on a slope)
+
+UNDERSTORY_DENSITY = 2044.0
+"""Stems per hectare of the understory by default: saplings over 1.3 m tall and up to 10 cm
+dbh, all species, measured on 313 plots of the mountain beech and silver fir forests of
+Gorski kotar (Teslak et al. 2016, *Stand regeneration characteristics of beech and fir
+forests in Gorski kotar region*, South-east European Forestry 7(2): 99-108,
+doi:10.15177/seefor.16-15)."""
+
+SHADE_TOLERANT = frozenset({"PIAB", "ABAL", "ABCO", "FASY", "ACPS", "GENC"})
+"""Species whose saplings grow under a closed canopy (the understory's regeneration);
+pines, larch, Douglas-fir, oak and birch need gaps (Ellenberg's light figures)."""
+
+SAPLING_HEIGHT = (1.3, 8.0, 1.5)
+"""Saplings' heights (m): from breast height to the height of a 10 cm dbh at h/d 80, the
+excess over 1.3 m exponential of this scale (the inverse-J of regeneration height classes;
+the scale is ours)."""
+
+SHRUB_HEIGHT = (0.5, 2.5)
+"""Shrubs' heights (m), uniform; crown radius 0.4 x height."""
 
 # near-infrared reflectances (905, 1064, 1550 nm), typical values of the spectral
 # libraries: green leaves are bright at 905-1064 nm and darker at 1550 nm (water)
@@ -103,8 +127,18 @@ class ForestConfig(Config):
     height_mean: float = option(22.0, unit="m", range="(0, 120]", help="mean tree height")
     height_sd: float = option(4.0, unit="m", range="[0, 50]",
                               help="standard deviation of tree heights")
-    understory: float = option(300.0, unit="1/ha", range="[0, 20000]",
-                               help="shrubs per hectare (0.5-2.5 m tall)")
+    # the understory: what an inventory's threshold leaves out below the stand
+    understory: float | None = option(None, unit="1/ha", range="[0, 20000]",
+                                      help="stems per hectare of regeneration and shrubs "
+                                           "below the inventory's threshold, added to every "
+                                           "stand (0: none; default: "
+                                           f"{UNDERSTORY_DENSITY:.0f}, saplings of "
+                                           "mountain fir-beech forests, Teslak et al. 2016)")
+    regeneration: float | None = option(None, range="[0, 1]",
+                                        help="share of the understory's stems that are "
+                                             "saplings of the stand's shade-tolerant species "
+                                             "(1.3-8 m), the rest shrubs (0.5-2.5 m) "
+                                             "(default: those species' share of the stand)")
     unlisted: float = option(0.0, unit="1/ha", range="[0, 5000]",
                              help="an inventory's stand: trees per hectare it does not list "
                                   "(small trees its survey or segmentation missed), grown "
@@ -240,12 +274,42 @@ def _tree_table(cfg, inventory, rng, path):
     if inventory is not None:
         t = read_tree_table(inventory, required=("x", "y", "height"))
         n = len(t["x"])
-        sp = (np.array([species_for(s).code for s in t["species"]]) if "species" in t
+        sp = (_species_logged(t["species"], inventory) if "species" in t
               else np.full(n, "GENB"))
         return {"x": t["x"], "y": t["y"], "height": t["height"], "species": sp,
                 "dbh": t.get("dbh"), "crown_radius": t.get("crown_radius"),
                 "crown_dx": t.get("crown_dx"), "crown_dy": t.get("crown_dy")}
     return _procedural_trees(cfg, rng, path=path)
+
+
+def _species_logged(names, path) -> np.ndarray:
+    """The species codes of an inventory's names; each unknown name is grown as the closest
+    functional type (:func:`procgen.trees.species_fallback`) and the log says so, once."""
+    names = np.asarray(names, str)
+    uniq, inv = np.unique(names, return_inverse=True)
+    codes = []
+    for name in uniq.tolist():
+        sp, why = species_fallback(name)
+        if why is not None:
+            log.warning("%s: %s", path, why)
+        codes.append(sp.code)
+    return np.array(codes, str)[inv.ravel()] if len(codes) else np.empty(0, str)
+
+
+def _allometric_crowns(t, dtm_local, xl, yl, zg, origin, area_ha) -> dict:
+    """Crown ratios and radii of the listed trees from the species' allometries
+    (:func:`procgen.allometry.stand_crowns`; NaN for species they do not cover), with the
+    slope and aspect of the ground at each stem."""
+    dbh = t.get("dbh")
+    dbh_cm = None if dbh is None else np.asarray(dbh, np.float64) * 100.0
+    e = 0.5
+    gx = (terrain_height(dtm_local, xl + e, yl) - terrain_height(dtm_local, xl - e, yl)) / (2 * e)
+    gy = (terrain_height(dtm_local, xl, yl + e) - terrain_height(dtm_local, xl, yl - e)) / (2 * e)
+    # the slope faces down the gradient; aspect clockwise from north (+y)
+    aspect = np.degrees(np.arctan2(-gx, -gy)) % 360.0
+    return stand_crowns(np.asarray(t["species"], str), height_m=np.asarray(t["height"], float),
+                        dbh_cm=dbh_cm, area_ha=area_ha, elevation_m=zg + origin[2],
+                        slope=np.hypot(gx, gy), aspect_deg=aspect)
 
 
 def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str = "forest",
@@ -271,6 +335,12 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     dtm_local = _terrain(cfg, lo - origin[:2], hi - origin[:2], rng)
     xl, yl = t["x"] - origin[0], t["y"] - origin[1]
     zg = terrain_height(dtm_local, xl, yl)
+    allo = _allometric_crowns(t, dtm_local, xl, yl, zg, origin,
+                              max(float(np.prod(hi - lo)), 100.0) / 1e4)
+    t["allometric_ratio"] = allo["crown_ratio"]
+    t["allometric_radius"] = allo["crown_radius"]
+    t["allometric_dbh"] = np.where(np.isfinite(allo["crown_ratio"]), allo["dbh_cm"] / 100.0,
+                                   np.nan)
     objects, meshes = [], {}
     ground_parts = _ground(cfg, dtm_local, rng, objects, meshes)
     crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes)
@@ -293,9 +363,10 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
             trees = {k: np.concatenate([trees[k], new[k]]) for k in trees}
         log.info("%d unlisted trees grown in the inventory's gaps (%.0f/ha asked)", m,
                  cfg.unlisted)
-    if cfg.understory > 0:
-        _understory(cfg, dtm_local, lo - origin[:2], hi - origin[:2], rng, objects, meshes,
-                    object_id=len(trees["x"]) + 1)
+    density = UNDERSTORY_DENSITY if cfg.understory is None else cfg.understory
+    if density > 0:
+        _understory(cfg, density, t["species"], dtm_local, lo - origin[:2], hi - origin[:2],
+                    rng, objects, meshes, object_id=len(trees["x"]) + 1)
     del ground_parts
     dtm = Raster(dtm_local.values + origin[2], x0=dtm_local.x0 + origin[0],
                  y0=dtm_local.y0 + origin[1], res=dtm_local.res, crs_wkt=_crs_wkt(cfg.crs))
@@ -393,18 +464,22 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
     for k in range(n):
         sp = species_for(str(t["species"][k]))
         h = float(t["height"][k])
+        allo_ratio = _at(t, "allometric_ratio", k)
         if cfg.variants == 0:
-            ratio = sp.crown_ratio * rng.uniform(0.9, 1.1)
+            ratio = (allo_ratio if allo_ratio > 0 else sp.crown_ratio) * rng.uniform(0.9, 1.1)
             years = crown_years(h, ratio) if sp.form == "conifer" else 14
             model = grow_tree(sp, rng=rng, years=years, crown_ratio=ratio)
         else:
             if sp.code not in models:
                 models[sp.code] = [grow_tree(sp, rng=rng) for _ in range(cfg.variants)]
             model = models[sp.code][int(rng.integers(len(models[sp.code])))]
-        cr = t["crown_radius"][k] if t.get("crown_radius") is not None else np.nan
+        cr = _at(t, "crown_radius", k)
         if not cr > 0:
-            cr = sp.crown_width * h * rng.uniform(0.85, 1.15)
-        dbh = t["dbh"][k] if t.get("dbh") is not None else np.nan
+            allo_r = _at(t, "allometric_radius", k)
+            cr = (allo_r if allo_r > 0 else sp.crown_width * h) * rng.uniform(0.85, 1.15)
+        dbh = _at(t, "dbh", k)
+        if not dbh > 0:
+            dbh = _at(t, "allometric_dbh", k)
         off = (0.0, 0.0)
         if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
             off = (float(t["crown_dx"][k]), float(t["crown_dy"][k]))
@@ -428,20 +503,67 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
     return crowns, dbhs
 
 
-def _understory(cfg, dtm, lo, hi, rng, objects, meshes, *, object_id):
+def _at(t: dict, key: str, k: int) -> float:
+    v = t.get(key)
+    return float(v[k]) if v is not None else float("nan")
+
+
+def regeneration_species(species) -> tuple[list[str], list[float]]:
+    """The shade-tolerant species of a stand and their shares among its trees
+    (:data:`SHADE_TOLERANT`): the understory's saplings. Empty when it has none.
+
+    >>> regeneration_species(["PIAB", "PISY", "FASY", "PIAB"])
+    (['FASY', 'PIAB'], [0.25, 0.5])
+    """
+    sp = np.asarray(species, str)
+    codes = sorted({s for s in sp.tolist() if s in SHADE_TOLERANT})
+    return codes, [float(np.mean(sp == c)) for c in codes]
+
+
+def _understory(cfg, density, species, dtm, lo, hi, rng, objects, meshes, *, object_id):
+    """``density`` stems per hectare over the stand's extent: saplings of the stand's
+    shade-tolerant species (a share ``cfg.regeneration``, by default theirs of the stand;
+    heights :data:`SAPLING_HEIGHT`, crowns of their species' proportion) and shrubs
+    (:data:`SHRUB_HEIGHT`), at random positions, one object."""
     area = float(np.prod(hi - lo))
-    m = int(rng.poisson(cfg.understory * area / 1e4))
+    m = int(rng.poisson(density * area / 1e4))
     if m == 0:
         return
     protos = [grow_tree("GENB", rng=rng) for _ in range(2)]
     xy = rng.uniform(lo, hi, size=(m, 2))
     zs = terrain_height(dtm, xy[:, 0], xy[:, 1])
+    codes, shares = regeneration_species(species)
+    share = sum(shares) if cfg.regeneration is None else cfg.regeneration
+    saplings = {}
+    if share > 0 and codes:
+        # their own generator, seeded by one draw: every share above 0 gives the shrubs the
+        # same draws (and a share of 0, no saplings, draws nothing: the stand of before)
+        srng = np.random.default_rng(rng.integers(2 ** 63))
+        is_sap = srng.random(m) < share
+        w = np.array(shares) / np.sum(shares)
+        which = srng.choice(len(codes), size=m, p=w)
+        lo_h, hi_h, scale = SAPLING_HEIGHT
+        cut = 1.0 - np.exp(-(hi_h - lo_h) / scale)  # truncated exponential, inverse CDF
+        hs = lo_h - scale * np.log1p(-srng.random(m) * cut)
+        models = {c: [grow_tree(c, rng=srng, years=6, crown_ratio=0.85) for _ in range(2)]
+                  for c in codes}
+        for k in np.flatnonzero(is_sap):
+            sp = species_for(codes[which[k]])
+            saplings[int(k)] = (models[sp.code][k % 2], float(hs[k]),
+                                sp.crown_width * float(hs[k]))
     vs, fs, count = [], [], 0
     for k in range(m):
-        h = rng.uniform(0.5, 2.5)
-        V, F, _ = place_tree(protos[k % 2], position=(xy[k, 0], xy[k, 1], zs[k] - 0.1),
-                             height=h, crown_radius=0.4 * h,
-                             azimuth=float(rng.uniform(0, 2 * np.pi)))
+        h = rng.uniform(*SHRUB_HEIGHT)
+        az = float(rng.uniform(0, 2 * np.pi))
+        if k in saplings:
+            model, hk, rk = saplings[k]
+            V, F, _ = place_tree(model, position=(xy[k, 0], xy[k, 1], zs[k] - 0.1), height=hk,
+                                 crown_radius=rk, azimuth=az, rng=srng,
+                                 needle_cluster=cfg.needle_cluster,
+                                 needle_density=cfg.needle_density)
+        else:
+            V, F, _ = place_tree(protos[k % 2], position=(xy[k, 0], xy[k, 1], zs[k] - 0.1),
+                                 height=h, crown_radius=0.4 * h, azimuth=az)
         vs.append(V)
         fs.append(F + count)
         count += len(V)

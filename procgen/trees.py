@@ -38,7 +38,8 @@ import numpy as np
 
 from core.validate import check_array, check_positive, check_rng
 
-__all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "grow_tree",
+__all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "species_fallback",
+           "grow_tree",
            "place_tree", "needle_clusters", "crown_years", "LEADER_GROWTH", "NEEDLE_CLUSTER",
            "NEEDLE_DENSITY", "FAN", "WHORL_AREA", "spray_scale", "hull_radius"]
 
@@ -105,22 +106,64 @@ SPECIES = {s.code: s for s in (
 """The species known by code; :func:`species_for` also takes the Latin names."""
 
 
-def species_for(name: str) -> Species:
-    """The species of a code (``PIAB``) or a Latin name (``Picea abies``), any case.
+# genus -> the species standing in for it: same leaf habit and, for conifers, shade
+# tolerance (Abies, Picea, Tsuga, Taxus: tolerant, crowns low; Pinus, Larix: light-demanding)
+_GENERA = {"abies": "ABAL", "picea": "PIAB", "tsuga": "ABAL", "taxus": "ABAL",
+           "pinus": "PISY", "larix": "LADE", "pseudotsuga": "PSME", "fagus": "FASY",
+           "quercus": "QURO", "betula": "BEPE", "acer": "ACPS"}
+# other conifer genera (the generic conifer); any other genus is a broadleaf
+_CONIFERS = ("cedrus", "chamaecyparis", "cupressus", "juniperus", "sequoia",
+             "sequoiadendron", "thuja", "cryptomeria", "metasequoia", "taxodium")
+# the first two letters of a 4-letter code (genus initials) -> the genus, where only one
+# genus of the species table starts so; "PI" (Picea or Pinus) is the generic conifer
+_CODE_GENUS = {"AB": "abies", "TS": "tsuga", "TA": "taxus", "LA": "larix",
+               "PS": "pseudotsuga", "FA": "fagus", "QU": "quercus", "BE": "betula",
+               "AC": "acer", "CE": "cedrus", "JU": "juniperus", "TH": "thuja", "CU": "cupressus"}
 
-    Unknown names get the generic broadleaf (``GENB``).
+
+def species_fallback(name: str) -> tuple[Species, str | None]:
+    """The species of a code or Latin name, and why when it is a stand-in.
+
+    A name the table does not know falls back to the closest functional type: a species of
+    the same genus (by its Latin genus, or a 4-letter code's first two letters), else the
+    generic conifer (``GENC``) for a conifer genus or a ``PI..`` code (*Picea* or
+    *Pinus*), else the generic broadleaf (``GENB``). The reason is None for a known name.
+
+    >>> species_fallback("ABGR")[0].code, species_fallback("Pinus nigra")[0].code
+    ('ABAL', 'PISY')
+    >>> sp, why = species_fallback("TICO")
+    >>> sp.code, why.split(": ")[1]
+    ('GENB', 'grown as GENB (generic broadleaf), no genus known by its code')
+    """
+    key = str(name).strip()
+    if key.upper() in SPECIES:
+        return SPECIES[key.upper()], None
+    low = " ".join(key.lower().split())
+    for s in SPECIES.values():
+        if s.latin.lower() == low:
+            return s, None
+    genus = low.split(" ")[0] if " " in low else _CODE_GENUS.get(key.upper()[:2], "")
+    if genus in _GENERA:
+        code, how = _GENERA[genus], f"genus {genus.capitalize()}"
+    elif genus in _CONIFERS or (" " not in low and key.upper().startswith("PI")):
+        code, how = "GENC", (f"conifer genus {genus.capitalize()}" if genus else
+                             "a PI.. code: Picea or Pinus")
+    else:
+        code = "GENB"
+        how = (f"genus {genus.capitalize()} taken as a broadleaf" if " " in low else
+               "no genus known by its code")
+    sp = SPECIES[code]
+    return sp, f"unknown species {key!r}: grown as {code} ({sp.latin}), {how}"
+
+
+def species_for(name: str) -> Species:
+    """The species of a code (``PIAB``) or a Latin name (``Picea abies``), any case; an
+    unknown name gets the closest functional type (:func:`species_fallback`).
 
     >>> species_for("picea abies").code, species_for("Tilia cordata").code
     ('PIAB', 'GENB')
     """
-    key = str(name).strip()
-    if key.upper() in SPECIES:
-        return SPECIES[key.upper()]
-    low = " ".join(key.lower().split())
-    for s in SPECIES.values():
-        if s.latin.lower() == low:
-            return s
-    return SPECIES["GENB"]
+    return species_fallback(name)[0]
 
 
 @dataclass
@@ -196,10 +239,12 @@ def _conifer_grammar(sp: Species, rng: np.random.Generator, years: int,
     ])
 
 
-def _broadleaf_grammar(sp: Species, rng: np.random.Generator) -> str:
+def _broadleaf_grammar(sp: Species, rng: np.random.Generator, crown_ratio: float) -> str:
     depth = sp.whorl
     a = sp.branch_angle + rng.uniform(-5, 5)
-    bole = (1.0 - sp.crown_ratio) * 12.0
+    # the species' own ratio gives a bole of (1 - ratio) 12 units; another ratio scales the
+    # bole to the crown by (1 - ratio) / ratio against the species'
+    bole = 12.0 * sp.crown_ratio * (1.0 - crown_ratio) / crown_ratio
     leaf = _LEAF.format(s=1.2)
     cluster = "/(72)".join([leaf] * 5)
     fork2 = (f"[&({a:.1f})!(w * 0.7)F(l)X(l * 0.82, w * 0.7, d + 1)]/(180)"
@@ -233,7 +278,8 @@ def grow_tree(species: str | Species, *, rng: np.random.Generator,
     years : int
         Conifers: whorls laid down (the crown's depth in internodes).
     crown_ratio : float, optional
-        Crown length / tree height (default: the species', +/- 10 % by ``rng``).
+        Crown length / tree height (default: the species', for conifers +/- 10 % by
+        ``rng``).
 
     Returns
     -------
@@ -248,7 +294,8 @@ def grow_tree(species: str | Species, *, rng: np.random.Generator,
               else float(crown_ratio))
         text = _conifer_grammar(sp, rng, int(years), min(max(cr, 0.05), 0.98))
     else:
-        text = _broadleaf_grammar(sp, rng)
+        cr = sp.crown_ratio if crown_ratio is None else float(crown_ratio)
+        text = _broadleaf_grammar(sp, rng, min(max(cr, 0.05), 0.98))
     g = parse_grammar(text, source=f"<{sp.code}>")
     res = interpret(derive(g, rng=rng), g)
     model = _normalise(res, sp, polygon_arrays, tube_arrays)

@@ -8,6 +8,7 @@
 - :mod:`core.io.raster` GeoTIFF rasters with their CRS
 - :mod:`core.io.trees`  tree inventories (CSV)
 - :mod:`core.io.qsm`    quantitative structure models: TreeQSM cylinder tables (CSV)
+- :mod:`core.io.vector` polygons with attributes and a CRS (GeoPackage)
 - :mod:`core.io.scene_cameras` other tools' scene cameras (OpenMVS ``.mvs``, Meshroom
   ``cameras.sfm``)
 
@@ -35,6 +36,7 @@ _MODULES = {
             "SCAN_ANGLE_STEP_DEG", "gps_date", "AsprsClass", "ASPRS_NAMES"],
     "raster": ["Raster", "write_raster", "read_raster"],
     "trees": ["read_tree_table", "write_tree_table", "TEXT_COLUMNS"],
+    "vector": ["write_polygons", "read_polygons", "multipolygon_wkb", "parse_multipolygon_wkb"],
     "qsm": ["QSM_COLUMNS", "QSM", "check_qsm", "read_qsm_csv", "write_qsm_csv"],
     "scene_cameras": ["ViewCamera", "read_openmvs_scene", "read_meshroom_sfm",
                       "OPENMVS_VERSIONS"],

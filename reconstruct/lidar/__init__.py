@@ -1,9 +1,10 @@
 """reconstruct.lidar: terrain, canopy and trees of an airborne LiDAR survey, simulated or real.
 
 Modules: ``ground`` (the cloth simulation filter, TIN densification, water), ``rasters``
-(DTM by TIN, CHM), ``trees`` (tops by a variable-window local maximum, crowns by
-watershed), ``evaluation`` (lidaRtRee's tree matching, detection scores, DTM errors),
-``pipeline`` (``scanamp reconstruct lidar``).
+(DTM by TIN, CHM, DSM), ``trees`` (tops by a variable-window local maximum, crowns by
+watershed, heights from the ground at the stem), ``crowns`` (crowns as polygons),
+``evaluation`` (lidaRtRee's tree matching, detection scores, DTM errors), ``pipeline``
+(``scanamp reconstruct lidar``).
 
 Every name below is importable from the room (``from reconstruct.lidar import NAME``),
 loaded on first use.
@@ -21,6 +22,10 @@ _EXPORTS = {
     "dtm_from_ground": "rasters",
     "grid_for": "rasters",
     "height_above": "rasters",
+    "surface_model": "rasters",
+    "crown_polygons": "crowns",
+    "point_in_polygons": "crowns",
+    "polygon_area": "crowns",
     "TreeOptions": "trees",
     "detect_trees": "trees",
     "DELTA_GROUND": "evaluation",

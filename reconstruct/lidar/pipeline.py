@@ -6,7 +6,10 @@ cloth simulation filter when the file has no ground class (ASPRS 2) or with
 above it; find the trees (tops and crowns). Writes, in the file's coordinates and CRS:
 
 - ``dtm.tif``, ``chm.tif`` -- GeoTIFF rasters (:mod:`core.io.raster`);
-- ``trees.csv`` -- ``tree_id, x, y, height, crown_area``;
+- ``trees.csv`` -- ``tree_id, x, y, height, crown_area, stem_z`` (the top, its height above
+  the ground at the stem, the crown's area, the ground's elevation at the stem);
+- ``crowns.gpkg`` -- the crowns as polygons (layer ``crowns``: ``tree_id``, ``height``,
+  ``crown_area``, ``stem_z``), a GeoPackage GIS tools open;
 - ``classified.laz`` -- the points with their ground class (2) and, when the filter ran,
   the water it found (9); others keep theirs (a point the file called ground that the
   filter did not is 1, unclassified);
@@ -28,8 +31,10 @@ from core.io.las import AsprsClass, LasWriter, read_las
 from core.io.raster import write_raster
 from core.io.trees import write_tree_table
 from core.validate import InputError
+from core.io.vector import write_polygons
+from reconstruct.lidar.crowns import crown_polygons
 from reconstruct.lidar.ground import GroundOptions, classify_ground
-from reconstruct.lidar.rasters import canopy_height, dtm_from_ground
+from reconstruct.lidar.rasters import canopy_height, dtm_from_ground, surface_model
 from reconstruct.lidar.trees import TreeOptions, detect_trees
 from reconstruct.result import ReconstructionResult
 
@@ -62,7 +67,7 @@ class LidarResult:
     water: np.ndarray  # (n,) bool: found by the filter (none when the file's class is used)
     dtm: object  # Raster
     chm: object  # Raster
-    trees: dict  # x, y, height, crown_area (k,), crowns (rows, cols)
+    trees: dict  # x, y, height, crown_area, stem_z (k,), crowns (rows, cols)
     timings: dict
 
 
@@ -119,9 +124,10 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
     except ValueError as e:
         raise InputError(str(e), path=path, field="classification") from None
     chm = canopy_height(xyz[~noise], dtm)
+    dsm = surface_model(xyz[~noise], dtm)
     t["rasters_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    trees = detect_trees(chm, options=c.trees)
+    trees = detect_trees(chm, options=c.trees, dsm=dsm, dtm=dtm)
     t["trees_s"] = time.perf_counter() - t0
     return LidarResult(ground, reclassified, water, dtm, chm, trees, t)
 
@@ -162,10 +168,14 @@ def run(config: LidarReconConfig, points_path, out_dir) -> ReconstructionResult:
     with atomic_dir(out_dir) as tmp:
         write_raster(tmp / "dtm.tif", res.dtm)
         write_raster(tmp / "chm.tif", res.chm)
-        write_tree_table(tmp / "trees.csv", {"tree_id": np.arange(1, len(tr["x"]) + 1),
-                                             "x": tr["x"], "y": tr["y"],
+        ids = np.arange(1, len(tr["x"]) + 1)
+        write_tree_table(tmp / "trees.csv", {"tree_id": ids, "x": tr["x"], "y": tr["y"],
                                              "height": tr["height"],
-                                             "crown_area": tr["crown_area"]})
+                                             "crown_area": tr["crown_area"],
+                                             "stem_z": tr["stem_z"]})
+        write_polygons(tmp / "crowns.gpkg", crown_polygons(tr["crowns"], res.chm),
+                       {"tree_id": ids, "height": tr["height"], "crown_area": tr["crown_area"],
+                        "stem_z": tr["stem_z"]}, layer="crowns", crs_wkt=info.crs_wkt)
         _write_classified(tmp / "classified.laz", points, info, cls)
         report["timings"]["write_s"] = time.perf_counter() - t0
         write_json(tmp / "report.json", report)

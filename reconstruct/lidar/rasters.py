@@ -4,6 +4,9 @@
   (lidR's ``tin()``); cells outside the ground's convex hull take the nearest ground point.
 - **CHM**: every point's height above the DTM, the highest per cell; empty cells take the
   highest of their neighbours (a few passes), negative heights are 0.
+- **DSM**: the highest elevation per cell, filled the same way: where a tree's top is on a
+  slope (the CHM's highest cell of a crown lies downslope of its top, where the ground
+  falls away under the crown's edge).
 
 Rasters are :class:`core.io.raster.Raster` (cell ``[i, j]`` centred at ``x0 + j res``,
 ``y0 + i res``), in the coordinates of the points.
@@ -26,7 +29,7 @@ import numpy as np
 from core.io.raster import Raster
 from core.validate import check_array, check_positive
 
-__all__ = ["grid_for", "dtm_from_ground", "canopy_height", "height_above"]
+__all__ = ["grid_for", "dtm_from_ground", "canopy_height", "surface_model", "height_above"]
 
 
 def grid_for(bounds, res: float) -> tuple[float, float, int, int]:
@@ -112,21 +115,52 @@ def canopy_height(points: np.ndarray, dtm: Raster, *, fill_passes: int = 3) -> R
     Raster
         Heights in metres, >= 0.
     """
-    from scipy.ndimage import maximum_filter
-
     p = check_array(points, "points", shape=(None, 3))
-    h = height_above(dtm, p)
-    r, c = dtm.values.shape
-    j = np.clip(np.round((p[:, 0] - dtm.x0) / dtm.res).astype(np.int64), 0, c - 1)
-    i = np.clip(np.round((p[:, 1] - dtm.y0) / dtm.res).astype(np.int64), 0, r - 1)
-    chm = np.full(r * c, -np.inf)
-    np.maximum.at(chm, i * c + j, h)
-    chm = chm.reshape(r, c)
-    for _ in range(int(fill_passes)):
-        empty = ~np.isfinite(chm)
-        if not np.any(empty):
-            break
-        chm[empty] = maximum_filter(chm, size=3, mode="nearest")[empty]
+    chm = _cell_max(p[:, :2], height_above(dtm, p), dtm, fill_passes=fill_passes)
     chm[~np.isfinite(chm)] = 0.0
     return Raster(np.maximum(chm, 0.0), x0=dtm.x0, y0=dtm.y0, res=dtm.res,
                   crs_wkt=dtm.crs_wkt)
+
+
+def surface_model(points: np.ndarray, like: Raster, *, fill_passes: int = 3) -> Raster:
+    """Digital surface model on the grid of ``like``: the highest elevation per cell.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+    like : Raster
+        The grid (a DTM); its values are not used.
+    fill_passes : int
+        Empty cells take the highest of their 8 neighbours, this many times; cells
+        still empty take ``like``'s value there.
+
+    Returns
+    -------
+    Raster
+        Elevations in metres.
+    """
+    p = check_array(points, "points", shape=(None, 3))
+    dsm = _cell_max(p[:, :2], p[:, 2], like, fill_passes=fill_passes)
+    gap = ~np.isfinite(dsm)
+    dsm[gap] = like.values[gap]
+    return Raster(dsm, x0=like.x0, y0=like.y0, res=like.res, crs_wkt=like.crs_wkt)
+
+
+def _cell_max(xy: np.ndarray, value: np.ndarray, grid: Raster, *,
+              fill_passes: int) -> np.ndarray:
+    """The highest ``value`` of the points in each cell of ``grid`` (-inf where none after
+    ``fill_passes`` passes of taking the highest of the 8 neighbours)."""
+    from scipy.ndimage import maximum_filter
+
+    r, c = grid.values.shape
+    j = np.clip(np.round((xy[:, 0] - grid.x0) / grid.res).astype(np.int64), 0, c - 1)
+    i = np.clip(np.round((xy[:, 1] - grid.y0) / grid.res).astype(np.int64), 0, r - 1)
+    out = np.full(r * c, -np.inf)
+    np.maximum.at(out, i * c + j, value)
+    out = out.reshape(r, c)
+    for _ in range(int(fill_passes)):
+        empty = ~np.isfinite(out)
+        if not np.any(empty):
+            break
+        out[empty] = maximum_filter(out, size=3, mode="nearest")[empty]
+    return out

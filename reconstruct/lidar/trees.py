@@ -4,8 +4,17 @@ Tops: the CHM is smoothed (Gaussian, ``smooth`` metres), and a cell is a tree to
 at least ``min_height`` tall and the highest within a disc whose diameter grows with its
 height, ``window_base + window_slope * height`` (the variable window of Popescu and Wynne
 2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
-tops (flooding from the highest level down), within the cells at least ``min_height`` tall. A tree's
-height is the highest raw CHM cell of its crown; its position the centre of its top cell.
+tops (flooding from the highest level down), within the cells at least ``min_height`` tall.
+
+A tree's top and height: given the surface (DSM) and terrain (DTM) on the CHM's grid, the top
+is the highest *elevation* of its crown, and its height that elevation less the ground under
+its stem (the stem taken as vertical under the top: ``stem_z``); on level ground that is the
+crown's highest CHM cell. The CHM is the height of each point above the ground under that
+point: on a slope a crown's edge stands higher above the falling ground than its top, so the
+CHM's maximum of a rounded crown moves downslope of the top and overstates the height
+(Khosravipour et al. 2015, doi:10.1016/j.isprsjprs.2015.02.013); the CHM still finds the
+crowns (one maximum each), the DSM places the top. Without them the height is the highest
+raw CHM cell of the crown and the position the centre of its top cell.
 
 >>> import numpy as np
 >>> from core.io.raster import Raster
@@ -38,7 +47,7 @@ class TreeOptions(Config):
                                help="tops and crowns are at least this tall")
     smooth: float = option(0.5, unit="m", range="[0, 10]",
                            help="Gaussian sigma of the CHM smoothing before detection")
-    window_base: float = option(2.0, unit="m", range="[0, 50]",
+    window_base: float = option(1.0, unit="m", range="[0, 50]",
                                 help="local-maximum window diameter at height 0")
     window_slope: float = option(0.1, range="[0, 2]",
                                  help="window diameter grows by this many metres per metre "
@@ -77,7 +86,8 @@ def _flood(height: np.ndarray, labels: np.ndarray, mask: np.ndarray, *, step: fl
     return lab
 
 
-def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
+def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
+                 dsm: Raster | None = None, dtm: Raster | None = None) -> dict:
     """Tree tops and crowns.
 
     Parameters
@@ -85,14 +95,24 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
     chm : Raster
         Canopy heights, metres.
     options : TreeOptions, optional
+    dsm, dtm : Raster, optional
+        Highest elevation and ground elevation on the CHM's grid (both or neither): the
+        tops are placed on the DSM and the heights measured from the ground at the stem.
 
     Returns
     -------
     dict
-        ``x, y, height, crown_area`` (k,) float64 in the raster's coordinates (m, m², sorted
-        by height, tallest first) and ``crowns`` (rows, cols) int32: the tree (1-based) of
-        each cell, 0 for none.
+        ``x, y, height, crown_area, stem_z`` (k,) float64 in the raster's coordinates (m,
+        m², m; ``stem_z`` the ground's elevation at the stem, NaN without a DTM; sorted by
+        the CHM's smoothed top, tallest first) and ``crowns`` (rows, cols) int32: the tree
+        (1-based) of each cell, 0 for none.
     """
+    if (dsm is None) != (dtm is None):
+        raise ValueError("dsm, dtm: expected both or neither")
+    for name, r in (("dsm", dsm), ("dtm", dtm)):
+        if r is not None and r.values.shape != chm.values.shape:
+            raise ValueError(f"{name}: expected the CHM's grid {chm.values.shape}, got "
+                             f"{r.values.shape}")
     from scipy.ndimage import gaussian_filter
 
     o = options or TreeOptions()
@@ -114,7 +134,7 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
     if n == 0:
         empty = np.empty(0)
         return {"x": empty, "y": empty, "height": empty, "crown_area": empty,
-                "crowns": np.zeros(raw.shape, np.int32)}
+                "stem_z": empty, "crowns": np.zeros(raw.shape, np.int32)}
     flat = np.flatnonzero(lab.ravel())
     first = flat[np.unique(lab.ravel()[flat], return_index=True)[1]]
     ti, tj = np.unravel_index(first, raw.shape)
@@ -125,8 +145,29 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None) -> dict:
     crowns[ti, tj] = np.arange(1, k + 1)
     crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * o.smooth + 0.05))
     area = np.bincount(crowns.ravel(), minlength=k + 1)[1:] * res * res
-    height = np.zeros(k + 1)
-    np.maximum.at(height, crowns.ravel(), raw.ravel())
-    height = np.maximum(height[1:], raw[ti, tj])
+    if dsm is not None:
+        ai, aj = _highest(dsm.values, crowns, ti, tj)
+        stem_z = dtm.values[ai, aj].astype(np.float64)
+        height = dsm.values[ai, aj] - stem_z
+        ti, tj = ai, aj
+    else:
+        height = np.zeros(k + 1)
+        np.maximum.at(height, crowns.ravel(), raw.ravel())
+        height = np.maximum(height[1:], raw[ti, tj])
+        stem_z = np.full(k, np.nan)
     return {"x": chm.x0 + tj * res, "y": chm.y0 + ti * res, "height": height,
-            "crown_area": area.astype(np.float64), "crowns": crowns.astype(np.int32)}
+            "crown_area": area.astype(np.float64), "stem_z": stem_z,
+            "crowns": crowns.astype(np.int32)}
+
+
+def _highest(z: np.ndarray, crowns: np.ndarray, ti, tj) -> tuple:
+    """For each crown ``k`` (1-based in ``crowns``) its cell of highest ``z``:
+    ``(rows, cols)`` (k,), the top ``(ti, tj)`` for a crown of no cell."""
+    ci, cj = np.nonzero(crowns)
+    lab = crowns[ci, cj] - 1
+    order = np.lexsort((z[ci, cj], lab))  # by crown, then by z: the last of each is highest
+    last = np.r_[lab[order][1:] != lab[order][:-1], True]
+    ai, aj = np.array(ti, np.int64), np.array(tj, np.int64)
+    ai[lab[order][last]] = ci[order][last]
+    aj[lab[order][last]] = cj[order][last]
+    return ai, aj
