@@ -221,3 +221,64 @@ def test_erode_dispatches_and_refuses_bad_input():
         ErosionConfig(erodibility=-1.0)
     with pytest.raises(ValueError, match="spacing"):
         erode(z, kind="thermal", spacing=0.0)
+
+
+# -- water and materials ----------------------------------------------------------------
+
+def test_water_follows_the_flow_and_lakes_are_level_at_their_spill_point():
+    from procgen.terrain.heightfield import heightfield_to_mesh, water_mesh
+    from procgen.terrain.materials import water_surface
+
+    # a valley falling along -x with a dammed basin halfway down
+    cols, rows = 60, 31
+    jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
+    z = 0.5 * jj + 0.3 * np.abs(ii - 15)
+    z[13:18, 28:33] -= 3.0                  # the basin
+    w = water_surface(z, spacing=1.0, river_area=40.0)
+    assert w.lake[15, 30] and not w.lake[15, 50]
+    lake_levels = w.level[w.lake]
+    assert np.ptp(lake_levels) == 0.0       # level
+    assert lake_levels[0] == pytest.approx(fill_depressions(z)[15, 30])
+    river = w.level[15, 5:25]
+    assert w.river[15, 5:25].all() and np.all(np.diff(river) > 0)   # falls downstream
+    assert np.all(w.level[w.river] > z[w.river])
+    mesh = water_mesh(z, w.level)
+    v = np.asarray(mesh.vertices)
+    assert len(mesh.triangles) and np.ptp(v[:, 2]) > 5          # not a plane
+    assert len(heightfield_to_mesh(z).vertices) == z.size
+
+
+def test_materials_by_slope_altitude_and_exposure():
+    from procgen.terrain.materials import MATERIALS, classify_materials, material_colors
+
+    u = np.linspace(-1, 1, 129)
+    xx, yy = np.meshgrid(u, u)
+    r = np.hypot(xx, yy)
+
+    def names_slope(z):
+        mat = classify_materials(z, spacing=20.0, seed=1)
+        return mat, np.array(MATERIALS)[mat], np.degrees(np.arctan(np.hypot(
+            *np.gradient(z, 20.0))))
+
+    # a steep cone: its flanks are rock
+    _, names, slope = names_slope(2000 * np.clip(1 - r, 0, 0.8))
+    assert np.mean(names[slope > 50] == "rock") > 0.9
+    # a gentle cone (25 degrees) with a summit plateau
+    z = 600 * np.clip(1 - r, 0, 0.8)
+    mat, names, slope = names_slope(z)
+    top = (z > 0.95 * z.max()) & (slope < 20)     # the plateau
+    assert np.mean(names[top] == "snow") > 0.9
+    low_flat = (slope < 10) & (z < 0.3 * z.max())
+    assert np.mean(np.isin(names[low_flat], ["grass", "forest floor", "water"])) > 0.9
+    # exposure: the snow line sits lower on the side away from the sun (south: -y)
+    band = (slope > 10) & (z > 0.6 * z.max()) & (z < 0.95 * z.max())
+    north = names[band & (yy > 0.2) & (np.abs(xx) < 0.2)]
+    south = names[band & (yy < -0.2) & (np.abs(xx) < 0.2)]
+    assert np.mean(north == "snow") > np.mean(south == "snow") + 0.2
+    pts = np.stack([xx.ravel(), yy.ravel(), z.ravel()], 1)
+    c = material_colors(pts, mat.ravel(), scale=100.0, seed=0)
+    assert c.shape == (z.size, 3) and c.min() >= 0 and c.max() <= 1
+    snow = mat.ravel() == MATERIALS.index("snow")
+    assert c[snow].mean() > 0.8 and c[~snow].mean() < 0.6
+    with pytest.raises(ValueError, match="labels"):
+        material_colors(pts, mat.ravel()[:-1])
