@@ -85,6 +85,23 @@ def test_priority_flood_fills_a_bowl_to_its_spill_point():
     assert np.all(eps >= filled) and np.max(eps - filled) < 1e-6
 
 
+def test_filling_from_the_pits_equals_the_global_flood():
+    """The fast path of stream power: a drained surface with a few new pits is filled from
+    each pit; the result is the global priority-flood's, exactly (epsilon 0)."""
+    from procgen.terrain.flow import _priority_flood, boundary_mask, drain
+
+    z = _ds(129)
+    b = boundary_mask(z)
+    g = _priority_flood(z, b, 1e-9)
+    rng = np.random.default_rng(1)
+    ij = rng.integers(1, 128, size=(40, 2))
+    g[ij[:, 0], ij[:, 1]] -= rng.uniform(0, 20, 40)
+    g[60:64, 60:64] -= 30.0                             # and a wider pit
+    np.testing.assert_array_equal(drain(g, b, 0.0), _priority_flood(g, b, 0.0))
+    d = drain(g, b, 1e-9)
+    assert pit_share(g) > 0 and pit_share(d) == 0.0 and np.all(d >= g)
+
+
 def test_nodata_cells_are_outside_and_their_edge_drains():
     z = _ds(33)
     z[10:20, 10:20] = np.nan

@@ -37,11 +37,11 @@ from core.config import Config, option
 from core.validate import check_array, check_choice
 from procgen.terrain.flow import (
     _accumulate,
-    _priority_flood,
     _receivers,
     _spacing,
     _stack,
     boundary_mask,
+    drain,
 )
 
 __all__ = ["ErosionConfig", "erode", "stream_power", "hydraulic_erosion", "thermal_erosion",
@@ -129,7 +129,7 @@ def _chi(rec, dist, stack, area, m):
 
 def _routing(z, boundary, dx, dy, eps):
     """Receivers, distances, stack and area of ``z`` with its depressions filled."""
-    filled = _priority_flood(z, boundary, eps)
+    filled = drain(z, boundary, eps)
     rec, dist = _receivers(filled, boundary, dx, dy)
     stack = _stack(rec)
     area = _accumulate(rec, stack, np.full(z.size, dx * dy))

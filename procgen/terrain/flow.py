@@ -20,7 +20,6 @@ edge and the cells beside NaN are the boundary, where water leaves.
 
 from __future__ import annotations
 
-import heapq
 from dataclasses import dataclass
 
 import numba as nb
@@ -150,45 +149,200 @@ def accumulate(receivers, stack, weight) -> np.ndarray:
                        np.asarray(weight, np.float64).ravel().copy())
 
 
+@nb.njit(cache=True, inline="always")
+def _heap_push(key, val, size, k, v):
+    """Push ``(k, v)`` on the binary min-heap ``key, val`` of ``size`` items (ties by v)."""
+    i = size
+    key[i] = k
+    val[i] = v
+    while i > 0:
+        p = (i - 1) // 2
+        if key[p] < key[i] or (key[p] == key[i] and val[p] <= val[i]):
+            break
+        key[p], key[i] = key[i], key[p]
+        val[p], val[i] = val[i], val[p]
+        i = p
+    return size + 1
+
+
+@nb.njit(cache=True, inline="always")
+def _heap_pop(key, val, size):
+    """Remove the smallest item; returns the new size (the item was at index 0)."""
+    size -= 1
+    key[0] = key[size]
+    val[0] = val[size]
+    i = 0
+    while True:
+        l = 2 * i + 1
+        if l >= size:
+            break
+        m = l
+        r = l + 1
+        if r < size and (key[r] < key[l] or (key[r] == key[l] and val[r] < val[l])):
+            m = r
+        if key[i] < key[m] or (key[i] == key[m] and val[i] <= val[m]):
+            break
+        key[m], key[i] = key[i], key[m]
+        val[m], val[i] = val[i], val[m]
+        i = m
+    return size
+
+
 @nb.njit(cache=True)
 def _priority_flood(z, boundary, eps):
     r, c = z.shape
+    n = r * c
     out = z.copy()
     closed = ~np.isfinite(z)
-    heap = [(0.0, 0)]
-    heap.pop()
-    pit = np.empty(r * c, np.int64)
+    key = np.empty(n)
+    val = np.empty(n, np.int64)
+    size = 0
+    pit = np.empty(n, np.int64)
     for i in range(r):
         for j in range(c):
             if boundary[i, j]:
-                heapq.heappush(heap, (out[i, j], i * c + j))
+                size = _heap_push(key, val, size, out[i, j], i * c + j)
                 closed[i, j] = True
     p_head = 0
     p_tail = 0
-    while len(heap) > 0 or p_tail > p_head:
+    while size > 0 or p_tail > p_head:
         if p_tail > p_head:
             k = pit[p_head]
             p_head += 1
         else:
-            _, k = heapq.heappop(heap)
+            k = val[0]
+            size = _heap_pop(key, val, size)
         i, j = k // c, k % c
         zk = out[i, j]
+        lift = zk + eps * (abs(zk) + 1.0) if eps > 0 else zk
         for di in range(-1, 2):
             for dj in range(-1, 2):
                 ii, jj = i + di, j + dj
                 if ii < 0 or jj < 0 or ii >= r or jj >= c or closed[ii, jj]:
                     continue
                 closed[ii, jj] = True
-                lift = zk + eps * (abs(zk) + 1.0) if eps > 0 else zk
                 if out[ii, jj] <= lift:
                     out[ii, jj] = lift
                     pit[p_tail] = ii * c + jj
                     p_tail += 1
                 else:
-                    heapq.heappush(heap, (out[ii, jj], ii * c + jj))
+                    size = _heap_push(key, val, size, out[ii, jj], ii * c + jj)
         if p_tail == p_head:
             p_head = p_tail = 0
     return out
+
+
+@nb.njit(cache=True)
+def _pits(z, boundary):
+    """Flat indices of interior cells with no strictly lower neighbour."""
+    r, c = z.shape
+    out = np.empty(r * c, np.int64)
+    m = 0
+    for i in range(1, r - 1):
+        for j in range(1, c - 1):
+            if boundary[i, j] or not np.isfinite(z[i, j]):
+                continue
+            low = False
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    if z[i + di, j + dj] < z[i, j]:
+                        low = True
+            if not low:
+                out[m] = i * c + j
+                m += 1
+    return out[:m]
+
+
+@nb.njit(cache=True)
+def _fill_from_pits(out, boundary, eps, pits, max_cells):
+    """Fill the depressions holding ``pits`` in place, each from its pit outward: grow a
+    region by its lowest neighbour (a priority flood seeded at the pit) until the next
+    cell is lower than the highest one taken (past the rim) or on the boundary: the spill
+    point; then raise the region by Priority-Flood+epsilon from the spill point. Returns
+    False when a region outgrows ``max_cells`` (the caller then floods globally)."""
+    r, c = out.shape
+    n = r * c
+    key = np.empty(n)
+    val = np.empty(n, np.int64)
+    mark = np.zeros(n, np.int64)
+    inreg = np.zeros(n, np.int64)
+    stamp = 0
+    for p in pits:
+        pi, pj = p // c, p % c
+        low = False
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if out[pi + di, pj + dj] < out[pi, pj]:
+                    low = True
+        if low:
+            continue  # drained by an earlier fill
+        stamp += 1
+        size = _heap_push(key, val, 0, out[pi, pj], p)
+        mark[p] = stamp
+        level = -np.inf
+        spill = -1
+        taken = 0
+        while size > 0:
+            h = key[0]
+            k = val[0]
+            size = _heap_pop(key, val, size)
+            ki, kj = k // c, k % c
+            if h < level or boundary[ki, kj]:
+                spill = k
+                break
+            level = max(level, h)
+            inreg[k] = stamp
+            taken += 1
+            if taken > max_cells:
+                return False
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    ii, jj = ki + di, kj + dj
+                    q = ii * c + jj
+                    if mark[q] != stamp and np.isfinite(out[ii, jj]):
+                        mark[q] = stamp
+                        size = _heap_push(key, val, size, out[ii, jj], q)
+        if spill < 0:
+            return False
+        # Priority-Flood+epsilon over the region, from the spill point
+        size = _heap_push(key, val, 0, out[spill // c, spill % c], spill)
+        while size > 0:
+            k = val[0]
+            size = _heap_pop(key, val, size)
+            ki, kj = k // c, k % c
+            zk = out[ki, kj]
+            lift = zk + eps * (abs(zk) + 1.0) if eps > 0 else zk
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    ii, jj = ki + di, kj + dj
+                    if ii < 0 or jj < 0 or ii >= r or jj >= c:
+                        continue
+                    q = ii * c + jj
+                    if inreg[q] != stamp:
+                        continue
+                    inreg[q] = 0
+                    if out[ii, jj] <= lift:
+                        out[ii, jj] = lift
+                    size = _heap_push(key, val, size, out[ii, jj], q)
+    return True
+
+
+def drain(z, boundary, eps: float, *, local_share: float = 0.01) -> np.ndarray:
+    """``z`` with every depression filled (Priority-Flood+epsilon): from each pit when
+    there are few (a surface that already drains but for some pits: fast), else over the
+    whole grid."""
+    pits = _pits(z, boundary)
+    if len(pits) == 0:
+        return z
+    if len(pits) <= local_share * z.size:
+        out = z.copy()
+        for _ in range(8):
+            if not _fill_from_pits(out, boundary, eps, pits, max(z.size // 10, 1)):
+                break
+            pits = _pits(out, boundary)
+            if len(pits) == 0:
+                return out
+    return _priority_flood(z, boundary, eps)
 
 
 def fill_depressions(z, *, epsilon: float = 0.0) -> np.ndarray:
