@@ -5,7 +5,8 @@ thermal erosion of any heightfield.
 ``uplift`` and rivers cut it at ``K A^m S^n`` (``A`` drainage area, ``S`` slope to the
 D8 receiver), with linear hillslope diffusion ``D lap(z)`` between. Each step routes the
 flow on the surface with its depressions filled (sediment fills a lake before the river
-cuts its outlet), orders the cells by the stack, and solves the erosion implicitly from
+cuts its outlet; once the land drains, only the few pits diffusion leaves are filled,
+each from its pit outward), orders the cells by the stack, and solves the erosion implicitly from
 the outlets up, which is stable at any step and O(n). At steady state
 ``S = (U / K)^(1/n) A^(-m/n)``: the channel concavity is ``m / n``.
 
