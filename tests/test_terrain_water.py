@@ -142,34 +142,30 @@ def test_hypsometric_integral_of_a_plane_and_a_cone():
     assert hypsometric_integral(cone) == pytest.approx(1 / 3, abs=0.01)
 
 
-def test_strahler_orders_and_horton_ratio_of_a_binary_tree():
-    """A complete binary tree of depth 4 drawn as receivers: 8 first-order streams, 4
-    second, 2 third, 1 fourth; R_b = 2 exactly (the top order is left out: 8, 4, 2)."""
-    rec = [0]
-    frontier = [0]
-    for _ in range(3):
+def _tree(branches, depth):
+    """Receivers of a complete tree: each junction has ``branches`` donors; the leaves."""
+    rec, frontier = [0], [0]
+    for _ in range(depth):
         nxt = []
         for p in frontier:
-            for _ in range(2):
+            for _ in range(branches):
                 rec.append(p)
                 nxt.append(len(rec) - 1)
         frontier = nxt
-    rec = np.array(rec)
+    return np.array(rec), frontier
+
+
+def test_strahler_orders_and_horton_ratio_of_a_binary_tree():
+    """A complete binary tree of depth 4 drawn as receivers: 8 first-order streams, 4
+    second, 2 third, 1 fourth; R_b = 2 exactly (the top order is left out: 8, 4, 2)."""
+    rec, leaves = _tree(2, 3)
     stack = stack_order(rec)
     channel = np.ones(len(rec), bool)
     order = strahler_order(rec, stack, channel)
-    assert order[0] == 4 and sorted(order[frontier]) == [1] * 8
+    assert order[0] == 4 and sorted(order[leaves]) == [1] * 8
     assert bifurcation_ratio(rec, stack, channel) == pytest.approx(2.0)
     # a tree with three donors per junction: R_b = 3
-    rec3, frontier = [0], [0]
-    for _ in range(3):
-        nxt = []
-        for p in frontier:
-            for _ in range(3):
-                rec3.append(p)
-                nxt.append(len(rec3) - 1)
-        frontier = nxt
-    rec3 = np.array(rec3)
+    rec3, _ = _tree(3, 3)
     assert bifurcation_ratio(rec3, stack_order(rec3), np.ones(len(rec3), bool)) == \
         pytest.approx(3.0)
 

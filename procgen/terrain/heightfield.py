@@ -47,6 +47,14 @@ def _spacing(spacing):
     return s
 
 
+def _grid_args(heights, spacing, origin):
+    """Checked heights (at least 2 x 2), spacing (2,) and origin (3,)."""
+    z = check_array(heights, "heights", shape=(None, None))
+    if z.shape[0] < 2 or z.shape[1] < 2:
+        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
+    return z, _spacing(spacing), check_array(origin, "origin", shape=(3,))
+
+
 def _grid_triangles(rows: int, cols: int) -> np.ndarray:
     idx = np.arange(rows * cols).reshape(rows, cols)
     a = idx[:-1, :-1].ravel()
@@ -77,11 +85,7 @@ def heightfield_to_mesh(heights, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
     """
     import open3d as o3d
 
-    z = check_array(heights, "heights", shape=(None, None))
-    if z.shape[0] < 2 or z.shape[1] < 2:
-        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
-    d = _spacing(spacing)
-    o = check_array(origin, "origin", shape=(3,))
+    z, d, o = _grid_args(heights, spacing, origin)
     rows, cols = z.shape
     jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
     verts = np.stack([o[0] + jj.ravel() * d[0], o[1] + ii.ravel() * d[1], o[2] + z.ravel()], 1)
@@ -105,11 +109,7 @@ def water_mesh(heights, level, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
     """
     import open3d as o3d
 
-    z = check_array(heights, "heights", shape=(None, None))
-    if z.shape[0] < 2 or z.shape[1] < 2:
-        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
-    d = _spacing(spacing)
-    o = check_array(origin, "origin", shape=(3,))
+    z, d, o = _grid_args(heights, spacing, origin)
     rows, cols = z.shape
     if np.ndim(level) == 0:
         lv = check_finite(level, "level")

@@ -16,10 +16,10 @@ An fBm field breaks every threshold so the borders wander as they do on land.
 two-tone fBm for grass and forest floor, faint cloud-blue for snow.
 
 >>> import numpy as np
->>> z = np.add.outer(np.linspace(0, 40, 33), np.zeros(33))   # a ramp rising north
+>>> z = np.add.outer(np.linspace(0, 40, 33), np.zeros(33))   # a 51-degree ramp
 >>> mat = classify_materials(z, spacing=1.0, seed=0)
->>> sorted(set(MATERIALS[k] for k in np.unique(mat)))          # far too steep for soil
-['rock']
+>>> sorted(set(MATERIALS[k] for k in np.unique(mat)))   # no soil holds on it
+['rock', 'snow', 'water']
 """
 
 from __future__ import annotations
