@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["sfm_capture"]
+__all__ = ["sfm_capture", "seen_triangles"]
 
 
 def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: int = 12,
@@ -39,3 +39,37 @@ def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: in
     return capture(bundle.render_scene, cfg, out, rng=np.random.default_rng(seed),
                    scene_ref={"name": bundle.name, "seed": bundle.seed, "path": None},
                    gt_mesh=bundle.gt_mesh(), seed=seed)
+
+
+def seen_triangles(vertices, triangles, eyes, *, target=None, fov_deg: float = 60.0,
+                   rays: int = 120) -> np.ndarray:
+    """The triangles a capture from ``eyes (k, 3)`` sees (a ``rays x rays`` grid of rays
+    over ``fov_deg`` from each eye toward ``target``, default the bounding box centre):
+    what a reconstruction of the scene from those views can hold -- no undersides, no
+    hidden faces."""
+    import open3d as o3d
+
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(triangles, np.int64)
+    c = 0.5 * (v.min(0) + v.max(0)) if target is None else np.asarray(target, np.float64)
+    tm = o3d.t.geometry.TriangleMesh()
+    tm.vertex.positions = o3d.core.Tensor(v.astype(np.float32))
+    tm.triangle.indices = o3d.core.Tensor(f.astype(np.int32))
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(tm)
+    seen = np.zeros(len(f), bool)
+    half = np.tan(np.radians(fov_deg) / 2)
+    s = np.linspace(-half, half, rays)
+    X, Y = np.meshgrid(s, s)
+    for eye in np.asarray(eyes, np.float64).reshape(-1, 3):
+        d = c - eye
+        d /= np.linalg.norm(d)
+        side = np.cross(d, [0.0, 0.0, 1.0] if abs(d[2]) < 0.99 else [1.0, 0.0, 0.0])
+        side /= np.linalg.norm(side)
+        upv = np.cross(side, d)
+        dirs = d + X.ravel()[:, None] * side + Y.ravel()[:, None] * upv
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        r = np.hstack([np.tile(eye, (len(dirs), 1)), dirs]).astype(np.float32)
+        hit = scene.cast_rays(o3d.core.Tensor(r))["primitive_ids"].numpy()
+        seen[hit[hit != scene.INVALID_ID].astype(np.int64)] = True
+    return f[seen]

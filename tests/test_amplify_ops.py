@@ -143,6 +143,22 @@ def test_constrained_diamond_square_keeps_every_control_sample():
     assert np.std(res.heights - np.kron(res.control, np.ones((D, D)))[:129, :129]) > 0
 
 
+def test_refine_terrain_erodes_a_reconstructed_ground():
+    """Erosion after refinement: the pits of the fractal detail drain away."""
+    from procgen.terrain.metrics import pit_share
+
+    coarse = _rng(3).normal(size=(17, 17)) * 0.2
+    mesh = heightfield_to_mesh(coarse, spacing=0.25)
+    plain = refine_terrain(mesh, rng=_rng(4), control_size=17, levels=2)
+    eroded = refine_terrain(mesh, rng=_rng(4), control_size=17, levels=2,
+                            erosion="stream-power")
+    assert pit_share(plain.heights) > 0.01 and pit_share(eroded.heights) <= 0.002
+    v, _ = mesh_arrays(eroded.mesh)
+    assert np.array_equal(v[:, 2].reshape(eroded.heights.shape), eroded.heights)
+    with pytest.raises(ValueError, match="erosion"):
+        refine_terrain(mesh, rng=_rng(4), control_size=17, levels=1, erosion="wind")
+
+
 def test_refine_terrain_trims_to_the_footprint():
     ball = _ball(12)
     res = refine_terrain(ball, rng=_rng(), control_size=9, levels=1)

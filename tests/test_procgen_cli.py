@@ -210,3 +210,46 @@ def test_sweep_cli_closed_tube_of_the_profile_radius(tmp_path):
     assert np.allclose(np.hypot(ring, v[:, 2]), 0.1, atol=1e-9)
     assert main(["-q", "procgen", "sweep", "--path", "circle", "--taper", "0.5",
                  "--out", str(tmp_path / "x.ply")]) == 2
+
+
+def test_terrain_eroded_with_rivers_materials_and_a_dem(tmp_path):
+    """Stream power carves the fractal; the ground is coloured by material, the water
+    follows the flow, and the DEM reads back in metres with its CRS."""
+    from core.io.raster import read_raster
+    from procgen.terrain.metrics import pit_share
+
+    out, dem = tmp_path / "t.ply", tmp_path / "t.tif"
+    assert main(["-q", "procgen", "terrain", "--size", "65", "--extent", "3000",
+                 "--height", "100", "--erosion", "stream-power", "--rivers", "--dem",
+                 str(dem), "--crs", "EPSG:32632", "--no-preview", "--out", str(out)]) == 0
+    r = read_raster(dem)
+    assert r.values.shape == (65, 65) and r.res == pytest.approx(3000 / 64)
+    assert "32632" in r.crs_wkt and r.x0 == pytest.approx(-1500.0)
+    assert pit_share(r.values) <= 0.002        # eroded: drains (fractal noise: ~4 %)
+    mesh = read_mesh(out)
+    np.testing.assert_allclose(np.asarray(mesh.vertices)[:, 2], r.values.ravel(), atol=1e-3)
+    assert mesh.has_vertex_colors() and (tmp_path / "t.water.ply").is_file()
+    # the DEM as the start of another run: its CRS is kept
+    again = tmp_path / "u.ply"
+    assert main(["-q", "procgen", "terrain", "--from-dem", str(dem), "--erosion", "thermal",
+                 "--no-preview", "--out", str(again)]) == 0
+    assert len(read_mesh(again).vertices) == 65 * 65
+
+
+@pytest.mark.parametrize("extra,needle", [
+    (["--erosion", "stream-power", "--rates.erodibility=-1e-3"], "erodibility"),
+    (["--erosion", "hydraulic", "--rates.rain=-0.1"], "rain"),
+    (["--dem", "{tmp}/d.tif", "--crs", "EPSG:4326"], "--crs"),
+    (["--from-dem", "{tmp}/nocrs.tif"], "crs"),
+])
+def test_terrain_bad_rates_and_crs_exit_2(tmp_path, capsys, extra, needle):
+    from core.io.raster import Raster, write_raster
+
+    write_raster(tmp_path / "nocrs.tif", Raster(np.zeros((5, 5)), x0=0.0, y0=0.0, res=1.0))
+    out = tmp_path / "x.ply"
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in extra]
+    assert main(["procgen", "terrain", "--size", "17", "--no-preview", *argv,
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and needle in err and err.count("\n") == 1
+    assert not out.exists() and not (tmp_path / "d.tif").exists()

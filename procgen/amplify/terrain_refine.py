@@ -26,6 +26,7 @@ from core.validate import check_int, check_positive, check_range, check_rng
 from procgen.amplify.surface import mesh_input
 from procgen.fractals.displacement import refine_heightfield
 from procgen.terrain import _grid_triangles
+from procgen.terrain.erosion import ErosionConfig, erode
 
 __all__ = ["Heightfield", "heightfield_from_mesh", "refine_terrain", "TerrainResult"]
 
@@ -112,7 +113,8 @@ class TerrainResult:
     mesh : open3d.geometry.TriangleMesh
         The refined terrain (trimmed to the input's footprint when asked).
     heights : ((r - 1) 2**levels + 1, (c - 1) 2**levels + 1) float64
-        The refined heightfield; ``heights[::2**levels, ::2**levels] == control``.
+        The refined heightfield; ``heights[::2**levels, ::2**levels] == control`` unless
+        it was eroded.
     control : (r, c) float64
         The control surface resampled from the input.
     valid : (r, c) bool
@@ -134,7 +136,8 @@ class TerrainResult:
 
 def refine_terrain(mesh, *, rng: np.random.Generator, control_size: int = 33,
                    levels: int = 3, hurst: float = 0.8, sigma: float | None = None,
-                   trim: bool = True) -> TerrainResult:
+                   trim: bool = True, erosion: str = "none",
+                   erosion_config: ErosionConfig | None = None) -> TerrainResult:
     """Amplify a terrain-like mesh with constrained diamond-square detail.
 
     The mesh's top surface is resampled on a ``control_size`` grid
@@ -157,6 +160,10 @@ def refine_terrain(mesh, *, rng: np.random.Generator, control_size: int = 33,
         control surface's own roughness.
     trim : bool
         Drop the cells outside the input's footprint (a control corner missed the mesh).
+    erosion : {'none', 'hydraulic', 'thermal', 'stream-power'}
+        Then erode the refined heightfield (:func:`procgen.terrain.erosion.erode`, rates
+        from ``erosion_config``): valleys carved by water on a reconstructed ground. The
+        control samples are then no longer kept exactly.
 
     Returns
     -------
@@ -171,6 +178,7 @@ def refine_terrain(mesh, *, rng: np.random.Generator, control_size: int = 33,
     fine = refine_heightfield(hf.heights, levels, hurst=h, rng=rng, sigma=s)
     D = 2 ** levels
     step = hf.spacing / D
+    fine = erode(fine, spacing=step, kind=erosion, config=erosion_config)
     rows, cols = fine.shape
     jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
     verts = np.stack([hf.origin[0] + jj.ravel() * step, hf.origin[1] + ii.ravel() * step,

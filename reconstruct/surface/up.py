@@ -9,19 +9,24 @@ is built on it (plants, snow, a city) needs gravity. Two sources, in order of tr
    the world, averaged over the views, is up. A COLMAP model (``sparse/0``), a
    nerfstudio ``transforms.json``, a Meshroom ``cameras.sfm`` or an OpenMVS ``*.mvs``
    scene next to the mesh (or in its parent folder) is read for it.
-2. **The mesh itself.** Candidate axes are the directions that make the most area
-   ground (within ``ground_deg``) and walls (within ``wall_deg`` of perpendicular):
-   the best few, at least 30 degrees apart, each refined by its ground faces' mean
-   normal. Area alone cannot tell a facade with a strip of ground from a strip of
-   ground with a facade: the wall is the largest plane. Each candidate, with each
-   sign, is then scored by structure: the ground lies at the lower end of the walls
-   along up (a facade's windows, recessed into it, would be "ground" at the foot of
-   nothing), roofs lie at their upper end, and the ground faces face up when the
-   normals agree (a reconstruction's normals face the cameras, above the ground).
-   ``decision`` in the estimate names the cue that separated the winner from the
-   runner-up and the margin (1 - runner-up / winner): a close call (under
-   :data:`CLOSE_MARGIN`) makes ``scanamp amplify`` warn and name ``--up``. Walls meet
-   the ground along lines perpendicular to up by construction of the candidates.
+2. **The mesh itself**, without trusting its triangles' winding or normals (tools write
+   either winding). Candidate axes are the directions that make the most area level
+   (within ``ground_deg``, facing either way) and walls (within ``wall_deg`` of
+   perpendicular): the best few, at least 30 degrees apart, each refined by its level
+   faces' principal normal. Each candidate, with each sign, is then scored by cues that
+   hold for real scenes: the ground is the extreme of the scene along -up (level area
+   in the lowest quarter of the heights, little in the highest: things stand on it);
+   walls rise from it (the level area lies at the walls' lower end; roofs at their
+   upper end); the heights are skewed up (a tie-break); and camera centres, when a file
+   gives them, lie above the ground. Area alone cannot tell a facade with a strip of
+   ground from a strip of ground with a facade (the wall is the largest plane): the
+   walls-rise cue does. ``decision`` in the estimate names the cue that separated the
+   winner from the runner-up, the margin (1 - runner-up / winner) as the confidence,
+   and the runner-up; a close call (under :data:`CLOSE_MARGIN`) is logged and makes
+   ``scanamp amplify`` warn naming ``--up``.
+
+:func:`orient_winding` then turns the triangles so the ground faces up, so steps that read
+normals (plants on gentle slopes, snow) work on a mesh written with the other winding.
 
 :func:`estimate_up` tries them in that order unless ``up`` is given.
 
@@ -47,13 +52,17 @@ import numpy as np
 from core.validate import check_unit_vector
 
 __all__ = ["UpEstimate", "estimate_up", "up_from_cameras", "up_from_mesh", "find_camera_model",
-           "is_close", "CLOSE_MARGIN", "CUES"]
+           "is_close", "orient_winding", "CLOSE_MARGIN", "CUES", "BAND"]
 
 log = logging.getLogger(__name__)
 
 
 #: a runner-up scoring within this fraction of the winner makes the call a close one
 CLOSE_MARGIN = 0.25
+#: the share of the scene's height, at either end, where the ground is looked for
+BAND = 0.25
+#: cameras whose image ups average to a vector at least this long give up by themselves
+CAMERA_AGREEMENT = 0.5
 
 
 def is_close(up: dict) -> bool:
@@ -167,39 +176,42 @@ def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.
 
 
 def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
-    """How well ``up`` (signed) explains the mesh as ground, walls and roofs.
+    """How well ``up`` (signed) explains the mesh as ground, walls and roofs, from the
+    faces' orientation up to sign and their heights only: a reconstruction's winding (and
+    so its normals) may point either way.
 
-    ``area``: ground (faces facing up; either way when the normals disagree) plus half the
-    walls, over the whole area. ``base``: the share of that ground lying at the walls'
-    lower end (within 2 % of the height range of the lowest 1 % of the walls' area):
-    walls stand on the ground (the walls' heights are those of points spread over them
-    by area). ``top``: the share lying at their upper end (roofs lie above). The score is
-    ``area x (0.1 + base + top / 2)`` (area alone decides a mesh without walls), times
-    1.01 when the heights are skewed up (0.99 when down): the tie-break of a mesh whose
-    normals disagree."""
+    ``area``: level faces plus half the walls, over the whole area. ``base``: the share of
+    the level area lying at the walls' lower end (within 2 % of the height range of the
+    lowest 1 % of the walls' area): walls stand on the ground. ``top``: the share at their
+    upper end (roofs). ``low`` and ``high``: the shares of the level area in the lowest and
+    highest :data:`BAND` of the scene's height: the ground is the extreme of the scene
+    along -up, and things stand on it. The score is
+    ``area x (0.1 + base + top / 2 + max(low - high, 0) / 4)``, times 1.01 when the
+    heights are skewed up (0.99 when down): the tie-break of a bare mesh."""
     d = n @ up
     h = tri @ up  # (faces, 3) vertex heights
-    tol = 0.02 * float(h.max() - h.min())
+    span = float(h.max() - h.min())
+    tol = 0.02 * span
     total = float(a.sum())
-    both = np.abs(d) > cos_g
-    agree = float((a[both] * np.sign(d[both])).sum() / max(a[both].sum(), 1e-300))
-    ground = d > cos_g if abs(agree) >= 0.6 else both
+    ground = np.abs(d) > cos_g
     walls = np.abs(d) < sin_w
     out = {"ground": float(a[ground].sum() / total), "walls": float(a[walls].sum() / total),
-           "agree": agree, "base": 0.0, "top": 0.0}
+           "base": 0.0, "top": 0.0, "low": 0.0, "high": 0.0}
     out["area"] = out["ground"] + 0.5 * out["walls"]
-    if ground.any() and walls.any():
-        wh = _area_samples(h[walls], a[walls])
-        w_lo, w_hi = np.quantile(wh, 0.01), np.quantile(wh, 0.99)
+    if ground.any():
         gh, ga = h[ground].mean(axis=1), a[ground]
-        out["base"] = float(ga[np.abs(gh - w_lo) <= tol].sum() / ga.sum())
-        out["top"] = float(ga[np.abs(gh - w_hi) <= tol].sum() / ga.sum())
-    # heights skewed up from the ground (objects stand on it, nothing hangs below): the
-    # tie-break of a mesh with no walls and normals that disagree
+        out["low"] = float(ga[gh <= h.min() + BAND * span].sum() / ga.sum())
+        out["high"] = float(ga[gh >= h.max() - BAND * span].sum() / ga.sum())
+        if walls.any():
+            wh = _area_samples(h[walls], a[walls])
+            w_lo, w_hi = np.quantile(wh, 0.01), np.quantile(wh, 0.99)
+            out["base"] = float(ga[np.abs(gh - w_lo) <= tol].sum() / ga.sum())
+            out["top"] = float(ga[np.abs(gh - w_hi) <= tol].sum() / ga.sum())
     hc = h.mean(axis=1)
     hc = hc - np.average(hc, weights=a)
     out["skew"] = float(np.average(hc ** 3, weights=a))
-    out["score"] = out["area"] * (0.1 + out["base"] + 0.5 * out["top"]) \
+    out["score"] = out["area"] * (0.1 + out["base"] + 0.5 * out["top"]
+                                  + 0.25 * max(out["low"] - out["high"], 0.0)) \
         * (1.0 + 0.01 * np.sign(out["skew"]))
     return out
 
@@ -207,20 +219,38 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
 #: what each structural cue means, for the report
 CUES = {"area": "ground and wall area (the largest level part is the ground)",
         "base": "the ground lies at the walls' lower end",
-        "top": "roofs lie at the walls' upper end"}
+        "top": "roofs lie at the walls' upper end",
+        "low": "the ground is the scene's extreme along -up (things stand on it)",
+        "cameras": "the cameras are above the ground"}
+
+
+def _cameras_above(up, tri, a, centres) -> float:
+    """Share of the camera centres above the ground (the lowest 5 % of the area)."""
+    h = _area_samples(tri @ up, a)
+    return float(np.mean(np.asarray(centres) @ up > np.quantile(h, 0.05)))
 
 
 def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: float = 20.0,
-                 wall_deg: float = 10.0, directions: int = 4000) -> UpEstimate:
-    """Up from the mesh alone: the best candidate axes (module docstring), each with both
-    signs, scored by structure (:func:`_structure`); ``decision`` names the cue that
-    separated the winner from the runner-up and how close it was."""
+                 wall_deg: float = 10.0, directions: int = 4000,
+                 centres: np.ndarray | None = None) -> UpEstimate:
+    """Up from the mesh (and camera centres ``(k, 3)`` when given): the best candidate axes
+    (module docstring), each with both signs, scored by structure (:func:`_structure`,
+    times ``0.1 + `` the share of the cameras above the ground); ``decision`` names the
+    cue that separated the winner from the runner-up, the confidence (the margin) and the
+    runner-up. A close call is logged as a warning naming ``--up``."""
     n, a, tri, v = _faces(vertices, triangles)
     cos_g, sin_w = np.cos(np.radians(ground_deg)), np.sin(np.radians(wall_deg))
+    if centres is not None:
+        centres = np.asarray(centres, np.float64).reshape(-1, 3)
     options = []
     for axis in _candidate_axes(n, a, cos_g, sin_w, directions):
         for sign in (1.0, -1.0):
-            options.append((sign * axis, _structure(sign * axis, n, a, tri, cos_g, sin_w)))
+            st = _structure(sign * axis, n, a, tri, cos_g, sin_w)
+            st["cameras"] = None
+            if centres is not None and len(centres):
+                st["cameras"] = _cameras_above(sign * axis, tri, a, centres)
+                st["score"] *= 0.1 + st["cameras"]
+            options.append((sign * axis, st))
     options.sort(key=lambda o: -o[1]["score"])
     up, best = options[0]
     decision = {"cue": "only candidate", "margin": 1.0, "runner_up": None}
@@ -229,9 +259,17 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
         # each cue's share of the winner's lead: its score with that cue set to the
         # runner-up's value, taken from the winner's
         weight = best["base"] + 0.5 * best["top"]
+
+        def ext(o):
+            return 0.25 * max(o["low"] - o["high"], 0.0)
+
+        weight += ext(best)
         lead = {"area": (best["area"] - other["area"]) * weight,
                 "base": best["area"] * (best["base"] - other["base"]),
-                "top": best["area"] * 0.5 * (best["top"] - other["top"])}
+                "top": best["area"] * 0.5 * (best["top"] - other["top"]),
+                "low": best["area"] * (ext(best) - ext(other))}
+        if best["cameras"] is not None:
+            lead["cameras"] = best["area"] * weight * (best["cameras"] - other["cameras"])
         cue = max(lead, key=lead.get)
         decision = {"cue": CUES[cue],
                     "margin": float(1.0 - other["score"] / max(best["score"], 1e-300)),
@@ -239,13 +277,35 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
                                   "angle_deg": float(np.degrees(np.arccos(np.clip(
                                       up @ other_up, -1.0, 1.0)))),
                                   "score": other["score"]}}
-    how = (f"ground normals agree ({abs(best['agree']):.2f})" if abs(best["agree"]) >= 0.6
-           else "structure (normals disagree)")
+    decision["confidence"] = decision["margin"]
+    if decision["runner_up"] is not None and decision["margin"] < CLOSE_MARGIN:
+        alt = ",".join(f"{x:.3f}" for x in decision["runner_up"]["up"])
+        log.warning("up from the mesh: low confidence %.2f (runner-up %s, %.0f degrees away, "
+                    "scored within %.0f %%); if the result is wrong, set --up %s",
+                    decision["margin"], alt, decision["runner_up"]["angle_deg"],
+                    100 * decision["margin"], alt)
     return UpEstimate(up, "mesh", best["ground"] + best["walls"],
                       f"ground {best['ground']:.2f} and walls {best['walls']:.2f} of the "
-                      f"area; {best['base']:.2f} of the ground at the walls' foot; sign: "
-                      f"{how}; decided by {decision['cue']} (margin {decision['margin']:.2f})",
+                      f"area; {best['base']:.2f} of the ground at the walls' foot, "
+                      f"{best['low']:.2f} at the scene's bottom; decided by "
+                      f"{decision['cue']} (margin {decision['margin']:.2f})",
                       decision)
+
+
+def orient_winding(vertices: np.ndarray, triangles: np.ndarray, up) -> tuple[np.ndarray, bool]:
+    """``triangles`` wound so the ground faces ``up``: reversed (every one) when the level
+    faces in the lowest :data:`BAND` of the heights face down by area; and whether they
+    were. The ground of a reconstruction is seen from above, so its faces face up."""
+    u = check_unit_vector(up, "up")
+    n, a, tri, _ = _faces(vertices, triangles)
+    d = n @ u
+    gh = (tri @ u).mean(axis=1)
+    lo, hi = gh.min(), gh.max()
+    low = (np.abs(d) > np.cos(np.radians(20.0))) & (gh <= lo + BAND * (hi - lo))
+    f = np.asarray(triangles, np.int64)
+    if low.any() and float((a[low] * np.sign(d[low])).sum()) < 0:
+        return f[:, ::-1].copy(), True
+    return f, False
 
 
 def find_camera_model(mesh_path: str | os.PathLike) -> Path | None:
@@ -280,9 +340,19 @@ def estimate_up(vertices: np.ndarray, triangles: np.ndarray, *, up=None,
 
         try:
             cams = read_cameras(cameras)
-            est = up_from_cameras([c.world_from_cam for c in cams.values()])
-            return UpEstimate(est.up, est.source, est.support, f"{est.detail} in {cameras}")
+            poses = [c.world_from_cam for c in cams.values()]
+            est = up_from_cameras(poses)
         except (InputError, ValueError) as exc:
             log.warning("up: the cameras in %s cannot be read (%s); using the mesh",
                         cameras, exc)
+        else:
+            if est.support >= CAMERA_AGREEMENT:
+                return UpEstimate(est.up, est.source, est.support,
+                                  f"{est.detail} in {cameras}")
+            # the images' ups disagree (a rolled or spherical capture): the mesh decides,
+            # with the camera centres above its ground as one more cue
+            log.info("up: the cameras in %s disagree on up (%.2f); using the mesh and "
+                     "their centres", cameras, est.support)
+            return up_from_mesh(vertices, triangles,
+                                centres=[np.asarray(T)[:3, 3] for T in poses])
     return up_from_mesh(vertices, triangles)

@@ -116,10 +116,13 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
     v, f = mesh_arrays(mesh)
     from core.frames import rigid, rotation_between
     from core.meshes import make_mesh, transform_mesh
-    from reconstruct.surface.up import estimate_up, find_camera_model
+    from reconstruct.surface.up import estimate_up, find_camera_model, orient_winding
 
     cameras = find_camera_model(mesh_path) if up is None else None
     up_est = estimate_up(v, f, up=up, cameras=cameras)
+    f, reversed_winding = orient_winding(v, f, up_est.up)  # steps read normals: ground up
+    if reversed_winding:
+        log.info("the mesh's triangles face down at its ground: their winding is reversed")
     to_upright = rotation_between(up_est.up, [0.0, 0.0, 1.0])  # the smallest turn
     log.info("up %s from %s (%s)", np.round(up_est.up, 3).tolist(), up_est.source,
              up_est.detail)
@@ -176,6 +179,7 @@ def run(mesh_path: str | os.PathLike, recipe, out_dir: str | os.PathLike, *,
             "mesh": str(mesh_path),
             "seed": int(seed),
             "up": up_est.to_dict(),
+            "winding_reversed": bool(reversed_winding),
             "upright_from_mesh": to_upright.tolist(),
             "scene_from_mesh": (scene_from_upright @ rigid(to_upright)).tolist(),
             "input": _counts(mesh),

@@ -18,6 +18,7 @@ from core.files import read_toml, require
 from core.validate import InputError
 from procgen.amplify.plants import scatter_plants
 from procgen.city import CityConfig
+from procgen.terrain.erosion import KINDS as EROSION_KINDS
 from reconstruct.surface.clean import CleanOptions
 
 __all__ = ["KINDS", "Recipe", "Step", "load_recipe", "parse_recipe", "recipe_names",
@@ -79,6 +80,7 @@ SPECS: dict[str, dict[str, _F]] = {
         "sigma": _F(float, None, 0.0, 1e6),               # metres; default: continue roughness
         "trim": _F(bool, True),
         "objects": _F(str, "keep", choices=("keep", "refine")),  # keep: only the ground
+        "erosion": _F(str, "none", choices=EROSION_KINDS),  # rates: ErosionConfig's defaults
     },
     "scatter": {
         "grammar": _F(str, "tree"),

@@ -106,7 +106,7 @@ def _refine_terrain(state: State, step, rng, **_):
     ground = submesh(v, f[on_ground]) if keep else state.surface
     res = refine_terrain(ground, rng=rng, control_size=p["control_size"],
                          levels=p["levels"], hurst=p["hurst"], sigma=p["sigma"],
-                         trim=p["trim"])
+                         trim=p["trim"], erosion=p["erosion"])
     state.surface = merge_meshes([res.mesh, submesh(v, f[~on_ground])]) if keep else res.mesh
     return {"control_shape": list(res.control.shape), "fine_shape": list(res.heights.shape),
             "control_hit_fraction": float(res.valid.mean()), "fine_spacing": res.spacing,

@@ -44,7 +44,8 @@ def preview_path(out: Path) -> Path:
 def render_preview(meshes, path: Path, *, size=(640, 480)) -> Path:
     """Render meshes off-screen to a PNG (pyvista/EGL; matplotlib when that fails).
 
-    ``meshes`` is a list of ``(open3d mesh, rgb colour)``.
+    ``meshes`` is a list of ``(open3d mesh, rgb colour)``; a colour of None draws the
+    mesh's vertex colours.
     """
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     try:
@@ -54,9 +55,11 @@ def render_preview(meshes, path: Path, *, size=(640, 480)) -> Path:
 
         pv.OFF_SCREEN = True
         plotter = pv.Plotter(off_screen=True, window_size=size)
-        for mesh, color in meshes:
+        for mesh, color in meshes:  # colour None: the mesh's own vertex colours
             if len(mesh.triangles):
-                plotter.add_mesh(to_pyvista(mesh), color=color, smooth_shading=True)
+                plotter.add_mesh(to_pyvista(mesh), smooth_shading=True,
+                                 **({"scalars": "rgb", "rgb": True} if color is None
+                                    else {"color": color}))
         plotter.set_background("white")
         plotter.camera_position = "iso"
         plotter.reset_camera()
@@ -82,7 +85,8 @@ def _matplotlib_preview(meshes, size):
         v = np.asarray(mesh.vertices)
         f = np.asarray(mesh.triangles)
         if len(f):
-            ax.add_collection3d(Poly3DCollection(v[f], facecolor=color, edgecolor="none"))
+            fc = color if color is not None else np.asarray(mesh.vertex_colors)[f].mean(axis=1)
+            ax.add_collection3d(Poly3DCollection(v[f], facecolor=fc, edgecolor="none"))
             allv.append(v)
     if allv:
         v = np.vstack(allv)

@@ -47,6 +47,14 @@ def _spacing(spacing):
     return s
 
 
+def _grid_args(heights, spacing, origin):
+    """Checked heights (at least 2 x 2), spacing (2,) and origin (3,)."""
+    z = check_array(heights, "heights", shape=(None, None))
+    if z.shape[0] < 2 or z.shape[1] < 2:
+        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
+    return z, _spacing(spacing), check_array(origin, "origin", shape=(3,))
+
+
 def _grid_triangles(rows: int, cols: int) -> np.ndarray:
     idx = np.arange(rows * cols).reshape(rows, cols)
     a = idx[:-1, :-1].ravel()
@@ -77,11 +85,7 @@ def heightfield_to_mesh(heights, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
     """
     import open3d as o3d
 
-    z = check_array(heights, "heights", shape=(None, None))
-    if z.shape[0] < 2 or z.shape[1] < 2:
-        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
-    d = _spacing(spacing)
-    o = check_array(origin, "origin", shape=(3,))
+    z, d, o = _grid_args(heights, spacing, origin)
     rows, cols = z.shape
     jj, ii = np.meshgrid(np.arange(cols), np.arange(rows))
     verts = np.stack([o[0] + jj.ravel() * d[0], o[1] + ii.ravel() * d[1], o[2] + z.ravel()], 1)
@@ -92,33 +96,45 @@ def heightfield_to_mesh(heights, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
     return mesh
 
 
-def water_mesh(heights, level: float, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
-    """A flat water surface at ``level`` over every cell whose lowest corner is below it.
+def water_mesh(heights, level, *, spacing=1.0, origin=(0.0, 0.0, 0.0)):
+    """A water surface over the terrain.
+
+    ``level`` is a height (a flat sheet over every cell whose lowest corner is below it)
+    or a ``(rows, cols)`` grid of water surface heights, NaN where dry (water that
+    follows the flow: :func:`procgen.terrain.materials.water_surface`); a cell with any
+    wet corner is covered, its dry corners at the bank's height.
 
     Returns an open3d mesh (facing +z, with UVs like :func:`heightfield_to_mesh`); it has
     no triangles when the terrain is nowhere under water.
     """
     import open3d as o3d
 
-    z = check_array(heights, "heights", shape=(None, None))
-    if z.shape[0] < 2 or z.shape[1] < 2:
-        raise ValueError(f"heights: expected at least a 2 x 2 grid, got shape {z.shape}")
-    lv = check_finite(level, "level")
-    d = _spacing(spacing)
-    o = check_array(origin, "origin", shape=(3,))
+    z, d, o = _grid_args(heights, spacing, origin)
     rows, cols = z.shape
-    cmin = np.minimum(np.minimum(z[:-1, :-1], z[:-1, 1:]), np.minimum(z[1:, :-1], z[1:, 1:]))
-    wet = np.repeat((cmin < lv).ravel(), 2)
+    if np.ndim(level) == 0:
+        lv = check_finite(level, "level")
+        cmin = np.minimum(np.minimum(z[:-1, :-1], z[:-1, 1:]), np.minimum(z[1:, :-1], z[1:, 1:]))
+        wet_cell = cmin < lv
+        surface = np.full(z.shape, lv)
+    else:
+        lv = check_array(level, "level", shape=z.shape, finite=False)
+        w = np.isfinite(lv)
+        wet_cell = w[:-1, :-1] | w[:-1, 1:] | w[1:, :-1] | w[1:, 1:]
+        surface = np.where(w, lv, z)
+    wet = np.repeat(wet_cell.ravel(), 2)
     tris = _grid_triangles(rows, cols)[wet]
     used = np.unique(tris)
     remap = np.full(rows * cols, -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     ii, jj = np.divmod(used, cols)
-    verts = np.stack([o[0] + jj * d[0], o[1] + ii * d[1], np.full(len(used), o[2] + lv)], 1)
+    verts = np.stack([o[0] + jj * d[0], o[1] + ii * d[1], o[2] + surface.ravel()[used]], 1)
     new_tris = remap[tris].reshape(-1, 3)
-    mesh = make_mesh(verts.reshape(-1, 3), new_tris, compute_normals=False)
+    mesh = make_mesh(verts.reshape(-1, 3), new_tris,
+                     compute_normals=np.ndim(level) != 0 and len(new_tris) > 0)
     if len(new_tris):
-        mesh.vertex_normals = o3d.utility.Vector3dVector(np.tile([0.0, 0.0, 1.0], (len(used), 1)))
+        if np.ndim(level) == 0:
+            mesh.vertex_normals = o3d.utility.Vector3dVector(
+                np.tile([0.0, 0.0, 1.0], (len(used), 1)))
         uv = np.stack([jj / (cols - 1), ii / (rows - 1)], 1)
         mesh.triangle_uvs = o3d.utility.Vector2dVector(uv[new_tris.ravel()])
     return mesh
