@@ -52,9 +52,8 @@ from core.io.raster import Raster, write_raster
 from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
 from core.validate import InputError
-from data_synth.scenes import SceneBundle
-from procgen.allometry import stand_crowns
 from data_synth.bundle import SceneBundle
+from procgen.allometry import stand_crowns
 from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
     NEEDLE_CLUSTER,

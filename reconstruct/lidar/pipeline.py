@@ -30,8 +30,8 @@ from core.files import atomic_dir, json_data, write_json
 from core.io.las import AsprsClass, LasWriter, read_las
 from core.io.raster import write_raster
 from core.io.trees import write_tree_table
-from core.validate import InputError
 from core.io.vector import write_polygons
+from core.validate import InputError
 from reconstruct.lidar.crowns import crown_polygons
 from reconstruct.lidar.ground import GroundOptions, classify_ground
 from reconstruct.lidar.rasters import canopy_height, dtm_from_ground, surface_model
