@@ -172,3 +172,22 @@ def test_mycelis_flowers_open_top_first():
     # the signal enters the internode below the apex, then the one below the top bud,
     # which opens the step after
     assert min(order) == apex_flowered + 3
+
+
+def test_compound_leaf_apices_and_elongation():
+    """With apical delay 1 a ready apex makes two waiting ones and stays ready: the apices
+    (one leaflet each) follow a(n) = a(n-1) + 2 a(n-2) = (2^(n+2) - (-1)^n) / 3; every
+    internode grows by R each step after it is laid down."""
+    g = load_grammar("abop_5_compound_leaf")
+    for n in range(9):
+        s = derive(g, n)
+        r = interpret(s, g)
+        apices = (2 ** (n + 2) - (-1) ** n) // 3
+        assert s.counts()["A"] == apices
+        assert len(np.unique(r.polygon_ids)) == apices and len(r) == apices - 1
+    s = derive(g, 6)
+    r = interpret(s, g)
+    lengths = np.linalg.norm(r.ends - r.starts, axis=1)
+    # the first two internodes were laid down at step 1: grown R^5
+    np.testing.assert_allclose(lengths[0], g.defines["R"] ** 5)
+    assert set(np.round(np.log(lengths) / np.log(g.defines["R"]), 9)) <= set(range(6))
