@@ -191,3 +191,15 @@ def test_compound_leaf_apices_and_elongation():
     # the first two internodes were laid down at step 1: grown R^5
     np.testing.assert_allclose(lengths[0], g.defines["R"] ** 5)
     assert set(np.round(np.log(lengths) / np.log(g.defines["R"]), 9)) <= set(range(6))
+
+
+def test_lychnis_flowers_follow_the_apical_delays():
+    """A ready apex ends in a flower and starts two apices that fire 8 and 4 steps later:
+    the firings N(s) = N(s-4) + N(s-8), N(1) = 1; the flowers are their running sum."""
+    g = load_grammar("abop_3_lychnis")
+    fired = {1: 1}
+    for s in range(2, g.n + 1):
+        fired[s] = fired.get(s - 4, 0) + fired.get(s - 8, 0)
+    for n in range(g.n + 1):
+        assert derive(g, n).counts().get("K", 0) == sum(fired[s] for s in range(1, n + 1))
+    assert derive(g).counts()["K"] == 20
