@@ -66,7 +66,7 @@ ABOP_GALLERY = [
     ("abop_2_7a", "2.7a"), ("abop_2_7b", "2.7b"), ("abop_2_7c", "2.7c"), ("abop_2_7d", "2.7d"),
     ("abop_3_mycelis", "3 Mycelis-like"), ("abop_3_lychnis", "3 Lychnis-like"),
     ("abop_2_8a", "2.8a"), ("abop_2_8b", "2.8b"), ("abop_2_8c", "2.8c"), ("abop_2_8d", "2.8d"),
-    ("abop_5_compound_leaf", "5.1 compound leaf"), ("sunflower_300", "4.2 Vogel head, 300"),
+    ("abop_5_compound_leaf", "5 compound leaf"), ("sunflower_300", "4.2 Vogel head, 300"),
 ]
 """(example, caption) in the gallery's order: three rows of six."""
 
