@@ -5,17 +5,20 @@ interpreted left to right by a frame cursor (a 4x4 ``world_from_local`` transfor
 terminal shapes emit geometry in the current frame and may move it; ``[`` and ``]`` push
 and pop the frame (a push also tilts the branch). Text form, one rule per line::
 
-    Start  -> cylinder Branch Branch Tree
-    Tree   -> Branch Tree {0.85} | leaf {0.15}
-    Branch -> cylinder {0.5} | [ Tree ] {0.5}
+    Start  -> cylinder Limb Limb Limb Tree
+    Limb   -> cylinder [ Shoot ]
+    Shoot  -> cylinder Branch Branch Tree
+    Tree   -> Branch Tree {0.78} | leaf {0.22}
+    Branch -> cylinder {0.3} | [ Shoot ] {0.25} | [ leaf ] {0.45}
 
-(the notes' plant grammar, ``Tree -> Branch Tree | leaf; Branch -> cylinder | [Tree]``,
-:data:`PLANT`, with a trunk, weights and two branch chances before the first leaf can
-end it). Weights default to 1. Recursion deeper than ``max_depth`` takes the alternative
-with the fewest nonterminals, so derivation ends. With equal weights a derivation stops
-after about two branches; these weights make each ``Tree`` a run of about six branches,
-half of them side trees, so that the derivation branches 11 times at the median over
-200 seeds (max_depth 10; 10th percentile 1, 90th 21; 5.5 % stay a bare stem).
+This is the notes' plant grammar (``Tree -> Branch Tree | leaf; Branch -> cylinder |
+[Tree]``, :data:`PLANT`) with a trunk, weights, and ``Shoot``: a ``Tree`` that starts with
+a stem segment, so that a side branch is never a bare leaf unless the rule says so
+(``[ leaf ]``: a leaf along the shoot). ``Start`` gives every plant a trunk segment
+and three limbs with at least one stem segment, two branch chances and a leaf
+each: a derivation cannot be a stick with a leaf, whatever the seed. Weights default to
+1. Recursion deeper than ``max_depth`` takes the alternative with the fewest
+nonterminals, so derivation ends.
 
 >>> import numpy as np
 >>> g = parse_shape_grammar(PLANT)
@@ -36,12 +39,14 @@ from core.validate import InputError
 from procgen.sweeps import revolve, sweep
 
 __all__ = ["ShapeGrammar", "parse_shape_grammar", "derive_sentence", "interpret_sentence",
-           "plant_mesh", "PLANT", "TERMINALS", "GOLDEN_ANGLE_DEG"]
+           "plant_mesh", "leaf_blade", "PLANT", "TERMINALS", "GOLDEN_ANGLE_DEG"]
 
 PLANT = """
-Start  -> cylinder Branch Branch Tree
-Tree   -> Branch Tree {0.85} | leaf {0.15}
-Branch -> cylinder {0.5} | [ Tree ] {0.5}
+Start  -> cylinder Limb Limb Limb Tree
+Limb   -> cylinder [ Shoot ]
+Shoot  -> cylinder Branch Branch Tree
+Tree   -> Branch Tree {0.78} | leaf {0.22}
+Branch -> cylinder {0.3} | [ Shoot ] {0.25} | [ leaf ] {0.45}
 """
 GOLDEN_ANGLE_DEG = 137.50776405003785  # phyllotaxis: successive branches turn by it
 
@@ -121,17 +126,39 @@ def derive_sentence(grammar: ShapeGrammar, rng: np.random.Generator, *,
     return out
 
 
+def leaf_blade(sides: int = 10, *, width: float = 0.42, thickness: float = 0.03,
+               petiole: float = 0.18) -> tuple[np.ndarray, np.ndarray]:
+    """A closed, flat, ovate leaf of length 1 along +Z (width along X, thin along Y).
+
+    A profile revolved about Z and flattened: a thin petiole for the first ``petiole`` of
+    the length, then a blade widest at about a third of its length, pointed at the tip.
+    """
+    u = np.linspace(0.0, 1.0, 16)
+    blade = np.sin(np.pi * u) ** 0.9 * (1.0 - 0.45 * u)      # ovate: widest below the middle
+    r = np.r_[0.0, 0.04, 0.04, 0.5 * width * blade[1:-1] / blade.max() + 0.01, 0.0]
+    z = np.r_[0.0, 0.0, petiole, petiole + (1 - petiole) * u[1:-1], 1.0]
+    v, f = revolve(np.c_[r, z], segments=sides)
+    return v * [1.0, thickness / width, 1.0], f
+
+
 def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length: float = 1.0,
                        radius: float = 0.08, shrink: float = 0.9, branch_shrink: float = 0.75,
-                       tilt: tuple[float, float] = (25.0, 50.0), sides: int = 10,
+                       tilt: tuple[float, float] = (35.0, 60.0),
+                       leaf_tilt: tuple[float, float] = (45.0, 75.0), leaf_size: float = 0.6,
+                       bend: float = 7.0, rise: float = 0.12, sides: int = 10,
                        leaves: bool = False):
-    """Geometry of a sentence: cylinders (swept circles) and leaves (revolved lenses).
+    """Geometry of a sentence: tapered cylinders and flat ovate leaves.
 
-    ``cylinder`` draws along the local +Z and moves the frame to its top, tapering by
-    ``shrink``; ``[`` pushes the frame, tilts it by a random angle in ``tilt`` (degrees)
-    about a horizontal axis and scales by ``branch_shrink``; ``]`` pops. Successive
+    ``cylinder`` draws a frustum along the local +Z whose top radius is ``shrink`` times
+    its base (the stem tapers segment by segment, continuously) and moves the frame to
+    its top, turning it by a random ``bend`` (degrees, standard deviation) and toward the
+    vertical by ``rise`` of its angle from it (shoots curve upward, as shoots do); ``[``
+    pushes the frame, tilts it by a random angle in ``tilt`` (``leaf_tilt`` when the branch
+    is a single leaf, ``[ leaf ]``) and scales by ``branch_shrink``; ``]`` pops. Successive
     branches of one axis turn about it by the golden angle (phyllotaxis, a few degrees of
-    jitter), so they spiral around the stem instead of bunching.
+    jitter), so they spiral around the stem instead of bunching. A ``leaf`` is
+    :func:`leaf_blade` of length ``leaf_size * length * s**0.3`` (``s`` the current scale),
+    its blade facing away from the stem.
 
     Returns ``(vertices, triangles)``, and with ``leaves=True`` also ``(n,) bool``: which
     vertices belong to leaves.
@@ -145,22 +172,29 @@ def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length:
     count = 0
     t = np.linspace(0, 2 * np.pi, sides, endpoint=False)
     circle = np.c_[np.cos(t), np.sin(t)]
-    a = np.linspace(0, np.pi, 8)
-    lens = np.c_[np.sin(a) * 0.5, (1 - np.cos(a)) * 0.5]  # (r, z) from axis to axis
-    lv, lf = revolve(lens, segments=sides)
-    lv = lv * [0.25, 0.12, 0.5]
-    for tok in sentence:
+    lv, lf = leaf_blade(sides)
+    for i, tok in enumerate(sentence):
         if tok == "cylinder":
             top = p + R[:, 2] * length * s
-            v, f = sweep(circle * radius * s, np.stack([p, top]), normal=R[:, 0])
+            v, f = sweep(circle * radius * s, np.stack([p, top]), normal=R[:, 0],
+                         scale=np.array([1.0, shrink]))
             vs.append(v)
             leafy.append(np.zeros(len(v), bool))
             fs.append(f + count)
             count += len(v)
             p = top
             s *= shrink
+            # a random bend, then a turn toward the vertical (an upward-curving shoot)
+            a = rng.uniform(0, 2 * np.pi)
+            R = axis_angle_matrix(R @ np.array([np.cos(a), np.sin(a), 0.0]),
+                                  np.radians(rng.normal(0.0, bend))) @ R
+            up = np.cross(R[:, 2], [0.0, 0.0, 1.0])
+            if np.linalg.norm(up) > 1e-9:
+                ang = np.arccos(np.clip(R[2, 2], -1.0, 1.0))
+                R = axis_angle_matrix(up, rise * ang) @ R
         elif tok == "leaf":
-            v = (lv * s) @ R.T + p
+            L = leaf_size * length * s ** 0.3
+            v = (lv * L) @ R.T + p
             vs.append(v)
             leafy.append(np.ones(len(v), bool))
             fs.append(lf + count)
@@ -169,7 +203,12 @@ def interpret_sentence(sentence: list[str], rng: np.random.Generator, *, length:
             turn += np.radians(GOLDEN_ANGLE_DEG + rng.normal(0.0, 5.0))
             stack.append((R.copy(), p.copy(), s, turn))
             axis = R @ np.array([np.cos(turn), np.sin(turn), 0.0])
-            R = axis_angle_matrix(axis, np.radians(rng.uniform(*tilt))) @ R
+            is_leaf = sentence[i + 1:i + 3] == ["leaf", "]"]
+            R = axis_angle_matrix(axis, np.radians(rng.uniform(*(leaf_tilt if is_leaf
+                                                                  else tilt)))) @ R
+            # the new frame's X along the tilt axis: a leaf's blade faces away from the stem
+            x = axis / np.linalg.norm(axis)
+            R = np.c_[x, np.cross(R[:, 2], x), R[:, 2]]
             s *= branch_shrink
             turn = rng.uniform(0, 2 * np.pi)
         elif tok == "]":

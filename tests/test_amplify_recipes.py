@@ -293,3 +293,32 @@ def test_city_recipe_lays_labelled_roads_buildings_and_roofs(tmp_path):
         n = len(read_mesh(out / f"{part}.ply").vertices)
         assert n > 0 and int((lm["labels"] == ids[part]).sum()) == n
     assert (lm["labels"] == ids["object"]).sum() > 0          # the rock is still there
+
+
+def test_forest_of_weber_penn_species(tmp_path):
+    """The scatter step with species: Weber & Penn trees of the named species, each standing
+    on the ground at about the height asked, bark and leaves as parts; an unknown species
+    names the recipe field."""
+    from procgen.terrain import heightfield_to_mesh
+
+    v, f = mesh_arrays(heightfield_to_mesh(np.zeros((11, 11)), spacing=0.1))   # 1 m x 1 m
+    path = tmp_path / "ground.ply"
+    write_mesh(path, make_mesh(v, f))
+    recipe = {"step": [{"kind": "scatter", "density": 8.0, "height": 0.2, "height_jitter": 0.0,
+                        "variants": 2, "species": "quaking_aspen, scots_pine"}],
+              "render": {"width": 32, "height": 24}}
+    out = run(path, recipe, tmp_path / "out", seed=0)
+    rep = json.loads((out / "report.json").read_text())
+    res = rep["steps"][0]
+    assert res["species"] == ["quaking_aspen", "scots_pine"] and res["plants"] >= 3
+    bark = mesh_arrays(read_mesh(out / "bark.ply"))
+    leaf = mesh_arrays(read_mesh(out / "leaf.ply"))
+    assert len(leaf[1]) > 1000 and len(bark[1]) > 1000
+    top = max(bark[0][:, 2].max(), leaf[0][:, 2].max())
+    height = 0.2 * np.sqrt(2.0)                  # 0.2 of the 1.41 m diagonal
+    assert top == pytest.approx(height * 0.98, rel=0.05)   # (bases sunk 2 % into the ground)
+    assert bark[0][:, 2].min() > -0.03 * height
+    bad = dict(recipe, step=[dict(recipe["step"][0], species="quaking_aspen, baobab")])
+    with pytest.raises(InputError, match="baobab") as e:
+        load_recipe(bad)
+    assert "species" in str(e.value)

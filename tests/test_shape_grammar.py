@@ -8,6 +8,7 @@ from procgen.shape_grammar import (
     PLANT,
     derive_sentence,
     interpret_sentence,
+    leaf_blade,
     parse_shape_grammar,
     plant_mesh,
 )
@@ -16,7 +17,7 @@ from procgen.sweeps import edge_manifold_report
 
 def test_plant_grammar_parses_and_terminates():
     g = parse_shape_grammar(PLANT)
-    assert g.start == "Start" and set(g.rules) == {"Start", "Tree", "Branch"}
+    assert g.start == "Start" and set(g.rules) == {"Start", "Limb", "Shoot", "Tree", "Branch"}
     for seed in range(20):
         s = derive_sentence(g, np.random.default_rng(seed), max_depth=10)
         assert set(s) <= {"cylinder", "leaf", "[", "]"}
@@ -51,8 +52,26 @@ def test_geometry_is_closed_and_seeded():
     rep = edge_manifold_report(f)
     assert rep["boundary"] == rep["nonmanifold"] == rep["inconsistent"] == 0
     v, f = interpret_sentence(["cylinder", "cylinder", "leaf"], np.random.default_rng(0),
-                              length=1.0, shrink=0.5)
-    assert v[:, 2].max() == pytest.approx(1.5 + 0.5 * 0.25, abs=1e-9)  # leaf height 0.5
+                              length=1.0, shrink=0.5, bend=0.0, leaf_size=0.6)
+    # two segments (1 + 0.5) and a leaf of 0.6 s^0.3 at s = 0.25
+    assert v[:, 2].max() == pytest.approx(1.5 + 0.6 * 0.25 ** 0.3, abs=1e-9)
+
+
+def test_branches_taper_and_leaves_are_flat_blades():
+    v, f = interpret_sentence(["cylinder"], np.random.default_rng(0), radius=0.1, shrink=0.8,
+                              sides=12)
+    r = np.linalg.norm(v[:, :2], axis=1)
+    assert r[v[:, 2] < 1e-9].max() == pytest.approx(0.1)
+    assert r[v[:, 2] > 1 - 1e-9].max() == pytest.approx(0.08)       # the top is 0.8 x base
+    lv, lf = leaf_blade()
+    ext = lv.max(0) - lv.min(0)
+    assert ext[2] == pytest.approx(1.0) and ext[1] < 0.1 * ext[0]      # long, wide, thin
+    rep = edge_manifold_report(lf)
+    assert rep["boundary"] == rep["nonmanifold"] == rep["inconsistent"] == 0
+    # ovate: widest below the middle of the blade, narrow at the petiole and the tip
+    z = lv[:, 2]
+    widest = z[np.argmax(np.abs(lv[:, 0]))]
+    assert 0.3 < widest < 0.6
 
 
 @pytest.mark.parametrize("text, words", [
@@ -66,13 +85,19 @@ def test_bad_grammars(text, words):
         parse_shape_grammar(text)
 
 
-def test_a_typical_plant_branches_several_times():
-    """The weighted grammar: the median derivation over 60 seeds branches at least three
-    times (with equal weights it is a stick with a leaf or two)."""
+def test_no_degenerate_plant_whatever_the_seed():
+    """By construction every derivation has a trunk, three limbs that each carry a stem
+    segment and end in a leaf, and more leaves along the shoots; the notes' grammar as is
+    gives a stick with a leaf or two at the median."""
     g = parse_shape_grammar(PLANT)
-    branches = [derive_sentence(g, np.random.default_rng(s), max_depth=10).count("[")
-                for s in range(60)]
-    assert np.median(branches) >= 3
+    sentences = [derive_sentence(g, np.random.default_rng(s), max_depth=10) for s in range(300)]
+    for s in sentences:
+        assert s[:3] == ["cylinder", "cylinder", "["]
+        assert s.count("[") >= 3 and s.count("leaf") >= 4 and s.count("cylinder") >= 7
+    branches = [s.count("[") for s in sentences]
+    assert np.median(branches) >= 10
+    # a gallery of 12 seeds: 12 different plants
+    assert len({" ".join(s) for s in sentences[:12]}) == 12
     flat = parse_shape_grammar("Start -> Tree\nTree -> Branch Tree | leaf\n"
                                "Branch -> cylinder | [ Tree ]\n")   # the notes' as is
     assert np.median([derive_sentence(flat, np.random.default_rng(s), max_depth=10)

@@ -35,8 +35,8 @@ from core.validate import check_finite, check_int, check_positive, check_range, 
 from procgen.amplify.snow import sky_visible
 from procgen.amplify.surface import mesh_input
 
-__all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants", "tip_leaves",
-           "upward_slope"]
+__all__ = ["TREE_GRAMMAR", "ScatterResult", "scatter_plants", "grow_variants",
+           "species_variants", "tip_leaves", "upward_slope"]
 
 # A small 3-D stochastic tree: each apex branches in three, in two, or grows on.
 TREE_GRAMMAR = """\
@@ -148,6 +148,66 @@ def grow_variants(grammar=None, *, rng: np.random.Generator, variants: int = 6,
     return out
 
 
+def species_variants(species, *, rng: np.random.Generator, variants: int = 6,
+                     max_triangles: int = 12_000) -> list[tuple[np.ndarray, np.ndarray,
+                                                                np.ndarray]]:
+    """Grow ``variants`` Weber & Penn trees (:mod:`procgen.weber_penn`), cycling over
+    ``species`` (shipped names or ``.toml`` parameter files), in the form of
+    :func:`grow_variants`: ``(vertices, triangles, leaf mask)`` standing on the origin with
+    height 1.
+
+    Each tree is grown at its species' own height (``Scale ± ScaleV``) so its proportions
+    are the species', with leaf cards (``lod='cards'``). A forest repeats each variant many
+    times, so a tree over ``max_triangles`` keeps its leaves (thinned at random to half the
+    budget when they alone exceed it) and has its bark decimated (quadric error) to the
+    rest: a 20 m spruce's 90 000 triangles become about 12 000.
+    """
+    from procgen.weber_penn import grow, load_species, tree_mesh
+    from procgen.weber_penn.appearance import LEAF_LABEL
+
+    rng = check_rng(rng)
+    names = [species] if isinstance(species, str) else list(species)
+    if not names:
+        raise ValueError("species: expected at least one species name or .toml file")
+    params = [load_species(s) for s in names]
+    variants = check_int(variants, "variants", 1, 1024)
+    max_triangles = check_int(max_triangles, "max_triangles", 100, 10_000_000)
+    out = []
+    for k in range(variants):
+        p = params[k % len(params)]
+        m = tree_mesh(grow(p, rng=rng), rng=rng, lod="cards")
+        v, f = m.vertices, m.triangles
+        on_leaf = m.labels[f[:, 0]] == LEAF_LABEL
+        lf, bf = f[on_leaf], f[~on_leaf]
+        if len(f) > max_triangles:
+            if len(lf) > max_triangles // 2:   # leaf cards are two triangles each
+                cards = lf.reshape(-1, 2, 3) if len(lf) % 2 == 0 else lf[:, None]
+                keep = rng.choice(len(cards), size=max(1, max_triangles // 2 // cards.shape[1]),
+                                  replace=False)
+                lf = cards[np.sort(keep)].reshape(-1, 3)
+            budget = max(max_triangles - len(lf), 100)
+            if len(bf) > budget:
+                bark = make_mesh(v, bf).simplify_quadric_decimation(budget)
+                bv, bf = np.asarray(bark.vertices), np.asarray(bark.triangles, np.int64)
+            else:
+                bv = v
+        else:
+            bv = v
+        base = v[f[~on_leaf]].reshape(-1, 3)
+        base = base[np.argmin(base[:, 2])]
+        vv = np.vstack([bv, v])
+        ff = np.vstack([bf, lf + len(bv)]).astype(np.int64)
+        used = np.unique(ff)
+        remap = np.full(len(vv), -1, np.int64)
+        remap[used] = np.arange(len(used))
+        vv, ff = vv[used], remap[ff]
+        leaf = np.zeros(len(vv), bool)
+        leaf[remap[np.unique(lf) + len(bv)]] = True
+        vv = vv - [base[0], base[1], vv[:, 2].min()]
+        out.append((vv / float(vv[:, 2].max()), ff, leaf))
+    return out
+
+
 def upward_slope(normals: np.ndarray) -> np.ndarray:
     """Slope in degrees of surfaces with unit ``normals (n, 3)``: 0 facing up, 90 vertical,
     180 facing down (an overhang)."""
@@ -212,7 +272,7 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
                    variants: int = 6, steps: int | None = None, sides: int = 6,
                    max_plants: int = 400, upright: bool = True, min_plants: int = 0,
                    max_candidates: int = 2_000_000, need_sky: bool = True, leaves: int = 5,
-                   leaf_size: float = 0.1) -> ScatterResult:
+                   leaf_size: float = 0.1, species=None) -> ScatterResult:
     """Plant a varied forest on ``mesh``.
 
     Parameters
@@ -253,6 +313,11 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     leaves, leaf_size : int, float
         Leaves per branch tip and their length over the plant height (see
         :func:`grow_variants`).
+    species : str or sequence of str, optional
+        Weber & Penn species (names or ``.toml`` files): the variants are those species'
+        trees (:func:`species_variants`, cycling over the list) instead of ``grammar``'s
+        plants; ``grammar``, ``steps``, ``sides``, ``leaves`` and ``leaf_size`` then do
+        not apply.
     max_candidates : int
         Refuse a density that needs more candidate points than this.
 
@@ -311,8 +376,11 @@ def scatter_plants(mesh, *, rng: np.random.Generator, grammar=None, density: flo
     heights = h_mean * (1.0 + jit * rng.uniform(-1.0, 1.0, size=k))
     if k == 0:
         return ScatterResult(None, pts, tri, heights, var_id, n_cand, eligible_area, truncated)
-    shapes = grow_variants(grammar, rng=rng, variants=variants, steps=steps, sides=sides,
-                           leaves=leaves, leaf_size=leaf_size)
+    if species:
+        shapes = species_variants(species, rng=rng, variants=variants)
+    else:
+        shapes = grow_variants(grammar, rng=rng, variants=variants, steps=steps, sides=sides,
+                               leaves=leaves, leaf_size=leaf_size)
     vs, fs, ls, off = [], [], [], 0
     for i in range(k):
         pv, pf, pl = shapes[var_id[i]]

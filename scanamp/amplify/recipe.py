@@ -84,6 +84,9 @@ SPECS: dict[str, dict[str, _F]] = {
     },
     "scatter": {
         "grammar": _F(str, "tree"),
+        # Weber & Penn species, comma-separated shipped names or .toml files ("": the
+        # grammar's plants); the variants cycle over them
+        "species": _F(str, ""),
         "density": _F(float, 4.0, 0.0, 1e6, lo_open=True),  # plants per density_unit
         # "m2": per square metre; "diagonal": per square of the bounding-box diagonal
         # (relative, like the sizes: the same recipe plants as many on a 20 cm scan as on
@@ -286,6 +289,25 @@ def _check_simulation(params: dict, path: Path | None, where, prefix: str) -> No
                          field=f"{prefix}.recipe") from None
 
 
+def species_list(text: str) -> list[str]:
+    """The comma-separated species of a scatter step, stripped ("" gives none)."""
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def _check_species(text: str, path, where, fld) -> None:
+    from procgen.weber_penn import species_names
+
+    known = species_names()
+    for name in species_list(text):
+        key = name.lower().replace(" ", "_").replace("-", "_")
+        if not name.endswith(".toml") and key not in known:
+            raise InputError(f"unknown species {name!r}; expected one of {', '.join(known)} "
+                             "or a .toml parameter file", path=where, field=fld)
+        if name.endswith(".toml") and path is not None and \
+                not (Path(path).parent / name).is_file() and not Path(name).is_file():
+            raise InputError(f"no such species file {name!r}", path=where, field=fld)
+
+
 def parse_recipe(data: dict, *, path: str | os.PathLike | None = None,
                  name: str | None = None) -> Recipe:
     """Validate a parsed recipe table (``path`` names it in errors)."""
@@ -317,6 +339,8 @@ def parse_recipe(data: dict, *, path: str | os.PathLike | None = None,
         if kind == "scatter" and params["altitude_range"][1] < params["altitude_range"][0]:
             raise InputError(f"expected lo <= hi, got {params['altitude_range']}", path=where,
                              field=f"{prefix}.altitude_range")
+        if kind == "scatter" and params["species"].strip():
+            _check_species(params["species"], path, where, f"{prefix}.species")
         if kind == "refine-terrain":
             m = params["control_size"] - 1
             if m & (m - 1):

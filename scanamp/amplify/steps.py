@@ -115,19 +115,22 @@ def _refine_terrain(state: State, step, rng, **_):
 
 def _scatter(state: State, step, rng, *, recipe=None, **_):
     from procgen.amplify import scatter_plants
+    from scanamp.amplify.recipe import species_list
 
     p = step.params
     v, _ = mesh_arrays(state.surface)
     diag = bbox_diagonal(v)
     grammar = p["grammar"] if recipe is None else recipe.resolve(p["grammar"])
     density = p["density"] / diag ** 2 if p["density_unit"] == "diagonal" else p["density"]
+    species = [s if not s.endswith(".toml") or recipe is None else recipe.resolve(s)
+               for s in species_list(p["species"])]
     res = scatter_plants(state.surface, rng=rng, grammar=grammar, density=density,
                          height=p["height"] * diag, height_jitter=p["height_jitter"],
                          slope_max_deg=p["slope_max_deg"],
                          altitude_range=tuple(p["altitude_range"]), variants=p["variants"],
                          steps=p["steps"], sides=p["sides"], max_plants=p["max_plants"],
                          upright=p["upright"], min_plants=p["min_plants"],
-                         leaves=p["leaves"], leaf_size=p["leaf_size"])
+                         leaves=p["leaves"], leaf_size=p["leaf_size"], species=species)
     names = []
     if res.mesh is not None:   # bark and leaves as two parts, so each keeps its label
         v, f = mesh_arrays(res.mesh)
@@ -140,6 +143,7 @@ def _scatter(state: State, step, rng, *, recipe=None, **_):
             "density_per_m2": density,
             "eligible_area": res.eligible_area, "truncated": res.truncated,
             "plant_height_mean": float(res.heights.mean()) if len(res.heights) else 0.0,
+            "species": species,
             "parts": [n for n in names if n is not None]}
 
 
