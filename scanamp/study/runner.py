@@ -4,7 +4,10 @@ Each finished run (success or failure) is one JSON record ``DIR/runs/<run_id>.js
 written atomically (temporary sibling + rename) as the run's last act. A study
 started again skips every run that has a record, so a study killed at any moment
 resumes without redoing a finished run or losing one: a run that was mid-way when
-killed has no record and runs again from scratch (its work folder is temporary).
+killed has no record and runs again from scratch. A run works in a scratch folder
+``DIR/.scanamp-scratch-XXXXXXXX`` (never in the system temporary directory), removed when
+it ends, well or not; those of runs killed outright are removed when the study resumes.
+One process runs a study folder at a time (:func:`core.files.hold`).
 
 Executors
 ---------
@@ -223,12 +226,15 @@ def run_study(study, out_dir: str | os.PathLike, *, workers: int = 1,
     if client is None and scheduler:  # before touching the folder: a bad address leaves none
         client = own_client = connect(scheduler, timeout=timeout)
     out = Path(out_dir)
-    with hold(out):  # one study process per folder
-        return _run_study(study, out, workers=workers, client=client, own_client=own_client,
-                          keep=keep)
+    try:
+        with hold(out):  # one study process per folder
+            return _run_study(study, out, workers=workers, client=client, keep=keep)
+    finally:
+        if own_client is not None:
+            own_client.close()
 
 
-def _run_study(study, out: Path, *, workers, client, own_client, keep) -> dict:
+def _run_study(study, out: Path, *, workers, client, keep) -> dict:
     (out / "runs").mkdir(parents=True, exist_ok=True)
     for left in remove_stale(out):  # scratch and temporaries of a study killed before
         log.info("removed %s, left by an earlier run that was killed", left)
@@ -276,8 +282,6 @@ def _run_study(study, out: Path, *, workers, client, own_client, keep) -> dict:
             raise
         finally:
             bar.close()
-            if own_client is not None:
-                own_client.close()
     table = _finish(study, out, wanted)
     return {"runs": len(study.runs), "done_before": done_before, "executed": executed,
             "failed": int((table["status"] != "ok").sum()) if len(table) else 0,
