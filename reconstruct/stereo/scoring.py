@@ -172,7 +172,7 @@ def coarse_align(mesh, ref, size):
     from scipy.spatial import cKDTree
 
     from core.sampling import sample_surface
-    from reconstruct.registration.pairwise import icp_point_to_plane
+    from reconstruct.registration.icp import icp
 
     rng = np.random.default_rng(0)
     pts = [sample_surface(np.asarray(m.vertices), np.asarray(m.triangles), 30000, rng=rng)
@@ -186,8 +186,8 @@ def coarse_align(mesh, ref, size):
     tree = cKDTree(p_dst)
     T = np.eye(4)
     for frac in (0.1, 0.03, 0.01):
-        T = icp_point_to_plane(np.asarray(src.points), p_dst, np.asarray(dst.normals), T,
-                               frac * size, tree, iterations=50)
+        T = icp(np.asarray(src.points), p_dst, T, frac * size,
+                target_normals=np.asarray(dst.normals), tree=tree, iterations=50).transform
     out = copy.deepcopy(mesh)
     out.transform(T)
     return out, np.asarray(T)
