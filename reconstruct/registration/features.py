@@ -97,7 +97,7 @@ def kabsch(a: np.ndarray, b: np.ndarray, w: np.ndarray | None = None) -> np.ndar
 
 def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlier: float,
                  rng: np.random.Generator, iterations: int = 6000, keep: int = 6,
-                 chunk: int = 500) -> list[np.ndarray]:
+                 min_edge: float | None = None, chunk: int = 500) -> list[np.ndarray]:
     """The ``keep`` best rigid ``dst_from_src`` hypotheses from triples of ``matches``.
 
     Parameters
@@ -112,6 +112,9 @@ def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlie
         Draws the triples.
     iterations : int
         Triples drawn; those whose edge lengths disagree by more than 10 % are skipped.
+    min_edge : float, optional
+        Triples with an edge this short or shorter are skipped too (metres; default
+        ``2 * inlier``: a short triple's rotation is poorly determined).
 
     Returns
     -------
@@ -126,7 +129,8 @@ def ransac_rigid(src: np.ndarray, dst: np.ndarray, matches: np.ndarray, *, inlie
     a, b = cs[tri], cd[tri]
     ea = np.linalg.norm(a - np.roll(a, 1, axis=1), axis=2)
     eb = np.linalg.norm(b - np.roll(b, 1, axis=1), axis=2)
-    ok = np.all((np.minimum(ea, eb) >= 0.9 * np.maximum(ea, eb)) & (ea > 2 * inlier), axis=1)
+    min_edge = 2 * inlier if min_edge is None else min_edge
+    ok = np.all((np.minimum(ea, eb) >= 0.9 * np.maximum(ea, eb)) & (ea > min_edge), axis=1)
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
         return []

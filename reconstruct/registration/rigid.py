@@ -51,7 +51,9 @@ LOW_FITNESS = 0.5
 
 _VOXEL_FRACTION = 1.0 / 40.0
 _RANSAC_ITERATIONS = 4000
-_RANSAC_KEEP = 5
+#: hypotheses of the RANSAC that go on to the ICP judge: the right pose of a partial scan
+#: need not have the most feature inliers, so more than a few
+_RANSAC_KEEP = 20
 #: ICP here runs to convergence: one scan, aligned once, its figures reported
 _CONVERGED = {"rotation_tol": 1e-10, "translation_tol": 1e-9}
 _MAX_POINTS = 60000
@@ -131,7 +133,8 @@ def register(scan: np.ndarray, reference: np.ndarray, *, method: str = "global",
         s, d = src[voxel_thin(src, voxel)], dst[voxel_thin(dst, voxel)]
         matches = match_features(_features(s, voxel), _features(d, voxel))
         candidates = ransac_rigid(s, d, matches, inlier=1.5 * voxel, rng=rng,
-                                  iterations=_RANSAC_ITERATIONS, keep=_RANSAC_KEEP)
+                                  iterations=_RANSAC_ITERATIONS, keep=_RANSAC_KEEP,
+                                  min_edge=voxel)
         n_ransac = len(candidates)
         candidates += _principal_axes(s, d)
         tree = cKDTree(d)
