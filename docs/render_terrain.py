@@ -63,7 +63,7 @@ def main(out: Path):
     for name, h, water, title in shots:
         land = build_landscape(h, spacing=step, origin=origin, water=water, seed=1)
         shares = ", ".join(f"{k} {v:.0%}" for k, v in land.shares.items())
-        print(f"{name}: pits {pit_share(h):.2%}; {shares}")
+        print(f"{name}: pits {pit_share(h):.2%}; {shares}")  # noqa: T201
         _render(land, out / name, title)
     _maps(z, sp, step, out / "terrain_maps.png")
 

@@ -185,8 +185,8 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
     the level area lying at the walls' lower end (within 2 % of the height range of the
     lowest 1 % of the walls' area): walls stand on the ground. ``top``: the share at their
     upper end (roofs). ``low`` and ``high``: the shares of the whole area that are level
-    and lie in the lowest and highest :data:`BAND` of the scene's height: the ground is the extreme of the scene
-    along -up, and things stand on it. The score is
+    and lie in the lowest and highest :data:`BAND` of the scene's height: the ground is
+    the extreme of the scene along -up, and things stand on it. The score is
     ``area x (0.1 + base + top / 2 + max(low - high, 0) / 4)``, times 1.01 when the
     heights are skewed up (0.99 when down): the tie-break of a bare mesh."""
     d = n @ up
