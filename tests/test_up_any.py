@@ -80,6 +80,12 @@ def test_orient_winding_turns_the_ground_up():
     assert flipped and np.array_equal(g, f)
     g, flipped = orient_winding(v, f, up)
     assert not flipped and np.array_equal(g, f)
+    # a closed object: its underside faces down (outward), its top up: kept as it is
+    import open3d as o3d
+
+    ball = o3d.geometry.TriangleMesh.create_sphere(0.5, 12)
+    bv, bf = mesh_arrays(ball)
+    assert not orient_winding(bv, bf, Z)[1] and orient_winding(bv, bf[:, ::-1], Z)[1]
 
 
 def test_a_close_call_logs_the_flag(caplog):

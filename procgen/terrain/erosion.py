@@ -286,34 +286,31 @@ def _thermal(z, iters, tan_talus, rate, dx, dy):
     r, c = z.shape
     diag = np.sqrt(dx * dx + dy * dy)
     delta = np.zeros((r, c))
+    excess = np.zeros(9)
     for _ in range(iters):
         delta[:] = 0.0
         for i in range(r):
             for j in range(c):
                 tot = 0.0
                 big = 0.0
-                for di in range(-1, 2):
-                    for dj in range(-1, 2):
-                        ii, jj = i + di, j + dj
-                        if (di == 0 and dj == 0) or ii < 0 or jj < 0 or ii >= r or jj >= c:
-                            continue
-                        dist = diag if di != 0 and dj != 0 else (dx if di == 0 else dy)
-                        ex = z[i, j] - z[ii, jj] - tan_talus * dist
-                        if ex > 0:
-                            tot += ex
-                            big = max(big, ex)
+                for q in range(9):
+                    di, dj = q // 3 - 1, q % 3 - 1
+                    ii, jj = i + di, j + dj
+                    excess[q] = 0.0
+                    if q == 4 or ii < 0 or jj < 0 or ii >= r or jj >= c:
+                        continue
+                    dist = diag if di != 0 and dj != 0 else (dx if di == 0 else dy)
+                    ex = z[i, j] - z[ii, jj] - tan_talus * dist
+                    if ex > 0:
+                        excess[q] = ex
+                        tot += ex
+                        big = max(big, ex)
                 if tot <= 0:
                     continue
                 move = rate * 0.5 * big
-                for di in range(-1, 2):
-                    for dj in range(-1, 2):
-                        ii, jj = i + di, j + dj
-                        if (di == 0 and dj == 0) or ii < 0 or jj < 0 or ii >= r or jj >= c:
-                            continue
-                        dist = diag if di != 0 and dj != 0 else (dx if di == 0 else dy)
-                        ex = z[i, j] - z[ii, jj] - tan_talus * dist
-                        if ex > 0:
-                            delta[ii, jj] += move * ex / tot
+                for q in range(9):
+                    if excess[q] > 0:
+                        delta[i + q // 3 - 1, j + q % 3 - 1] += move * excess[q] / tot
                 delta[i, j] -= move
         for i in range(r):
             for j in range(c):

@@ -25,8 +25,9 @@ is built on it (plants, snow, a city) needs gravity. Two sources, in order of tr
    and the runner-up; a close call (under :data:`CLOSE_MARGIN`) is logged and makes
    ``scanamp amplify`` warn naming ``--up``.
 
-:func:`orient_winding` then turns the triangles so the ground faces up, so steps that read
-normals (plants on gentle slopes, snow) work on a mesh written with the other winding.
+:func:`orient_winding` then turns the triangles so what is seen from the sky faces up, so
+steps that read normals (plants on gentle slopes, snow) work on a mesh written with the
+other winding.
 
 :func:`estimate_up` tries them in that order unless ``up`` is given.
 
@@ -183,9 +184,9 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
     ``area``: level faces plus half the walls, over the whole area. ``base``: the share of
     the level area lying at the walls' lower end (within 2 % of the height range of the
     lowest 1 % of the walls' area): walls stand on the ground. ``top``: the share at their
-    upper end (roofs). ``low`` and ``high``: the shares of the level area in the lowest and
-    highest :data:`BAND` of the scene's height: the ground is the extreme of the scene
-    along -up, and things stand on it. The score is
+    upper end (roofs). ``low`` and ``high``: the shares of the whole area that are level
+    and lie in the lowest and highest :data:`BAND` of the scene's height: the ground is
+    the extreme of the scene along -up, and things stand on it. The score is
     ``area x (0.1 + base + top / 2 + max(low - high, 0) / 4)``, times 1.01 when the
     heights are skewed up (0.99 when down): the tie-break of a bare mesh."""
     d = n @ up
@@ -200,8 +201,8 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
     out["area"] = out["ground"] + 0.5 * out["walls"]
     if ground.any():
         gh, ga = h[ground].mean(axis=1), a[ground]
-        out["low"] = float(ga[gh <= h.min() + BAND * span].sum() / ga.sum())
-        out["high"] = float(ga[gh >= h.max() - BAND * span].sum() / ga.sum())
+        out["low"] = float(ga[gh <= h.min() + BAND * span].sum() / total)
+        out["high"] = float(ga[gh >= h.max() - BAND * span].sum() / total)
         if walls.any():
             wh = _area_samples(h[walls], a[walls])
             w_lo, w_hi = np.quantile(wh, 0.01), np.quantile(wh, 0.99)
@@ -293,17 +294,32 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
 
 
 def orient_winding(vertices: np.ndarray, triangles: np.ndarray, up) -> tuple[np.ndarray, bool]:
-    """``triangles`` wound so the ground faces ``up``: reversed (every one) when the level
-    faces in the lowest :data:`BAND` of the heights face down by area; and whether they
-    were. The ground of a reconstruction is seen from above, so its faces face up."""
+    """``triangles`` wound so what is seen from the sky faces ``up``: reversed (every one)
+    when the level faces with nothing above them (a ray along ``up`` from each leaves the
+    mesh: open ground, roofs, the tops of things) face down by area; and whether they
+    were. Undersides and overhangs, which face down, have the mesh above them and do not
+    vote."""
+    import open3d as o3d
+
     u = check_unit_vector(up, "up")
-    n, a, tri, _ = _faces(vertices, triangles)
-    d = n @ u
-    gh = (tri @ u).mean(axis=1)
-    lo, hi = gh.min(), gh.max()
-    low = (np.abs(d) > np.cos(np.radians(20.0))) & (gh <= lo + BAND * (hi - lo))
+    v = np.asarray(vertices, np.float64)
     f = np.asarray(triangles, np.int64)
-    if low.any() and float((a[low] * np.sign(d[low])).sum()) < 0:
+    n, a, tri, _ = _faces(v, f)
+    d = n @ u
+    level = np.nonzero(np.abs(d) > np.cos(np.radians(20.0)))[0]
+    if len(level) == 0:
+        return f, False
+    tm = o3d.t.geometry.TriangleMesh()
+    tm.vertex.positions = o3d.core.Tensor(v.astype(np.float32))
+    tm.triangle.indices = o3d.core.Tensor(f.astype(np.int32))
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(tm)
+    eps = 1e-4 * float(np.linalg.norm(v.max(0) - v.min(0)))
+    start = tri[level].mean(axis=1) + eps * u
+    rays = np.hstack([start, np.tile(u, (len(level), 1))]).astype(np.float32)
+    open_sky = ~np.isfinite(scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy())
+    sky = level[open_sky]
+    if len(sky) and float((a[sky] * np.sign(d[sky])).sum()) < 0:
         return f[:, ::-1].copy(), True
     return f, False
 
