@@ -86,9 +86,11 @@ class SfmConfig(Config):
                                    "and EXIF focal length, 'single' one for all, "
                                    "'per-image' one each")
     cameras: str | None = option(None, help="known cameras: a COLMAP model (folder, text or "
-                                            "binary), a nerfstudio transforms.json or a "
-                                            "Middlebury *_par.txt; the sparse points are "
-                                            "then triangulated with those poses fixed")
+                                            "binary), a nerfstudio transforms.json, a "
+                                            "Middlebury *_par.txt, an OpenMVS .mvs, a "
+                                            "Meshroom .sfm or a folder of Strecha .camera "
+                                            "files; the sparse points are then triangulated "
+                                            "with those poses fixed")
     mapper: str = option("incremental", choices=("incremental", "global"),
                          help="pycolmap's mapper")
     matcher: str = option("auto", choices=MATCHER_CHOICES,
