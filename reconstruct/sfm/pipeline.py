@@ -91,6 +91,14 @@ class SfmConfig(Config):
                                             "Meshroom .sfm or a folder of Strecha .camera "
                                             "files; the sparse points are then triangulated "
                                             "with those poses fixed")
+    principal_point: str = option("auto", choices=("auto", "centre"),
+                                  help="intrinsics not given: 'auto' refines the principal "
+                                       "point in a final bundle adjustment where the views "
+                                       "constrain it (a spread of view directions, halves "
+                                       "of the points agreeing) and keeps it at the image "
+                                       "centre, with the reason in report.json, where not "
+                                       "(reconstruct.sfm.principal_point); 'centre' always "
+                                       "keeps it there, as COLMAP's mapper does")
     mapper: str = option("incremental", choices=("incremental", "global"),
                          help="pycolmap's mapper")
     matcher: str = option("auto", choices=MATCHER_CHOICES,
@@ -494,11 +502,27 @@ def _sparse(config, inp, opts, groups, upright: _Upright, tmp: Path, out_dir: Pa
             "escalation": escalation}
     if diagnosis:
         part["diagnosis"] = diagnosis
+    t_pp = time.perf_counter()
+    if rec is not None and len(registered) >= 3 and _principal_point_free(config, inp):
+        from reconstruct.sfm.principal_point import decisions_report, refine_principal_point
+
+        rec, decisions = refine_principal_point(rec, sorted(rec.cameras.keys()),
+                                                num_threads=opts.num_threads,
+                                                rng=np.random.default_rng(config.seed))
+        part["principal_point"] = decisions_report(decisions)
+    seconds += time.perf_counter() - t_pp
     out = {"report": part, "seconds": seconds, "views": None,
            "escalate_seconds": escalation["seconds"] if escalation else 0.0}
     if rec is not None and len(registered) >= 3:
         out["views"] = _sparse_outputs(rec, inp, tmp, out_dir, part)
     return out
+
+
+def _principal_point_free(config: SfmConfig, inp: _Input) -> bool:
+    """Whether the principal point is ours to estimate: ``--principal-point auto`` and
+    no intrinsics given (``--camera``, the capture's nominal camera, ``--cameras``)."""
+    return (config.principal_point == "auto" and inp.known is None and not config.camera
+            and inp.nominal is None)
 
 
 def _escalate(database, inp, groups, opts, upright, tmp, rec):
@@ -535,6 +559,7 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
     sparse = st.run("sparse", _sparse, config, inp, opts, groups, upright, tmp, out_dir,
                     files=["sparse", "points.ply", "transforms.json"],
                     depends={"mapper": opts.mapper, "seed": opts.seed, "known": cams_file,
+                             "principal_point": config.principal_point,
                              "min_keypoints": config.min_keypoints,
                              "escalate": config.escalate})
     report.update(sparse["report"])
