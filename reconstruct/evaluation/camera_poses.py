@@ -2,9 +2,9 @@
 by view, after a robust similarity fit.
 
 SfM places cameras up to a similarity. The estimate's camera centres are mapped onto the
-reference's by :func:`reconstruct.evaluation.sim3.robust_umeyama` (least median over
-camera triplets, then least squares on the inliers), so one misplaced view does not move
-the others' errors. Then, per view present in both:
+reference's by :func:`reconstruct.evaluation.sim3.robust_umeyama` (least squares,
+dropping the worst camera while it lies beyond three times the others' median), so one
+misplaced view does not move the others' errors. Then, per view present in both:
 
 - the rotation error (degrees): the angle of ``R_ref (R_est G^T)^T``, ``G`` the fit's
   rotation;

@@ -9,8 +9,8 @@ form (least squares over centres), and then:
 - ATE: the RMS of the centre errors (absolute trajectory error, Sturm et al. 2012).
 
 ``robust=True`` fits the similarity so that a few misplaced cameras do not spoil it for
-the rest (:func:`robust_umeyama`): least median of squares over camera triplets
-(Rousseeuw 1984), then least squares on the cameras within three times that median.
+the rest (:func:`robust_umeyama`): least squares, dropping the worst camera while it
+lies beyond three times the median residual of the others.
 
 References
 ----------
@@ -110,15 +110,17 @@ def umeyama(src: np.ndarray, dst: np.ndarray, *, with_scale: bool = True) -> Sim
     return Sim3(scale, R, t)
 
 
-def robust_umeyama(src: np.ndarray, dst: np.ndarray, *, max_triplets: int = 2000,
+def robust_umeyama(src: np.ndarray, dst: np.ndarray, *, k: float = 3.0,
                    floor: float = 1e-9) -> tuple[Sim3, np.ndarray]:
     """The similarity mapping most of ``src`` onto ``dst``, and which points it fits.
 
-    Every triplet of points (a seeded sample of ``max_triplets`` beyond that many)
-    proposes the similarity through it; the one with the smallest median residual over
-    all points wins, and is refitted by :func:`umeyama` twice on the points within three
-    times that median (plus ``floor`` times the spread of ``dst``). With five or more
-    points, up to half minus two may be anywhere.
+    Least squares over all points, then the worst point is dropped and the rest refitted
+    while its residual exceeds ``k`` times the median residual of the points kept (plus
+    ``floor`` times the spread of ``dst``), keeping at least half of them and three.
+    Points that then fit within that bound again are taken back. A least-median fit
+    over triplets would be the textbook choice, but cameras on an arc (a facade's
+    survey) leave a triplet's rotation about the arc barely fixed: on fountain-P11 it
+    flagged 5 of 11 good views and doubled the rotation errors.
 
     Returns
     -------
@@ -135,36 +137,24 @@ def robust_umeyama(src: np.ndarray, dst: np.ndarray, *, max_triplets: int = 2000
     >>> round(sim.scale, 9), inl.tolist()
     (3.0, [True, True, False, True, True, True, True, True])
     """
-    import itertools
-
     src = check_array(src, "src", shape=(None, 3), min_rows=3)
     dst = check_array(dst, "dst", shape=(len(src), 3))
     n = len(src)
-    triplets = list(itertools.combinations(range(n), 3))
-    if len(triplets) > max_triplets:
-        pick = np.random.default_rng(0).choice(len(triplets), max_triplets, replace=False)
-        triplets = [triplets[i] for i in np.sort(pick)]
     tol = floor * max(float(np.ptp(dst, axis=0).max()), 1e-300)
-    best, best_med = None, np.inf
-    for tri in triplets:
-        a = src[list(tri)]
-        if np.linalg.matrix_rank(a - a.mean(0), tol=1e-12 * max(np.abs(a).max(), 1.0)) < 2:
-            continue  # collinear: no rotation about their line
-        sim = umeyama(a, dst[list(tri)])
-        med = float(np.median(np.linalg.norm(sim.apply(src) - dst, axis=1)))
-        if med < best_med:
-            best, best_med = sim, med
-    if best is None:
-        raise ValueError("src: expected points that are not all on one line")
-    sim = best
-    inl = np.ones(n, bool)
-    for _ in range(2):
+    keep = np.ones(n, bool)
+    sim = umeyama(src, dst)
+    while keep.sum() > max(3, n // 2):
         r = np.linalg.norm(sim.apply(src) - dst, axis=1)
-        inl = r <= 3.0 * float(np.median(r)) + tol
-        if inl.sum() >= 3:
-            sim = umeyama(src[inl], dst[inl])
+        worst = int(np.argmax(np.where(keep, r, -np.inf)))
+        if r[worst] <= k * float(np.median(r[keep])) + tol:
+            break
+        keep[worst] = False
+        sim = umeyama(src[keep], dst[keep])
     r = np.linalg.norm(sim.apply(src) - dst, axis=1)
-    return sim, r <= 3.0 * float(np.median(r)) + tol
+    inl = r <= k * float(np.median(r[keep])) + tol
+    if inl.sum() >= 3 and not np.array_equal(inl, keep):
+        sim = umeyama(src[inl], dst[inl])
+    return sim, inl
 
 
 @dataclass
