@@ -123,6 +123,15 @@ def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, cap
     assert "no EXIF focal length: 1.2 x 320 px" in rep["intrinsics_source"]
     f = rep["sparse"]["cameras"]["1"]["params"][0]
     assert abs(f / _true_focal(small_capture) - 1) < 0.01
+    # the principal point was ours to estimate: refined or kept at the centre, with the
+    # reason, it lands within a pixel of the renders' true one (the image centre)
+    (decision,) = rep["principal_point"]
+    assert decision["reason"] and decision["views"] == 12
+    true = next(iter(json.loads((small_capture / "capture.json").read_text())
+                     ["ground_truth"]["cameras"].values()))
+    cx, cy = rep["sparse"]["cameras"]["1"]["params"][1:3]
+    assert abs(cx - (true["cx"] + 0.5)) < 1.0 and abs(cy - (true["cy"] + 0.5)) < 1.0, \
+        decision["reason"]
 
 
 def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_capture,
