@@ -40,6 +40,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from reconstruct.sfm.colmap import _quiet_colmap
+
 __all__ = ["PrincipalPointDecision", "refine_principal_point", "view_spread_deg",
            "decisions_report"]
 
@@ -102,7 +104,8 @@ def _adjust(rec, refine_pp: bool, num_threads: int) -> None:
     opt.refine_principal_point = refine_pp
     opt.print_summary = False
     opt.ceres.solver_options.num_threads = num_threads
-    pycolmap.bundle_adjustment(rec, opt)
+    with _quiet_colmap(2):  # COLMAP's INFO lines: errors only, as the mapper's
+        pycolmap.bundle_adjustment(rec, opt)
 
 
 def _principal_points(rec, ids) -> dict:
