@@ -124,6 +124,23 @@ def _half(rec, keep_even: bool, rng: np.random.Generator):
     return half
 
 
+def _halves_sigma(rec, candidates, splits: int, rng: np.random.Generator,
+                  num_threads: int) -> dict:
+    """Per camera, the uncertainty (x, y) of its refined principal point: half the
+    largest difference between the estimates from two random halves of the points."""
+    sigma = {cid: np.zeros(2) for cid in candidates}
+    for _ in range(splits):
+        seed = int(rng.integers(2**31))
+        est = []
+        for keep_even in (True, False):
+            half = _half(rec, keep_even, np.random.default_rng(seed))
+            _adjust(half, True, num_threads)
+            est.append(_principal_points(half, candidates))
+        for cid in candidates:
+            sigma[cid] = np.maximum(sigma[cid], 0.5 * np.abs(est[0][cid] - est[1][cid]))
+    return sigma
+
+
 def refine_principal_point(rec, camera_ids, *, min_views: int = 5,
                            min_spread_deg: float = 10.0, max_sigma_deg: float = 0.1,
                            min_significance: float = 2.0,
@@ -167,16 +184,7 @@ def refine_principal_point(rec, camera_ids, *, min_views: int = 5,
         _adjust(trial, True, num_threads)
         refined = _principal_points(trial, candidates)
         rms1 = trial.compute_mean_reprojection_error()
-        sigma = {cid: np.zeros(2) for cid in candidates}
-        for _ in range(splits):
-            seed = int(rng.integers(2**31))
-            est = []
-            for keep_even in (True, False):
-                half = _half(rec, keep_even, np.random.default_rng(seed))
-                _adjust(half, True, num_threads)
-                est.append(_principal_points(half, candidates))
-            for cid in candidates:
-                sigma[cid] = np.maximum(sigma[cid], 0.5 * np.abs(est[0][cid] - est[1][cid]))
+        sigma = _halves_sigma(rec, candidates, splits, rng, num_threads)
         kept_any = False
         for cid in candidates:
             cam = trial.cameras[cid]
