@@ -266,3 +266,30 @@ def test_named_stages_rerun_only_what_changed(small_capture, small_recon, tmp_pa
     assert again.report["stages"]["reused"] == ["features", "matches", "sparse", "dense",
                                                 "fuse"]
     assert (out / "mesh.ply").read_bytes() == first  # the same inputs, the same bytes
+
+
+def test_strecha_cameras_as_known_cameras_and_as_the_reference(small_capture, tmp_path,
+                                                                capsys):
+    """A folder of .camera files drives the reconstruction (poses held), and `evaluate
+    --poses-reference` of the result against the same folder finds no error."""
+    from acquire.camera import Camera
+    from reconstruct.camera_files import write_strecha_camera
+
+    data = json.loads((small_capture / "capture.json").read_text())
+    cams = tmp_path / "cameras"
+    cams.mkdir()
+    for n, c in data["ground_truth"]["cameras"].items():
+        write_strecha_camera(cams / f"{n.split('/')[-1]}.camera", Camera.from_dict(c))
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", small_capture / "images", "--out",
+                     tmp_path / "rec", "--cameras", cams, "--no-dense", "--num-threads", "1")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "rec" / "report.json").read_text())
+    assert rep["registered"] == 12 and rep["intrinsics_source"].startswith("--cameras")
+    assert "principal_point" not in rep  # given with the cameras: not ours to move
+    code = main(["evaluate", str(tmp_path / "rec"), "--poses-reference", str(cams), "--json",
+                 str(tmp_path / "e.json")])
+    assert code == 0
+    s = json.loads((tmp_path / "e.json").read_text())["summary"]
+    assert s["views"] == 12 and s["missing"] == 0
+    assert s["rotation_error_deg"]["max"] < 1e-6 and s["centre_error"]["max"] < 1e-6
+    assert s["focal_error"]["max"] < 1e-9 and s["principal_point_error_px"]["max"] < 1e-6
