@@ -157,6 +157,18 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
     # the 12 of the full ring (measured 1.4 % off)
     fx, fy = rep["sparse"]["cameras"]["1"]["params"][:2]
     assert abs(fx / _true_focal(small_capture) - 1) < 0.03
+    # --hold-intrinsics: a calibrated camera, exactly as given; without --camera, refused
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r3",
+                     "--no-dense", "--num-threads", "1", "--camera", "PINHOLE:340,345,160,120",
+                     "--hold-intrinsics")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "r3" / "report.json").read_text())
+    assert rep["intrinsics_source"] == "--camera (held)" and rep["registered"] == 6
+    assert rep["sparse"]["cameras"]["1"]["params"] == [340.0, 345.0, 160.0, 120.0]
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r4",
+                     "--no-dense", "--hold-intrinsics")
+    assert code == 2 and len(err) == 1 and "--hold-intrinsics" in err[0]
+    assert not (tmp_path / "r4").exists()
 
 
 def test_spatial_matcher_without_position_priors_is_a_clear_error(small_capture, tmp_path,

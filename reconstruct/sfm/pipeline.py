@@ -91,6 +91,11 @@ class SfmConfig(Config):
                                             "Meshroom .sfm or a folder of Strecha .camera "
                                             "files; the sparse points are then triangulated "
                                             "with those poses fixed")
+    hold_intrinsics: bool = option(False, help="hold the intrinsics of --camera (or the "
+                                               "capture's camera) fixed: a calibrated "
+                                               "camera, only poses and points adjusted; "
+                                               "default: refined from there by bundle "
+                                               "adjustment")
     principal_point: str = option("auto", choices=("auto", "centre"),
                                   help="intrinsics not given: 'auto' refines the principal "
                                        "point in a final bundle adjustment where the views "
@@ -397,7 +402,8 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     groups, intr_source = _intrinsics(config, inp, input_path)
     matcher = _choose_matcher(config, inp)
     opts = ColmapOptions(matcher=matcher, mapper=config.mapper, num_threads=config.num_threads,
-                         seed=config.seed, max_features=config.max_features)
+                         seed=config.seed, max_features=config.max_features,
+                         refine_intrinsics=not config.hold_intrinsics)
     sizes = sorted({(i.width, i.height) for i in inp.infos.values()})
     report = {"input": str(input_path), "kind": "sfm", "num_images": len(inp.names),
               "image_sizes": [list(sz) for sz in sizes],
@@ -560,6 +566,7 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
                     files=["sparse", "points.ply", "transforms.json"],
                     depends={"mapper": opts.mapper, "seed": opts.seed, "known": cams_file,
                              "principal_point": config.principal_point,
+                             "hold_intrinsics": config.hold_intrinsics,
                              "min_keypoints": config.min_keypoints,
                              "escalate": config.escalate})
     report.update(sparse["report"])
@@ -618,7 +625,13 @@ def _intrinsics(config, inp, input_path: Path) -> tuple[list, str]:
         model, params = colmap_params_from_camera(inp.nominal)
         one = (model, params, "capture.json nominal camera (refined by bundle adjustment)")
     if one is not None:
-        return [(list(inp.names), one[0], one[1])], one[2]
+        source = one[2]
+        if config.hold_intrinsics:
+            source = source.replace(" (refined by bundle adjustment)", "") + " (held)"
+        return [(list(inp.names), one[0], one[1])], source
+    if config.hold_intrinsics:
+        raise InputError("--hold-intrinsics holds given intrinsics: give --camera (or a "
+                         "capture with its camera)", field="--hold-intrinsics")
     try:
         groups = camera_groups({n: inp.infos[n] for n in inp.names}, config.camera_mode)
     except ValueError as e:
