@@ -24,7 +24,7 @@ CONFIG = EvaluateConfig
 HELP = ("score a reconstruction (mesh or point cloud) against a ground-truth surface: "
         "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff; or a "
         "'reconstruct lidar' folder against a forest scene's truth: tree detection, heights, "
-        "DTM")
+        "DTM; or scan poses / SfM cameras against reference ones (--poses-reference)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
