@@ -6,13 +6,23 @@ reference's by :func:`reconstruct.evaluation.sim3.robust_umeyama` (least squares
 dropping the worst camera while it lies beyond three times the others' median), so one
 misplaced view does not move the others' errors. Then, per view present in both:
 
-- the rotation error (degrees): the angle of ``R_ref (R_est G^T)^T``, ``G`` the fit's
-  rotation;
+- the rotation error (degrees): the angle of ``R_ref (R_est G^T)^T``, where ``G`` is
+  the world rotation that best aligns the cameras' *orientations* (the chordal L2 mean of
+  ``R_est_i^T R_ref_i``, Hartley et al. 2013, refitted without the views beyond three
+  times the median). The Sim(3) fitted on the centres alone leaves its rotation loose
+  about the line the cameras stand on (Herz-Jesu-P8's centres spread 16.3, 2.2 and
+  0.3 m along their principal axes: the true-K model's rotations came out 0.12 degrees
+  off in that gauge, 0.02 in this one); that gauge's figure is kept as
+  ``rotation_deg_centre_gauge`` (what openMVG's evaluation reports);
 - the centre error, in the reference's units and as a share of the scene's extent (the
   largest distance between two reference camera centres);
 - the focal-length error (relative, of ``(fx + fy) / 2``) and the principal point's
   offset (pixels), which say how well the intrinsics were estimated (they are zero up
   to bundle adjustment's refinement when the intrinsics were given).
+
+References
+----------
+R. Hartley, J. Trumpf, Y. Dai, H. Li, "Rotation averaging", IJCV 103(3), 2013.
 
 >>> from core.frames import rotation_about
 >>> ref = {}
@@ -37,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from acquire.camera import Camera
+from core.frames import rotation_angle_deg
 from core.validate import InputError
 
 from .sim3 import Sim3, align_cameras
@@ -65,6 +76,8 @@ class CameraErrors:
         Reference views the estimate does not hold.
     alignment : Sim3
         ``reference_from_estimate``.
+    rotation_deg_centre_gauge : (n,) float64
+        The rotation errors in the gauge of the centres' Sim(3).
     """
 
     names: list
@@ -76,6 +89,7 @@ class CameraErrors:
     inliers: np.ndarray
     missing: list
     alignment: Sim3
+    rotation_deg_centre_gauge: np.ndarray
 
     def summary(self) -> dict:
         """The medians and maxima (JSON-ready)."""
@@ -85,34 +99,40 @@ class CameraErrors:
 
         return {"views": len(self.names), "missing": len(self.missing),
                 "rotation_error_deg": stats(self.rotation_deg),
+                "rotation_error_deg_centre_gauge": stats(self.rotation_deg_centre_gauge),
                 "centre_error": stats(self.centre_error),
                 "centre_error_fraction_of_extent": stats(self.centre_error / self.extent),
                 "extent": self.extent, "focal_error": stats(self.focal_error),
                 "principal_point_error_px": stats(self.principal_point_error_px)}
 
     def to_dict(self) -> dict:
-        return {"views": [{"image": n, "rotation_error_deg": float(r), "centre_error": float(c),
+        return {"views": [{"image": n, "rotation_error_deg": float(r),
+                           "rotation_error_deg_centre_gauge": float(rc),
+                           "centre_error": float(c),
                            "centre_error_fraction_of_extent": float(c / self.extent),
                            "focal_error": float(f), "principal_point_error_px": float(p),
                            "sim3_inlier": bool(i)}
-                          for n, r, c, f, p, i in zip(self.names, self.rotation_deg,
-                                                      self.centre_error, self.focal_error,
-                                                      self.principal_point_error_px,
-                                                      self.inliers, strict=True)],
+                          for n, r, rc, c, f, p, i in zip(
+                              self.names, self.rotation_deg, self.rotation_deg_centre_gauge,
+                              self.centre_error, self.focal_error,
+                              self.principal_point_error_px, self.inliers, strict=True)],
                 "missing": list(self.missing), "summary": self.summary(),
                 "reference_from_estimate": self.alignment.matrix.tolist()}
 
     def table(self) -> str:
-        rows = [f"{'view':<24} {'rotation (deg)':>14} {'centre':>12} {'% extent':>9} "
-                f"{'focal %':>8} {'pp (px)':>8}"]
-        for n, r, c, f, p, i in zip(self.names, self.rotation_deg, self.centre_error,
-                                    self.focal_error, self.principal_point_error_px,
-                                    self.inliers, strict=True):
-            rows.append(f"{n:<24} {r:>14.4f} {c:>12.5f} {100 * c / self.extent:>9.4f} "
-                        f"{100 * f:>8.3f} {p:>8.2f}" + ("" if i else "  (Sim(3) outlier)"))
+        rows = [f"{'view':<24} {'rotation (deg)':>14} {'(centre gauge)':>14} {'centre':>12} "
+                f"{'% extent':>9} {'focal %':>8} {'pp (px)':>8}"]
+        for n, r, rc, c, f, p, i in zip(self.names, self.rotation_deg,
+                                        self.rotation_deg_centre_gauge, self.centre_error,
+                                        self.focal_error, self.principal_point_error_px,
+                                        self.inliers, strict=True):
+            rows.append(f"{n:<24} {r:>14.4f} {rc:>14.4f} {c:>12.5f} "
+                        f"{100 * c / self.extent:>9.4f} {100 * f:>8.3f} {p:>8.2f}"
+                        + ("" if i else "  (Sim(3) outlier)"))
         rows += [f"{m:<24} {'not registered':>14}" for m in self.missing]
         s = self.summary()
         rows.append(f"{'median':<24} {s['rotation_error_deg']['median']:>14.4f} "
+                    f"{s['rotation_error_deg_centre_gauge']['median']:>14.4f} "
                     f"{s['centre_error']['median']:>12.5f} "
                     f"{100 * s['centre_error_fraction_of_extent']['median']:>9.4f} "
                     f"{100 * s['focal_error']['median']:>8.3f} "
@@ -147,9 +167,29 @@ def compare_cameras(estimated: Mapping[str, Camera],
     f_ref = np.array([0.5 * (reference[n].fx + reference[n].fy) for n in names])
     pp = np.array([np.hypot(estimated[n].cx - reference[n].cx,
                             estimated[n].cy - reference[n].cy) for n in names])
-    return CameraErrors(names, errs.rotation_deg, errs.centre_error, extent,
+    rot = _orientation_errors([estimated[n].cam_from_world[:3, :3] for n in names],
+                              [reference[n].cam_from_world[:3, :3] for n in names])
+    return CameraErrors(names, rot, errs.centre_error, extent,
                         np.abs(f_est - f_ref) / f_ref, pp, errs.inliers, missing,
-                        errs.alignment)
+                        errs.alignment, errs.rotation_deg)
+
+
+def _orientation_errors(est: list, ref: list, k: float = 3.0) -> np.ndarray:
+    """Per-view rotation errors (degrees) after the world rotation ``G`` that best maps
+    ``est_i G^T`` onto ``ref_i`` (chordal L2 mean), refitted while the worst view lies
+    beyond ``k`` times the median of the others (keeping at least half)."""
+    keep = np.ones(len(est), bool)
+    while True:
+        M = sum(e.T @ r for e, r, ok in zip(est, ref, keep, strict=True) if ok)
+        U, _, Vt = np.linalg.svd(M)
+        Gt = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+        err = np.array([rotation_angle_deg(r @ (e @ Gt).T) for e, r in zip(est, ref,
+                                                                          strict=True)])
+        worst = int(np.argmax(np.where(keep, err, -np.inf)))
+        if keep.sum() <= max(2, len(est) // 2) or \
+                err[worst] <= k * float(np.median(err[keep])) + 1e-9:
+            return err
+        keep[worst] = False
 
 
 def read_estimated_cameras(path: str | os.PathLike, *, sizes: Mapping[str, tuple[int, int]]
