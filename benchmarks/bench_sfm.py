@@ -16,6 +16,23 @@ runs both), on ../shared/data/real when it is there (a fresh clone has none: ski
 - monstree (23 phone photos): still 23/23, the escalation not entered, and the sparse
   stage's time within 1.2x of the same stage with the escalation off (same run).
 
+Strecha et al. 2008 (``python benchmarks/bench_sfm.py strecha``; ``make bench`` runs it
+too), on the three shared sets (fountain-P11, Herz-Jesu-P8, entry-P10; 3072x2048, SIFT
+at full size: pycolmap's extraction caps the larger side at 3200 px), cameras read from
+their ``.camera`` files and compared by :func:`reconstruct.evaluation.camera_poses.
+compare_cameras` (robust Sim(3); centre error as a share of the largest distance
+between two true cameras):
+
+- with the benchmark's intrinsics (``--camera PINHOLE:fx,fy,cx,cy`` from K.txt, refined
+  from there as COLMAP does, and held with ``--hold-intrinsics``: the second run reuses
+  the first's features and matches): every view, median rotation error <= 0.05 deg,
+  median centre error <= 0.05 %;
+- without them (bare folder, no EXIF): every view, centre error <= 0.1 % (max), median
+  rotation error <= 0.15 deg; before (``--principal-point centre``, what the pipeline did)
+  -> after (``auto``) on the same features and matches;
+- peer: bare pycolmap, its incremental mapper with its defaults on the same database
+  (whose extraction and matching are pycolmap's defaults too).
+
 Fair timing of the sparse stage: pycolmap and open3d are imported before any clock
 starts (a one-off cost of the process, not of a stage), and per mapper the bare calls
 and our pipeline run in the order bare, ours, ours, bare (drift on a shared machine
@@ -148,12 +165,116 @@ def hard_rings(root: Path) -> None:
            higher_is_better=False)
 
 
+STRECHA_SETS = ("fountain-P11", "Herz-Jesu-P8", "entry-P10")
+
+
+def _strecha_errors(cams: dict, truth: Path) -> dict:
+    from reconstruct.camera_files import read_cameras
+    from reconstruct.evaluation.camera_poses import compare_cameras
+
+    err = compare_cameras(cams, read_cameras(truth))
+    s = err.summary()
+    return {"views": f"{s['views']}/{s['views'] + s['missing']}", "all": s["missing"] == 0,
+            "rot_med": s["rotation_error_deg"]["median"], "rot_max": s["rotation_error_deg"]["max"],
+            "c_med": 100 * s["centre_error_fraction_of_extent"]["median"],
+            "c_max": 100 * s["centre_error_fraction_of_extent"]["max"],
+            "c_med_m": s["centre_error"]["median"], "focal": 100 * s["focal_error"]["median"],
+            "pp": s["principal_point_error_px"]["median"], "extent": err.extent}
+
+
+def _bare_pycolmap_mapping(database: Path, images: Path, work: Path) -> tuple[dict, float]:
+    """pycolmap's incremental mapper with its defaults on a copy of ``database``."""
+    import shutil
+
+    import pycolmap
+
+    from reconstruct.camera_files import camera_from_colmap, image_cam_from_world
+
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    shutil.copy2(database, work / "database.db")
+    t = time.perf_counter()
+    models = pycolmap.incremental_mapping(str(work / "database.db"), str(images),
+                                          str(work / "sparse"))
+    seconds = time.perf_counter() - t
+    if not models:
+        return {}, seconds
+    rec = max(models.values(), key=lambda r: r.num_reg_images())
+    return {im.name: camera_from_colmap(im.camera, image_cam_from_world(im))
+            for im in rec.images.values() if im.has_pose}, seconds
+
+
+def strecha(root: Path) -> None:
+    """The Strecha sets: ours with and without the benchmark's intrinsics, bare pycolmap."""
+    import numpy as np
+
+    from reconstruct.evaluation.camera_poses import read_estimated_cameras
+    from reconstruct.sfm.pipeline import SfmConfig, run
+
+    base = REAL / "strecha"
+    if not base.is_dir():
+        print(f"   strecha: {base} not found, skipped (a fresh clone has no ../shared)")
+        return
+    rows = []
+    for name in STRECHA_SETS:
+        images, truth = base / name / "images", base / name / "cameras"
+        K = np.loadtxt(base / name / "K.txt")
+        given = f"PINHOLE:{K[0, 0]},{K[1, 1]},{K[0, 2] + 0.5},{K[1, 2] + 0.5}"
+        out = root / f"{name}_bare"
+        runs = {}
+        for label, cfg, where in (
+                ("ours, bare, centre (before)", SfmConfig(dense=False, principal_point="centre"),
+                 out),
+                ("ours, bare (after)", SfmConfig(dense=False), out),
+                ("ours, K given", SfmConfig(dense=False, camera=given), root / f"{name}_K"),
+                ("ours, K given and held", SfmConfig(dense=False, camera=given,
+                                                     hold_intrinsics=True), root / f"{name}_K")):
+            rep = run(cfg, images, where).report
+            cams, _ = read_estimated_cameras(where)
+            runs[label] = (_strecha_errors(cams, truth), rep["timings"]["sparse_total"])
+            if label == "ours, bare (after)":
+                for d in rep.get("principal_point", []):
+                    print(f"   {name}: principal point: {d['reason']}", flush=True)
+            print(f"   {name}: {label}: {runs[label][0]} ({runs[label][1]:.0f} s)", flush=True)
+        cams, seconds = _bare_pycolmap_mapping(out / "colmap" / "database.db", images,
+                                               root / f"{name}_pycolmap")
+        runs["bare pycolmap (defaults)"] = (_strecha_errors(cams, truth), seconds)
+        print(f"   {name}: bare pycolmap: {runs['bare pycolmap (defaults)'][0]} (mapping "
+              f"{seconds:.0f} s)", flush=True)
+        rows += [(name, label, e, sec) for label, (e, sec) in runs.items()]
+        b, a = runs["ours, bare, centre (before)"][0], runs["ours, bare (after)"][0]
+        for label in ("ours, K given", "ours, K given and held"):
+            g = runs[label][0]
+            report(f"{name} {label}: every view", float(g["all"]), 1.0, 1.0, unit="")
+            report(f"{name} {label}: median rotation", g["rot_med"], 1.0, 0.05,
+                   higher_is_better=False, unit=" deg")
+            report(f"{name} {label}: median centre / extent", g["c_med"], 1.0, 0.05,
+                   higher_is_better=False, unit=" %")
+        report(f"{name} bare: every view", float(a["all"]), 1.0, 1.0, unit="")
+        report(f"{name} bare: median rotation (before {b['rot_med']:.3f})", a["rot_med"], 1.0,
+               0.15, higher_is_better=False, unit=" deg")
+        report(f"{name} bare: max centre / extent (before {b['c_max']:.3f})", a["c_max"], 1.0,
+               0.1, higher_is_better=False, unit=" %")
+    print("\n   | set | run | views | rotation median / max (deg) | centre median / max (% of "
+          "extent) | centre median (m) | focal err % | pp err (px) | sparse stage (s) |")
+    print("   |---|---|---|---|---|---|---|---|---|")
+    for name, label, e, sec in rows:
+        print(f"   | {name} | {label} | {e['views']} | {e['rot_med']:.3f} / {e['rot_max']:.3f} | "
+              f"{e['c_med']:.4f} / {e['c_max']:.4f} | {e['c_med_m']:.4f} | {e['focal']:.3f} | "
+              f"{e['pp']:.1f} | {sec:.0f} |", flush=True)
+
+
 def main():
     import open3d  # noqa: F401  (imports before any clock: see the module docstring)
     import pycolmap  # noqa: F401
 
     root = Path(os.environ.get("SFM_BENCH_DIR") or tempfile.mkdtemp(prefix="bench_sfm_"))
+    if sys.argv[1:] == ["strecha"]:
+        strecha(root)
+        print(f"   (outputs in {root})")
+        return
     hard_rings(root)
+    strecha(root)
     if sys.argv[1:] == ["real"]:
         print(f"   (outputs in {root})")
         return

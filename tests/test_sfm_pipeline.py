@@ -123,6 +123,15 @@ def test_plain_folder_of_jpegs_without_capture_json(small_capture, tmp_path, cap
     assert "no EXIF focal length: 1.2 x 320 px" in rep["intrinsics_source"]
     f = rep["sparse"]["cameras"]["1"]["params"][0]
     assert abs(f / _true_focal(small_capture) - 1) < 0.01
+    # the principal point was ours to estimate: refined or kept at the centre, with the
+    # reason, it lands within a pixel of the renders' true one (the image centre)
+    (decision,) = rep["principal_point"]
+    assert decision["reason"] and decision["views"] == 12
+    true = next(iter(json.loads((small_capture / "capture.json").read_text())
+                     ["ground_truth"]["cameras"].values()))
+    cx, cy = rep["sparse"]["cameras"]["1"]["params"][1:3]
+    assert abs(cx - (true["cx"] + 0.5)) < 1.0 and abs(cy - (true["cy"] + 0.5)) < 1.0, \
+        decision["reason"]
 
 
 def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_capture,
@@ -148,6 +157,18 @@ def test_exif_focal_length_and_camera_option_are_the_starting_intrinsics(small_c
     # the 12 of the full ring (measured 1.4 % off)
     fx, fy = rep["sparse"]["cameras"]["1"]["params"][:2]
     assert abs(fx / _true_focal(small_capture) - 1) < 0.03
+    # --hold-intrinsics: a calibrated camera, exactly as given; without --camera, refused
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r3",
+                     "--no-dense", "--num-threads", "1", "--camera", "PINHOLE:340,345,160,120",
+                     "--hold-intrinsics")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "r3" / "report.json").read_text())
+    assert rep["intrinsics_source"] == "--camera (held)" and rep["registered"] == 6
+    assert rep["sparse"]["cameras"]["1"]["params"] == [340.0, 345.0, 160.0, 120.0]
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", folder, "--out", tmp_path / "r4",
+                     "--no-dense", "--hold-intrinsics")
+    assert code == 2 and len(err) == 1 and "--hold-intrinsics" in err[0]
+    assert not (tmp_path / "r4").exists()
 
 
 def test_spatial_matcher_without_position_priors_is_a_clear_error(small_capture, tmp_path,
@@ -267,3 +288,30 @@ def test_same_seed_same_bytes_for_every_output(small_capture, small_recon, tmp_p
     again = run(SfmConfig(seed=0, num_threads=1), small_capture, tmp_path / "rec")
     assert again.ok and small_recon.ok
     assert output_differences(small_recon.out_dir, again.out_dir) == []
+
+
+def test_strecha_cameras_as_known_cameras_and_as_the_reference(small_capture, tmp_path,
+                                                                capsys):
+    """A folder of .camera files drives the reconstruction (poses held), and `evaluate
+    --poses-reference` of the result against the same folder finds no error."""
+    from acquire.camera import Camera
+    from reconstruct.camera_files import write_strecha_camera
+
+    data = json.loads((small_capture / "capture.json").read_text())
+    cams = tmp_path / "cameras"
+    cams.mkdir()
+    for n, c in data["ground_truth"]["cameras"].items():
+        write_strecha_camera(cams / f"{n.split('/')[-1]}.camera", Camera.from_dict(c))
+    code, err = _cli(capsys, "-q", "reconstruct", "sfm", small_capture / "images", "--out",
+                     tmp_path / "rec", "--cameras", cams, "--no-dense", "--num-threads", "1")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "rec" / "report.json").read_text())
+    assert rep["registered"] == 12 and rep["intrinsics_source"].startswith("--cameras")
+    assert "principal_point" not in rep  # given with the cameras: not ours to move
+    code = main(["evaluate", str(tmp_path / "rec"), "--poses-reference", str(cams), "--json",
+                 str(tmp_path / "e.json")])
+    assert code == 0
+    s = json.loads((tmp_path / "e.json").read_text())["summary"]
+    assert s["views"] == 12 and s["missing"] == 0
+    assert s["rotation_error_deg"]["max"] < 1e-6 and s["centre_error"]["max"] < 1e-6
+    assert s["focal_error"]["max"] < 1e-9 and s["principal_point_error_px"]["max"] < 1e-6

@@ -1,8 +1,9 @@
 """reconstruct.evaluation: measures against ground truth: F-score, accuracy and completeness
 of a surface; disparity metrics (Middlebury); the similarity alignment and pose errors of
-cameras; the errors of registered scan poses after a robust gauge fit.
+cameras; the errors of registered scan poses after a robust gauge fit; per-view camera errors
+against reference cameras after a robust Sim(3) fit.
 
-Modules: ``disparity``, ``evaluate``, ``sim3``, ``scan_poses``.
+Modules: ``disparity``, ``evaluate``, ``sim3``, ``scan_poses``, ``camera_poses``.
 
 Every name below is importable from the room (``from reconstruct.evaluation import NAME``),
 loaded on first use.
@@ -25,6 +26,10 @@ _EXPORTS = {
     "align_cameras": "sim3",
     "umeyama": "sim3",
     "ScanPoseErrors": "scan_poses",
+    "CameraErrors": "camera_poses",
+    "compare_cameras": "camera_poses",
+    "read_estimated_cameras": "camera_poses",
+    "robust_umeyama": "sim3",
     "compare_scan_poses": "scan_poses",
 }
 __all__ = sorted(_EXPORTS)

@@ -8,6 +8,10 @@ form (least squares over centres), and then:
 - centre error: ``|s R c_est + t - c_true|`` per camera,
 - ATE: the RMS of the centre errors (absolute trajectory error, Sturm et al. 2012).
 
+``robust=True`` fits the similarity so that a few misplaced cameras do not spoil it for
+the rest (:func:`robust_umeyama`): least squares, dropping the worst camera while it
+lies beyond three times the median residual of the others.
+
 References
 ----------
 S. Umeyama, "Least-squares estimation of transformation parameters between two point
@@ -24,7 +28,7 @@ import numpy as np
 from core.frames import rotation_angle_deg
 from core.validate import check_array
 
-__all__ = ["umeyama", "Sim3", "PoseErrors", "align_cameras"]
+__all__ = ["umeyama", "robust_umeyama", "Sim3", "PoseErrors", "align_cameras"]
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,53 @@ def umeyama(src: np.ndarray, dst: np.ndarray, *, with_scale: bool = True) -> Sim
     return Sim3(scale, R, t)
 
 
+def robust_umeyama(src: np.ndarray, dst: np.ndarray, *, k: float = 3.0,
+                   floor: float = 1e-9) -> tuple[Sim3, np.ndarray]:
+    """The similarity mapping most of ``src`` onto ``dst``, and which points it fits.
+
+    Least squares over all points, then the worst point is dropped and the rest refitted
+    while its residual exceeds ``k`` times the median residual of the points kept (plus
+    ``floor`` times the spread of ``dst``), keeping at least half of them and three.
+    Points that then fit within that bound again are taken back. A least-median fit
+    over triplets would be the textbook choice, but cameras on an arc (a facade's
+    survey) leave a triplet's rotation about the arc barely fixed: on fountain-P11 it
+    flagged 5 of 11 good views and doubled the rotation errors.
+
+    Returns
+    -------
+    Sim3, (n,) bool
+        The fit and its inliers.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> p = rng.normal(size=(8, 3))
+    >>> q = 3.0 * p + 1.0
+    >>> q[2] += 5.0  # one point far off
+    >>> sim, inl = robust_umeyama(p, q)
+    >>> round(sim.scale, 9), inl.tolist()
+    (3.0, [True, True, False, True, True, True, True, True])
+    """
+    src = check_array(src, "src", shape=(None, 3), min_rows=3)
+    dst = check_array(dst, "dst", shape=(len(src), 3))
+    n = len(src)
+    tol = floor * max(float(np.ptp(dst, axis=0).max()), 1e-300)
+    keep = np.ones(n, bool)
+    sim = umeyama(src, dst)
+    while keep.sum() > max(3, n // 2):
+        r = np.linalg.norm(sim.apply(src) - dst, axis=1)
+        worst = int(np.argmax(np.where(keep, r, -np.inf)))
+        if r[worst] <= k * float(np.median(r[keep])) + tol:
+            break
+        keep[worst] = False
+        sim = umeyama(src[keep], dst[keep])
+    r = np.linalg.norm(sim.apply(src) - dst, axis=1)
+    inl = r <= k * float(np.median(r[keep])) + tol
+    if inl.sum() >= 3 and not np.array_equal(inl, keep):
+        sim = umeyama(src[inl], dst[inl])
+    return sim, inl
+
+
 @dataclass
 class PoseErrors:
     """Errors of estimated cameras after a Sim(3) alignment to the true ones.
@@ -120,6 +171,8 @@ class PoseErrors:
     centre_error : (n,) float64
         In the true frame's units (metres).
     registered_fraction : float
+    inliers : (n,) bool or None
+        The cameras a robust fit was made on (None: least squares over all).
     """
 
     alignment: Sim3
@@ -127,6 +180,7 @@ class PoseErrors:
     rotation_deg: np.ndarray
     centre_error: np.ndarray
     registered_fraction: float
+    inliers: np.ndarray | None = None
 
     @property
     def ate(self) -> float:
@@ -152,8 +206,10 @@ class PoseErrors:
 
 
 def align_cameras(est_cam_from_world: Mapping[str, np.ndarray],
-                  true_cam_from_world: Mapping[str, np.ndarray]) -> PoseErrors:
-    """Align estimated cameras to true ones by their centres and measure the errors.
+                  true_cam_from_world: Mapping[str, np.ndarray], *,
+                  robust: bool = False) -> PoseErrors:
+    """Align estimated cameras to true ones by their centres and measure the errors
+    (``robust``: by :func:`robust_umeyama`, else least squares over all).
 
     Parameters
     ----------
@@ -179,11 +235,16 @@ def align_cameras(est_cam_from_world: Mapping[str, np.ndarray],
     def centre(T):
         return -T[:3, :3].T @ T[:3, 3]
 
-    sim = umeyama(np.array([centre(T) for T in est]), np.array([centre(T) for T in true]))
+    src, dst = np.array([centre(T) for T in est]), np.array([centre(T) for T in true])
+    inliers = None
+    if robust:
+        sim, inliers = robust_umeyama(src, dst)
+    else:
+        sim = umeyama(src, dst)
     rot, cerr = [], []
     for Te, Tt in zip(est, true, strict=False):
         Ta = sim.apply_cam_from_world(Te)
         rot.append(rotation_angle_deg(Tt[:3, :3] @ Ta[:3, :3].T))
         cerr.append(np.linalg.norm(centre(Ta) - centre(Tt)))
     return PoseErrors(sim, names, np.array(rot), np.array(cerr),
-                      len(names) / len(true_cam_from_world))
+                      len(names) / len(true_cam_from_world), inliers)

@@ -32,7 +32,7 @@ from core.validate import check_choice
 from reconstruct.camera_files import CAMERA_MODELS
 
 __all__ = ["ColmapOptions", "ColmapResult", "run_colmap", "extract", "match", "reconstruct",
-           "MATCHERS", "MAPPERS"]
+           "MATCHERS", "MAPPERS", "hold_intrinsics"]
 
 log = logging.getLogger(__name__)
 
@@ -66,6 +66,10 @@ class ColmapOptions:
         Neighbours matched by the sequential matcher (plus loop closure on a ring).
     spatial_neighbors : int
         Neighbours matched by the spatial matcher.
+    refine_intrinsics : bool
+        False holds every camera's intrinsics where they start in the mappers' bundle
+        adjustments and registrations (a calibrated camera); True refines the focal
+        length and distortion from there, as COLMAP does.
     """
 
     camera_model: str = "SIMPLE_RADIAL"
@@ -77,6 +81,7 @@ class ColmapOptions:
     max_features: int = 8192
     sequential_overlap: int = 10
     spatial_neighbors: int = 12
+    refine_intrinsics: bool = True
 
     def __post_init__(self):
         check_choice(self.camera_model, "camera_model", CAMERA_MODELS)
@@ -336,6 +341,16 @@ def _match(opt, database: Path, seed: int) -> None:
                                pairing_options=pairing, verification_options=verification,
                                device=cpu)
 
+def hold_intrinsics(mapper_options, opt: ColmapOptions) -> None:
+    """With ``opt.refine_intrinsics`` False, the incremental mapper's options hold the
+    cameras' focal length and distortion (bundle adjustment and registration)."""
+    if not opt.refine_intrinsics:
+        mapper_options.ba_refine_focal_length = False
+        mapper_options.ba_refine_extra_params = False
+        mapper_options.mapper.abs_pose_refine_focal_length = False
+        mapper_options.mapper.abs_pose_refine_extra_params = False
+
+
 def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
     """Stage map: the incremental or global mapper; the models it found."""
     import pycolmap
@@ -346,6 +361,7 @@ def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
         mopt.random_seed = seed
         mopt.mapper.random_seed = seed
         mopt.mapper.num_threads = opt.num_threads
+        hold_intrinsics(mopt, opt)
         return pycolmap.incremental_mapping(str(database), str(image_dir), str(sparse),
                                             options=mopt)
     mopt = pycolmap.GlobalPipelineOptions()
@@ -357,6 +373,9 @@ def _map(opt, database: Path, image_dir, sparse: Path, seed: int):
     mopt.mapper.global_positioning.random_seed = seed
     mopt.mapper.global_positioning.use_gpu = False
     mopt.mapper.bundle_adjustment.ceres.use_gpu = False
+    if not opt.refine_intrinsics:
+        mopt.mapper.bundle_adjustment.refine_focal_length = False
+        mopt.mapper.bundle_adjustment.refine_extra_params = False
     return pycolmap.global_mapping(str(database), str(image_dir), str(sparse), options=mopt)
 
 

@@ -58,7 +58,7 @@ import numpy as np
 
 from reconstruct.camera_files import image_cam_from_world
 from reconstruct.evaluation.sim3 import Sim3
-from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colmap
+from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colmap, hold_intrinsics
 
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
@@ -554,6 +554,7 @@ def _mapper_options(opts: ColmapOptions, thresholds, seed: int | None = None) ->
     m.mapper.abs_pose_min_inlier_ratio = abs_ratio
     m.ba_refine_extra_params = False
     m.mapper.abs_pose_refine_extra_params = False
+    hold_intrinsics(m, opts)
     return m
 
 

@@ -88,9 +88,24 @@ class SfmConfig(Config):
                                    "and EXIF focal length, 'single' one for all, "
                                    "'per-image' one each")
     cameras: str | None = option(None, help="known cameras: a COLMAP model (folder, text or "
-                                            "binary), a nerfstudio transforms.json or a "
-                                            "Middlebury *_par.txt; the sparse points are "
-                                            "then triangulated with those poses fixed")
+                                            "binary), a nerfstudio transforms.json, a "
+                                            "Middlebury *_par.txt, an OpenMVS .mvs, a "
+                                            "Meshroom .sfm or a folder of Strecha .camera "
+                                            "files; the sparse points are then triangulated "
+                                            "with those poses fixed")
+    hold_intrinsics: bool = option(False, help="hold the intrinsics of --camera (or the "
+                                               "capture's camera) fixed: a calibrated "
+                                               "camera, only poses and points adjusted; "
+                                               "default: refined from there by bundle "
+                                               "adjustment")
+    principal_point: str = option("auto", choices=("auto", "centre"),
+                                  help="intrinsics not given: 'auto' refines the principal "
+                                       "point in a final bundle adjustment where the views "
+                                       "constrain it (a spread of view directions, halves "
+                                       "of the points agreeing) and keeps it at the image "
+                                       "centre, with the reason in report.json, where not "
+                                       "(reconstruct.sfm.principal_point); 'centre' always "
+                                       "keeps it there, as COLMAP's mapper does")
     mapper: str = option("incremental", choices=("incremental", "global"),
                          help="pycolmap's mapper")
     matcher: str = option("auto", choices=MATCHER_CHOICES,
@@ -379,7 +394,8 @@ def run(config: SfmConfig, input_path: str | os.PathLike, out_dir: str | os.Path
     groups, intr_source = _intrinsics(config, inp, input_path)
     matcher = _choose_matcher(config, inp)
     opts = ColmapOptions(matcher=matcher, mapper=config.mapper, num_threads=config.num_threads,
-                         seed=config.seed, max_features=config.max_features)
+                         seed=config.seed, max_features=config.max_features,
+                         refine_intrinsics=not config.hold_intrinsics)
     sizes = sorted({(i.width, i.height) for i in inp.infos.values()})
     report = {"input": str(input_path), "kind": "sfm", "num_images": len(inp.names),
               "image_sizes": [list(sz) for sz in sizes],
@@ -485,11 +501,27 @@ def _sparse(config, inp, opts, groups, upright: _Upright, tmp: Path, out_dir: Pa
             "escalation": escalation}
     if diagnosis:
         part["diagnosis"] = diagnosis
+    t_pp = time.perf_counter()
+    if rec is not None and len(registered) >= 3 and _principal_point_free(config, inp):
+        from reconstruct.sfm.principal_point import decisions_report, refine_principal_point
+
+        rec, decisions = refine_principal_point(rec, sorted(rec.cameras.keys()),
+                                                num_threads=opts.num_threads,
+                                                rng=np.random.default_rng(config.seed))
+        part["principal_point"] = decisions_report(decisions)
+    seconds += time.perf_counter() - t_pp
     out = {"report": part, "seconds": seconds, "views": None,
            "escalate_seconds": escalation["seconds"] if escalation else 0.0}
     if rec is not None and len(registered) >= 3:
         out["views"] = _sparse_outputs(rec, inp, tmp, out_dir, part)
     return out
+
+
+def _principal_point_free(config: SfmConfig, inp: _Input) -> bool:
+    """Whether the principal point is ours to estimate: ``--principal-point auto`` and
+    no intrinsics given (``--camera``, the capture's nominal camera, ``--cameras``)."""
+    return (config.principal_point == "auto" and inp.known is None and not config.camera
+            and inp.nominal is None)
 
 
 def _escalate(database, inp, groups, opts, upright, tmp, rec):
@@ -526,6 +558,8 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
     sparse = st.run("sparse", _sparse, config, inp, opts, groups, upright, tmp, out_dir,
                     files=["sparse", "points.ply", "transforms.json"],
                     depends={"mapper": opts.mapper, "seed": opts.seed, "known": cams_file,
+                             "principal_point": config.principal_point,
+                             "hold_intrinsics": config.hold_intrinsics,
                              "min_keypoints": config.min_keypoints,
                              "escalate": config.escalate})
     report.update(sparse["report"])
@@ -584,7 +618,13 @@ def _intrinsics(config, inp, input_path: Path) -> tuple[list, str]:
         model, params = colmap_params_from_camera(inp.nominal)
         one = (model, params, "capture.json nominal camera (refined by bundle adjustment)")
     if one is not None:
-        return [(list(inp.names), one[0], one[1])], one[2]
+        source = one[2]
+        if config.hold_intrinsics:
+            source = source.replace(" (refined by bundle adjustment)", "") + " (held)"
+        return [(list(inp.names), one[0], one[1])], source
+    if config.hold_intrinsics:
+        raise InputError("--hold-intrinsics holds given intrinsics: give --camera (or a "
+                         "capture with its camera)", field="--hold-intrinsics")
     try:
         groups = camera_groups({n: inp.infos[n] for n in inp.names}, config.camera_mode)
     except ValueError as e:

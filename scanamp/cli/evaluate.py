@@ -3,7 +3,11 @@
 ``scanamp evaluate RECON --poses-reference FILE``: the scan poses of a ``reconstruct scans``
 folder (or its ``poses.json``, or a ``.conf``) against reference poses (``.conf`` or
 ``poses.json``): per-scan rotation error and RMS displacement of the scan's own points,
-after a robust fit of the free gauge (:mod:`reconstruct.evaluation.scan_poses`)."""
+after a robust fit of the free gauge (:mod:`reconstruct.evaluation.scan_poses`); or the
+cameras of a ``reconstruct sfm`` folder (or any cameras file) against reference cameras
+(a folder of Strecha ``.camera`` files, a COLMAP model, ...): per-view rotation, centre
+and focal-length errors after a robust Sim(3) fit
+(:mod:`reconstruct.evaluation.camera_poses`)."""
 
 from __future__ import annotations
 
@@ -20,7 +24,7 @@ CONFIG = EvaluateConfig
 HELP = ("score a reconstruction (mesh or point cloud) against a ground-truth surface: "
         "precision/recall/F-score at tau, accuracy, completeness, Chamfer, Hausdorff; or a "
         "'reconstruct lidar' folder against a forest scene's truth: tree detection, heights, "
-        "DTM")
+        "DTM; or scan poses / SfM cameras against reference ones (--poses-reference)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,7 +39,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--poses-reference", type=Path, default=None, metavar="FILE",
                         help="reference scan poses (.conf or poses.json): compare the poses "
                              "of RECON (a 'reconstruct scans' folder, its poses.json or a "
-                             ".conf) per scan after fitting the gauge robustly")
+                             ".conf) per scan after fitting the gauge robustly; or "
+                             "reference cameras (a folder of Strecha .camera files, a COLMAP "
+                             "model, transforms.json, *_par.txt, .mvs, .sfm): compare the "
+                             "cameras of RECON (a 'reconstruct sfm' folder or a cameras "
+                             "file) per view after a robust Sim(3) fit")
     parser.add_argument("--json", type=Path, default=None, metavar="OUT",
                         help="also write the figures to this JSON file")
     parser.add_argument("--icp", action="store_true", help="the same as --align icp")
@@ -51,7 +59,10 @@ def run(args: argparse.Namespace, config: EvaluateConfig) -> int:
     from reconstruct.registration.rigid import LOW_FITNESS
 
     if args.poses_reference is not None:
-        return _run_poses(args)
+        ref = Path(args.poses_reference)
+        scans = ref.suffix.lower() in (".conf", ".json") and ref.name != "transforms.json" \
+            or (ref / "poses.json").is_file()
+        return _run_poses(args) if scans else _run_cameras(args)
     if args.reference is None:
         raise InputError("expected --reference GT (or --poses-reference FILE)",
                          field="--reference")
@@ -136,6 +147,29 @@ def _run_poses(args: argparse.Namespace) -> int:
     if args.json is not None:
         write_json(args.json, {"recon": str(args.recon),
                                "poses_reference": str(args.poses_reference),
+                               **errors.to_dict()})
+    return 0
+
+
+def _run_cameras(args: argparse.Namespace) -> int:
+    from core.files import write_json
+    from core.validate import InputError
+    from reconstruct.camera_files import read_cameras
+    from reconstruct.evaluation.camera_poses import compare_cameras, read_estimated_cameras
+
+    est, source = read_estimated_cameras(args.recon)
+    sizes = {n: (c.width, c.height) for n, c in est.items()}
+    ref = read_cameras(args.poses_reference, sizes=sizes)
+    try:
+        errors = compare_cameras(est, ref)
+    except ValueError as exc:
+        raise InputError(str(exc), path=args.recon) from None
+    head = f"{args.recon} vs {args.poses_reference}"
+    sys.stdout.write(head + (f" (intrinsics: {source})" if source else "") + "\n"
+                     + errors.table() + "\n")
+    if args.json is not None:
+        write_json(args.json, {"recon": str(args.recon), "poses_reference":
+                               str(args.poses_reference), "intrinsics_source": source,
                                **errors.to_dict()})
     return 0
 
