@@ -287,9 +287,9 @@ def mountain_relief(base, *, spacing: float, rng: np.random.Generator, slope: fl
     umin, umax = float(u.min()), float(u.max())
     length = max(umax - umin, h)
 
-    def wander(amp):  # a line across the slope: u shifted by a seeded sine of v
+    def wander(amp, along=v):  # a line's offset: a seeded sine of the coordinate along it
         k, ph = rng.uniform(0.5, 1.5) * 2 * np.pi / length, rng.uniform(0, 2 * np.pi)
-        return amp * np.sin(k * v + ph)
+        return amp * np.sin(k * along + ph)
 
     # the profile's gradient along u: breaks (kinks) and terraces (benches and risers)
     grad = np.ones_like(u)
@@ -317,7 +317,7 @@ def mountain_relief(base, *, spacing: float, rng: np.random.Generator, slope: fl
         feat -= cliff_height * t * t * (3 - 2 * t)
     for _ in range(int(ravines)):
         at = rng.uniform(-0.35, 0.35) * length
-        centre = at + wander(0.1 * length)
+        centre = at + wander(0.1 * length, u)
         w = 2.0 * ravine_depth
         feat -= ravine_depth * np.clip(1.0 - np.abs(v - centre) / w, 0.0, None)
     m = int(rng.poisson(boulders * rows * cols * h * h / 1e4))

@@ -38,13 +38,19 @@ Four steps, each after a published method:
    near ground already found (a point 0.2 m above the plane 1 m from a ground point is
    11 deg off) and lenient far from it; measured from the triangle's plane, it follows
    slopes. Two terms follow steep, rough and convex terrain (``densify_slope_gain``: the
-   angle grows 0.5 degree per degree of the triangle's slope; ``densify_local``: the
+   angle grows 0.5 degree per degree of the seeds' TIN's slope -- the seeds', fixed: the
+   slope of the triangles being densified rises with every shrub point that joins, and on
+   a 45-degree mountainside it let the ground climb a cliff's edge into the canopy;
+   ``densify_local``: the
    angle may also be measured from the nearest corner's own plane, which follows a crest
    where the triangle's plane cuts below it).
 4. **Lower surface.** Those terms take in low vegetation too, so a ground point more than
-   ``lower_offset`` (0.1 m) above a robust quadratic through its 15 nearest ground
+   ``lower_offset`` (0.1 m) above a robust quadratic through its 30 nearest ground
    neighbours (Kraus and Pfeifer's asymmetric weights) is not ground
-   (:func:`trim_above_lower_surface`).
+   (:func:`trim_above_lower_surface`), repeated on what is kept until nothing more goes
+   (``lower_passes``, 3 at most): on a steep slope under shrubs the ground is seen in
+   patches, and a shrub taken in whole holds itself up -- its points are each other's
+   neighbours -- until its top is gone; 30 neighbours reach past it to the ground around.
 
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
@@ -70,6 +76,10 @@ __all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "del
            "trim_above_lower_surface"]
 
 log = logging.getLogger(__name__)
+
+SLOPE_RISE = 5.0  # degrees a triangle may slope beyond the seeds' TIN in the slope term
+LOWER_CERTAIN = 0.3  # metres above the robust lower surface: Kraus and Pfeifer's weight 0
+LOWER_CLUSTER = 2.0  # metres: later trims only where a point's neighbours lie this close
 
 
 @dataclass
@@ -117,6 +127,13 @@ class GroundOptions(Config):
     lower_neighbours: int = option(15, range="[6, 100]",
                                    help="the ground neighbours that surface (a quadratic) is "
                                         "fitted to")
+    lower_radius: float = option(2.5, unit="m", range="[0, 20]",
+                                 help="the lower surface's neighbours are also all those "
+                                      "within this radius at the ground's mean density (60 "
+                                      "at most; 0: lower_neighbours alone)")
+    lower_passes: int = option(3, range="[1, 20]",
+                               help="the lower-surface trim repeated on what it kept, until "
+                                    "it removes nothing, this many times at most")
     densify_passes: int = option(50, range="[1, 500]", help="densification passes at most")
     water_radius: float = option(15.0, unit="m", range="[0, 100]",
                                  help="water: a last return inside a disc of this radius whose "
@@ -169,9 +186,18 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                           distance=o.densify_distance, offset=o.densify_offset,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
                           local=o.densify_local)
-        if o.lower_offset > 0:
-            out = trim_above_lower_surface(p, out, offset=o.lower_offset,
-                                           neighbours=o.lower_neighbours)
+        for k in range(o.lower_passes if o.lower_offset > 0 else 0):
+            # a cluster of points above the ground (a shrub's) holds itself up: each is
+            # its neighbours' support; without its top the rest stands out. Later passes
+            # take only what stands LOWER_CERTAIN above (where the robust weights are 0):
+            # at lower_offset they would erode sparse ground's convex tops pass by pass
+            trimmed = trim_above_lower_surface(
+                p, out, offset=o.lower_offset if k == 0 else max(o.lower_offset,
+                                                                 LOWER_CERTAIN),
+                neighbours=_lower_k(p, out, o), within=0.0 if k == 0 else LOWER_CLUSTER)
+            if np.array_equal(trimmed, out):
+                break
+            out = trimmed
     return out
 
 
@@ -195,6 +221,23 @@ def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
         csf.do_filtering(ground, rest, exportCloth=False)
     log.debug("CSF: %s", "; ".join(said))
     return np.asarray(ground, np.int64)
+
+
+def _lower_k(p: np.ndarray, ground: np.ndarray, o: GroundOptions) -> int:
+    """The lower surface's neighbour count: ``lower_neighbours``, or as many ground points
+    as lie within ``lower_radius`` at the ground's mean density over its hull (60 at
+    most) when more."""
+    k = int(o.lower_neighbours)
+    if o.lower_radius <= 0 or ground.sum() < 3:
+        return k
+    from scipy.spatial import ConvexHull, QhullError
+
+    xy = p[ground, :2]
+    try:
+        area = ConvexHull(xy - xy.mean(axis=0)).volume
+    except QhullError:
+        return k
+    return int(np.clip(len(xy) / max(area, 1e-9) * np.pi * o.lower_radius ** 2, k, 60))
 
 
 def _lowest_per_cell(p: np.ndarray, mask: np.ndarray, cell: float) -> np.ndarray:
@@ -234,8 +277,10 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     corner, or when ``|d| < offset`` (close to a corner the angle measures the range
     noise, not the terrain); all such points join at once, then the triangulation is
     redone, ``passes`` times at most or until none joins. With ``slope_gain`` the angle
-    of a triangle sloping ``s`` degrees is ``angle + slope_gain * s`` (89 at most): a
-    terrain slope term, as TerraScan's guidance ties its angles to the terrain's. With
+    over a point where the seeds' TIN slopes ``s`` degrees is ``angle + slope_gain * s``
+    (89 at most): a terrain slope term, as TerraScan's guidance ties its angles to the
+    terrain's. The seeds' slope, not the current triangle's: points that join steepen
+    their triangles, and a shrub let in by its triangle's slope would let in more. With
     ``local`` the angle test also passes when the point is within the angle of its nearest
     corner's own plane (the area-weighted mean of that corner's triangles' normals): on a
     convex crest the triangle's plane runs from the ground found so far to a seed beyond
@@ -265,6 +310,10 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     elig = np.asarray(eligible, bool)
     q = p[:, :2] - p[:, :2].mean(axis=0)  # projected coordinates lose digits in Qhull
     tan_max = np.tan(np.radians(angle))
+    # the slope term's slope is the seeds' (fixed): the current triangle's own slope fed
+    # back -- a shrub that joined steepened its triangles, which let more of it in, up a
+    # cliff's edge and into the canopy (a 45-degree stand: type II 12 %, DTM RMSE 12 m)
+    seed_slope = _seed_slope(p, q, g) if slope_gain > 0 else None
     for _ in range(int(passes)):
         gi = np.flatnonzero(g)
         try:
@@ -291,7 +340,8 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
             d_angle = np.minimum(d, dl)
         tan_a = tan_max
         if slope_gain > 0:
-            slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
+            own = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
+            slope = np.minimum(own, np.nan_to_num(seed_slope[cand]) + SLOPE_RISE)
             tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
         join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
         if not np.any(join):
@@ -300,8 +350,27 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     return g
 
 
+def _seed_slope(p, q, seeds):
+    """(n,) slope in degrees of the seeds' TIN triangle over every point (NaN outside)."""
+    from scipy.spatial import QhullError
+
+    gi = np.flatnonzero(seeds)
+    out = np.full(len(p), np.nan)
+    try:
+        tri = delaunay_2d(q[gi])
+    except QhullError:
+        return out
+    c = p[gi][tri.simplices]
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    sl = np.degrees(np.arccos(np.minimum(np.abs(n[:, 2]) / np.linalg.norm(n, axis=1), 1.0)))
+    s = tri.find_simplex(q, bruteforce=False)
+    out[s >= 0] = sl[s[s >= 0]]
+    return out
+
+
 def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float = 0.1,
-                             neighbours: int = 15, iterations: int = 4) -> np.ndarray:
+                             neighbours: int = 15, iterations: int = 4,
+                             within: float = 0.0) -> np.ndarray:
     """``ground`` without the points more than ``offset`` above their neighbours' lower
     surface.
 
@@ -328,7 +397,8 @@ def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float
     q = p[gi]
     xy = q[:, :2] - q[:, :2].mean(axis=0)
     k = min(int(neighbours), len(gi) - 1)
-    nb = cKDTree(xy).query(xy, k + 1)[1][:, 1:]  # the point itself left out
+    dist, nb = cKDTree(xy).query(xy, k + 1)
+    dist, nb = dist[:, 1:], nb[:, 1:]  # the point itself left out
     dx = xy[nb] - xy[:, None]
     z = q[nb, 2]
     a = np.stack([np.ones_like(dx[..., 0]), dx[..., 0], dx[..., 1], dx[..., 0] ** 2,
@@ -340,8 +410,11 @@ def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float
         coef = np.linalg.solve(np.einsum("nki,nkj->nij", aw, a) + ridge,
                                np.einsum("nki,nk->ni", aw, z)[..., None])[..., 0]
         e = z - np.einsum("nki,ni->nk", a, coef)
-        w = np.clip((0.3 - e) / 0.25, 0.0, 1.0)
-    g[gi[q[:, 2] - coef[:, 0] > offset]] = False
+        w = np.clip((LOWER_CERTAIN - e) / 0.25, 0.0, 1.0)
+    above = q[:, 2] - coef[:, 0] > offset
+    if within > 0:  # only where the ground is dense enough for a shrub to hold k points
+        above &= dist[:, -1] < within
+    g[gi[above]] = False
     return g
 
 

@@ -543,6 +543,13 @@ def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work:
     return {"y": rec.scale * cfg.x ** 2, "x": cfg.x, "seed": seed}
 
 
+def _lidar_ground_kind() -> Kind:
+    """The ground filter on mountainsides (:mod:`scanamp.study.lidar_ground`)."""
+    from scanamp.study import lidar_ground as lg
+
+    return Kind("lidar-ground", lg.load_capture, lg.recon_default, lg.execute, lg.METRICS)
+
+
 _LASER_METRICS = ("evaluation.depth_error.rms_m", "evaluation.surface.fscore",
                   "evaluation.surface.recall", "evaluation.surface.precision")
 KINDS: dict[str, Kind] = {
@@ -569,3 +576,4 @@ KINDS: dict[str, Kind] = {
                    "poses.displacement_max_fraction_of_scene", "mesh.fscore")),
     "_test": Kind("_test", _test_capture, _TestRecon, _run_test, ("y",)),
 }
+KINDS["lidar-ground"] = _lidar_ground_kind()

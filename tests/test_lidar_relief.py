@@ -1,0 +1,145 @@
+"""Mountainsides: the relief of the forest test bed (slope, breaks, terraces, cliffs,
+ravines, boulders) keeps its exact truth, and the ground filter holds on steep slopes under
+shrubs, judged against that truth (Sithole and Vosselman's errors, the DTM's RMSE)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.raster_io import Raster
+from data_synth.forest import ForestConfig, build_forest, terrain_height
+from procgen.terrain import fractal_terrain, mean_slope, mountain_relief
+from reconstruct.lidar.ground import classify_ground
+from reconstruct.lidar.rasters import dtm_from_ground
+from scanamp.cli import main
+from scanamp.study.lidar_ground import ground_errors, stand_dtm_errors
+
+
+def _base(seed=0, size=65, height=0.5):
+    return fractal_terrain(size, rng=np.random.default_rng(seed), method="fbm", hurst=0.8,
+                           height=height, frequency=1.0, octaves=5)
+
+
+@pytest.mark.parametrize("slope", [10.0, 35.0, 45.0])
+def test_relief_has_the_mean_slope_asked_and_is_seeded(slope):
+    base = _base()
+    kw = dict(spacing=1.0, slope=slope, slope_breaks=2, terraces=2, cliffs=1, ravines=1,
+              boulders=50.0)
+    z = mountain_relief(base, rng=np.random.default_rng(3), **kw)
+    # the features alone (no tilt: the same draws) are steeper than 10 degrees: no tilt then
+    alone = mean_slope(mountain_relief(base, rng=np.random.default_rng(3), **{**kw, "slope": 0}),
+                       1.0)
+    assert 10 < alone < 35
+    assert abs(mean_slope(z, 1.0) - max(slope, alone)) < 1e-6
+    again = mountain_relief(base, rng=np.random.default_rng(3), **kw)
+    other = mountain_relief(base, rng=np.random.default_rng(4), **kw)
+    assert np.array_equal(z, again) and not np.allclose(z, other)
+    # tilted downhill towards the aspect (180: south, -y): the north edge is higher
+    if slope > alone:
+        assert z[-1].mean() > z[0].mean() + 20 * np.tan(np.radians(slope))
+
+
+def test_relief_features_have_their_shapes():
+    flat = np.zeros((129, 129))
+    # a cliff on level ground drops cliff_height, over one cell, somewhere downhill
+    c = mountain_relief(flat, spacing=0.5, rng=np.random.default_rng(1), cliffs=1,
+                        cliff_height=5.0, aspect=90.0)  # facing east: drops along +x
+    assert np.allclose(c[:, 0], 0.0) and np.allclose(c[:, -1], -5.0)
+    steps = -np.diff(c, axis=1)
+    assert np.all(steps >= -1e-12) and steps.max(axis=1).min() >= 2.5  # over 1 or 2 cells
+    # a ravine: a V as deep as asked, 4 times as wide
+    r = mountain_relief(flat, spacing=0.5, rng=np.random.default_rng(2), ravines=1,
+                        ravine_depth=3.0)
+    assert np.isclose(r.min(), -3.0, atol=0.15) and r.max() == 0.0  # sampled every 0.5 m
+    wet = (r < 0).sum(axis=1) * 0.5  # the ravine's width across each row (fall line: y)
+    assert np.all((wet > 10.0) & (wet <= 12.0))
+    # boulders stand on the ground, at most 1.8 m high
+    b = mountain_relief(flat, spacing=0.5, rng=np.random.default_rng(3), boulders=200.0)
+    assert b.min() == 0.0 and 0.25 < b.max() <= 1.8
+    # no feature asked: the base untouched
+    assert np.array_equal(mountain_relief(_base(), spacing=1.0, rng=np.random.default_rng(0)),
+                          _base())
+
+
+def test_forest_on_a_mountainside_keeps_its_exact_terrain():
+    cfg = ForestConfig(size=30.0, margin=5.0, density=0.0, understory=0.0, relief=0.5,
+                       slope=30.0, slope_breaks=1, ravines=1, boulders=40.0, terrain_res=1.0)
+    b = build_forest(cfg, seed=5)
+    v = np.asarray(b.meshes["ground"].vertices)
+    assert np.allclose(v[:, 2], terrain_height(b.dtm, v[:, 0], v[:, 1]), atol=1e-9)
+    r, c = b.dtm.values.shape
+    k = int(round(cfg.margin / b.dtm.res))
+    stand = np.zeros((r - 1, c - 1), bool)
+    stand[k:r - 1 - k, k:c - 1 - k] = True
+    assert abs(mean_slope(b.dtm.values, b.dtm.res, where=stand) - 30.0) < 0.5
+    # without relief options the terrain is the plain fractal one (the relief's own stream)
+    plain = build_forest(ForestConfig(size=30.0, margin=5.0, density=0.0, understory=0.0,
+                                      relief=0.5), seed=5)
+    assert not np.allclose(plain.dtm.values, b.dtm.values)
+    assert mean_slope(plain.dtm.values, plain.dtm.res) < 15.0
+
+
+@pytest.mark.parametrize("flag,value,field", [
+    ("--forest.slope", "45.5", "forest.slope"),
+    ("--forest.slope", "-1", "forest.slope"),
+    ("--forest.ravines", "11", "forest.ravines"),
+    ("--forest.boulders", "-3", "forest.boulders"),
+])
+def test_bad_relief_exits_2_with_one_line(tmp_path, capsys, flag, value, field):
+    out = tmp_path / "scene"
+    assert main(["scene", "forest", flag, value, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and field in err[0], err
+    assert not out.exists()
+
+
+def _survey(slope, seed, *, cover=0.5, canopy=0.5):
+    """A 60 x 60 m sloped tile at about 10 pulses/m2 with its exact truth: ground seen
+    where nothing covers it, shrubs 0.3-2.5 m tall (discs 0.6-2 m across, covering
+    together ``cover`` of the floor; the ground beneath them seen a fifth of the time),
+    crowns 8-25 m up (a share ``canopy`` of the pulses end there; the rest go through
+    as first returns of several, their last at the ground or a shrub)."""
+    rng = np.random.default_rng(seed)
+    res = 0.5
+    z = mountain_relief(_base(seed, 257, 0.7)[:161, :161], spacing=res, rng=rng, slope=slope,
+                        slope_breaks=2, ravines=1, boulders=20.0)
+    truth = Raster(z, x0=-10.0, y0=-10.0, res=res)
+    mean_area = np.pi * (1.0 - 0.3 ** 3) / (3 * 0.7)  # radii uniform in 0.3-1 m
+    n_sh = int(-np.log(1 - cover) * 80 * 80 / mean_area)  # discs at random cover this
+    sh_xy = rng.uniform(-10, 70, (n_sh, 2))
+    sh_r = rng.uniform(0.3, 1.0, n_sh)
+    sh_h = rng.uniform(0.3, 2.5, n_sh)
+    n = 60 * 60 * 10
+    xy = rng.uniform(0, 60, (n, 2))
+    g = terrain_height(truth, xy[:, 0], xy[:, 1])
+    from scipy.spatial import cKDTree
+
+    d, k = cKDTree(sh_xy).query(xy)
+    under = d < sh_r[k]
+    hit_shrub = under & (rng.random(n) < 0.8)
+    top = np.where(hit_shrub, sh_h[k] * np.sqrt(np.clip(1 - (d / sh_r[k]) ** 2, 0, 1)) *
+                   rng.uniform(0.6, 1.0, n), 0.0)
+    zz = g + top + rng.normal(0, 0.03, n)
+    crown = rng.random(n) < canopy
+    c = np.column_stack([xy[crown], g[crown] + rng.uniform(8, 25, crown.sum())])
+    through = rng.random(n) < 0.6  # these pulses left a first return in a crown too
+    f = np.column_stack([xy[through], g[through] + rng.uniform(8, 25, through.sum())])
+    pts = np.vstack([np.column_stack([xy, zz])[~crown], c, f[~crown[through]]])
+    last = np.r_[np.ones((~crown).sum(), bool), np.ones(crown.sum(), bool),
+                 np.zeros((~crown[through]).sum(), bool)]
+    is_ground = np.r_[~hit_shrub[~crown], np.zeros(crown.sum() + (~crown[through]).sum(),
+                                                   bool)]
+    return pts, last, is_ground, truth
+
+
+@pytest.mark.parametrize("slope,rmse_max", [(20.0, 0.15), (35.0, 0.15), (45.0, 0.30)])
+def test_ground_holds_on_steep_slopes_under_shrubs(slope, rmse_max):
+    pts, last, truth, terrain = _survey(slope, seed=int(slope))
+    g = classify_ground(pts, last=last)
+    e = ground_errors(g, truth)
+    dtm = dtm_from_ground(pts[g], bounds=(0, 0, 60, 60), res=0.5)
+    # the tile's margin: 5 m inside its 60 m (the terrain raster has a 10 m margin)
+    err = stand_dtm_errors(dtm, terrain, margin=15.0)
+    assert e["total"] <= 0.03, e
+    assert err["rmse"] <= rmse_max, err
