@@ -65,6 +65,7 @@ True
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,7 +78,6 @@ __all__ = ["GroundOptions", "classify_ground", "find_water", "densify_tin", "del
 
 log = logging.getLogger(__name__)
 
-SLOPE_RISE = 5.0  # degrees a triangle may slope beyond the seeds' TIN in the slope term
 LOWER_CERTAIN = 0.3  # metres above the robust lower surface: Kraus and Pfeifer's weight 0
 LOWER_CLUSTER = 2.0  # metres: later trims only where a point's neighbours lie this close
 
@@ -115,6 +115,10 @@ class GroundOptions(Config):
                                        help="TIN densification: degrees added to densify_angle "
                                             "per degree of the triangle's slope (0: a fixed "
                                             "angle)")
+    densify_slope_rise: float = option(5.0, unit="deg", range="[0, 90]",
+                                       help="TIN densification: the slope term's slope is "
+                                            "the triangle's, at most this much steeper than "
+                                            "the seeds' TIN under it (90: the triangle's)")
     densify_local: bool = option(True,
                                  help="TIN densification: a point also joins when within the "
                                       "angle of its nearest corner's own plane (the mean of "
@@ -185,6 +189,7 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
         out = densify_tin(p, seeds, eligible, angle=o.densify_angle,
                           distance=o.densify_distance, offset=o.densify_offset,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
+                          slope_rise=o.densify_slope_rise,
                           local=o.densify_local)
         for k in range(o.lower_passes if o.lower_offset > 0 else 0):
             # a cluster of points above the ground (a shrub's) holds itself up: each is
@@ -217,7 +222,7 @@ def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
     csf.setPointCloud(np.ascontiguousarray(local))
     ground, rest = CSF.VecInt(), CSF.VecInt()
     said: list[str] = []
-    with native_output(said, fds=(1, 2)):  # the filter prints its progress on stdout
+    with native_output(said, fds=(1, 2)), _one_openmp_thread():  # it prints its progress
         csf.do_filtering(ground, rest, exportCloth=False)
     log.debug("CSF: %s", "; ".join(said))
     return np.asarray(ground, np.int64)
@@ -238,6 +243,40 @@ def _lower_k(p: np.ndarray, ground: np.ndarray, o: GroundOptions) -> int:
     except QhullError:
         return k
     return int(np.clip(len(xy) / max(area, 1e-9) * np.pi * o.lower_radius ** 2, k, 60))
+
+
+@contextmanager
+def _one_openmp_thread():
+    """The OpenMP runtimes loaded in this process run one thread in this block.
+
+    The ``CSF`` package's OpenMP loops race: on a loaded machine the same cloud gave
+    4 007, 3 989, 4 087 and 4 010 ground points in four runs (one thread: 4 010 every
+    time), and on steep slopes the cloth's ground then came and went in patches. Set
+    through ``omp_set_num_threads`` of each libgomp/libomp this process has loaded (its
+    own copy in the package's wheel), restored after.
+    """
+    import ctypes
+
+    libs = []
+    try:
+        with open("/proc/self/maps") as f:
+            paths = {line.split()[-1] for line in f if "omp" in line.rsplit("/", 1)[-1]
+                     and ".so" in line}
+    except OSError:
+        paths = set()
+    for path in sorted(paths):
+        try:
+            lib = ctypes.CDLL(path)
+            before = lib.omp_get_max_threads()
+            lib.omp_set_num_threads(1)
+            libs.append((lib, before))
+        except (OSError, AttributeError):
+            continue
+    try:
+        yield
+    finally:
+        for lib, before in libs:
+            lib.omp_set_num_threads(before)
 
 
 def _lowest_per_cell(p: np.ndarray, mask: np.ndarray, cell: float) -> np.ndarray:
@@ -267,8 +306,8 @@ def _hull(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
                 angle: float = 6.0, distance: float = 1.4, offset: float = 0.1,
-                passes: int = 50, slope_gain: float = 0.0, local: bool = False
-                ) -> np.ndarray:
+                passes: int = 50, slope_gain: float = 0.0, slope_rise: float = 90.0,
+                local: bool = False) -> np.ndarray:
     """Axelsson's progressive TIN densification from ``seeds``.
 
     A point of ``eligible`` inside a triangle of the current ground joins the ground when
@@ -277,10 +316,11 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     corner, or when ``|d| < offset`` (close to a corner the angle measures the range
     noise, not the terrain); all such points join at once, then the triangulation is
     redone, ``passes`` times at most or until none joins. With ``slope_gain`` the angle
-    over a point where the seeds' TIN slopes ``s`` degrees is ``angle + slope_gain * s``
-    (89 at most): a terrain slope term, as TerraScan's guidance ties its angles to the
-    terrain's. The seeds' slope, not the current triangle's: points that join steepen
-    their triangles, and a shrub let in by its triangle's slope would let in more. With
+    of a triangle sloping ``s`` degrees is ``angle + slope_gain * s`` (89 at most): a
+    terrain slope term, as TerraScan's guidance ties its angles to the terrain's. ``s`` is
+    at most ``slope_rise`` degrees more than the slope of the seeds' TIN under the point:
+    points that join steepen their triangles, and a shrub let in by its triangle's slope
+    would let in more, up a cliff's edge into the canopy. With
     ``local`` the angle test also passes when the point is within the angle of its nearest
     corner's own plane (the area-weighted mean of that corner's triangles' normals): on a
     convex crest the triangle's plane runs from the ground found so far to a seed beyond
@@ -297,6 +337,8 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
         Metres.
     slope_gain : float
         Degrees of angle per degree of the triangle's slope.
+    slope_rise : float
+        Degrees the slope term's slope may exceed the seeds' (90: unbounded).
     local : bool
 
     Returns
@@ -313,7 +355,7 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     # the slope term's slope is the seeds' (fixed): the current triangle's own slope fed
     # back -- a shrub that joined steepened its triangles, which let more of it in, up a
     # cliff's edge and into the canopy (a 45-degree stand: type II 12 %, DTM RMSE 12 m)
-    seed_slope = _seed_slope(p, q, g) if slope_gain > 0 else None
+    seed_slope = _seed_slope(p, q, g) if slope_gain > 0 and slope_rise < 90 else None
     for _ in range(int(passes)):
         gi = np.flatnonzero(g)
         try:
@@ -340,8 +382,10 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
             d_angle = np.minimum(d, dl)
         tan_a = tan_max
         if slope_gain > 0:
-            own = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
-            slope = np.minimum(own, np.nan_to_num(seed_slope[cand]) + SLOPE_RISE)
+            slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
+            if seed_slope is not None:
+                slope = np.minimum(slope, np.nan_to_num(seed_slope[cand], nan=90.0)
+                                   + slope_rise)
             tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
         join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
         if not np.any(join):
