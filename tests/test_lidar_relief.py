@@ -100,12 +100,12 @@ def test_bad_relief_exits_2_with_one_line(tmp_path, capsys, flag, value, field):
 def test_ground_holds_on_steep_slopes_under_shrubs(slope, total_max, rmse_max):
     # shrubs cover half the floor; at 45 degrees only the DTM has a target (the filter
     # leaves much of the ground out there, but takes in no shrub that would lift it)
-    t = sloped_tile(slope, rng=np.random.default_rng(int(slope)))
+    t = sloped_tile(slope, rng=np.random.default_rng(int(slope)), size=50.0)
     pts, last, truth, terrain = t.points, t.last, t.ground, t.terrain
     g = classify_ground(pts, last=last)
-    inner = np.all((pts[:, :2] > 5) & (pts[:, :2] < 35), axis=1)  # the cloth's edges: less sure
+    inner = np.all((pts[:, :2] > 5) & (pts[:, :2] < 45), axis=1)  # the cloth's edges: less sure
     e = ground_errors(g[inner], truth[inner])
-    dtm = dtm_from_ground(pts[g], bounds=(0, 0, 40, 40), res=0.5)
+    dtm = dtm_from_ground(pts[g], bounds=(0, 0, 50, 50), res=0.5)
     # scored 5 m inside the tile's edges (the terrain raster reaches 10 m beyond them)
     err = stand_dtm_errors(dtm, terrain, margin=15.0)
     if total_max is not None:

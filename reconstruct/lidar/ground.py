@@ -90,6 +90,10 @@ class GroundOptions(Config):
                                      help="cloth grid spacing")
     rigidness: int = option(1, choices=(1, 2, 3),
                             help="cloth stiffness: 1 steep slopes, 2 terraces, 3 flat ground")
+    cloth_detrend: bool = option(True, help="drop the cloth on the cloud less its lower "
+                                            "plane (a robust plane through the lowest point "
+                                            "of every 10 m cell): a cloth on a steep slope "
+                                            "hangs off it")
     class_threshold: float = option(0.5, unit="m", range="(0, 10]",
                                     help="points this close to the cloth are ground seeds")
     slope_smooth: bool = option(True, help="post-process the cloth on steep slopes")
@@ -182,7 +186,10 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
     idx = np.flatnonzero(eligible)
     if len(idx) < 3:
         return out
-    out[idx[_cloth(p[idx] - p[idx].min(axis=0), o)]] = True
+    local = p[idx] - p[idx].min(axis=0)
+    if o.cloth_detrend:
+        local[:, 2] -= _lower_plane(local)
+    out[idx[_cloth(local, o)]] = True
     if o.densify_angle > 0 and out.sum() >= 3:
         seeds = _lowest_per_cell(p, out, o.seed_step) if o.seed_step > 0 else out
         seeds |= _hull(p, out)  # the seeds' TIN spans all of the cloth's ground
@@ -204,6 +211,24 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                 break
             out = trimmed
     return out
+
+
+def _lower_plane(p: np.ndarray, cell: float = 10.0) -> np.ndarray:
+    """Heights at ``p``'s points of a plane through the lowest point of every ``cell``
+    square, fitted by least squares reweighted to follow the lower ones (Kraus and
+    Pfeifer's asymmetric weights on the residuals' scale)."""
+    low = _lowest_per_cell(p, np.ones(len(p), bool), cell)
+    q = p[low]
+    if len(q) < 3:
+        return np.zeros(len(p))
+    a = np.column_stack([np.ones(len(q)), q[:, 0], q[:, 1]])
+    w = np.ones(len(q))
+    for _ in range(5):
+        coef = np.linalg.lstsq(a * w[:, None], q[:, 2] * w, rcond=None)[0]
+        e = q[:, 2] - a @ coef
+        scale = max(float(np.median(np.abs(e))), 1e-6)
+        w = np.clip(2.0 - e / scale, 0.0, 1.0)  # 1 below 1 scale above, 0 from 2 up
+    return coef[0] + coef[1] * p[:, 0] + coef[2] * p[:, 1]
 
 
 def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
