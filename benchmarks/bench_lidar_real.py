@@ -5,11 +5,11 @@
    against its own -- total error, type I and II, reported: its class 2 is a sparse lower
    envelope under a layer of grass and shrubs its pulses cannot split from the ground
    (docs/lidar.md), so agreeing with it point by point is no target -- and our DTM at its
-   ground points, the measure there (target RMS <= 0.13 m). The water we find against its class 9, and what sets its
-   water apart from its ground besides its level (pulse density against the tile's,
-   intensity, scan angle). Also the floor of any filter that labels points by their
-   height above the true terrain: the file's own ground surface (a TIN of its ground points)
-   with a 0.1 m band, against the file's classes.
+   ground points, the measure there (target RMS <= 0.13 m). The water we find against
+   its class 9, and what sets its water apart from its ground besides its level (pulse
+   density against the tile's, intensity, scan angle). Also the floor of any filter that
+   labels points by their height above the true terrain: the file's own ground surface (a
+   TIN of its ground points) with a 0.1 m band, against the file's classes.
 2. ``MixedConifer.laz`` (90 x 90 m, 37,657 points, lidR's per-point ``treeID`` crowns of
    206 trees -- an algorithm's segmentation, not field truth): our trees against those
    crowns (position = the crown's highest point, height = its z; the tile is normalised).

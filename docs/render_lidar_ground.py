@@ -33,11 +33,12 @@ def load(out: Path) -> list[dict]:
 def main(out: Path) -> None:
     rows = load(out)
     rows.sort(key=lambda r: tuple(str(r[k]) if k == "forest.species" else r[k] for k in KEYS))
-    print("| slope (deg) | measured mean slope | trees/ha | shrubs/ha | species | type I % "
-          "| type II % | total % | DTM RMSE m | tree F |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| slope (deg) | measured mean slope | trees/ha | shrubs/ha | species "  # noqa: T201
+          "| type I % | type II % | total % | DTM RMSE m | tree F |")
+    print("|---|---|---|---|---|---|---|---|---|---|")  # noqa: T201
     for r in rows:
-        print(f"| {r['forest.slope']:g} | {r['terrain.mean_slope_deg']:.1f} | "
+        print(f"| {r['forest.slope']:g} | "  # noqa: T201
+              f"{r['terrain.mean_slope_deg']:.1f} | "
               f"{r['forest.density']:g} | {r['forest.understory']:g} | "
               f"{r['forest.species']} | {100 * r['ground.type_i']:.2f} | "
               f"{100 * r['ground.type_ii']:.2f} | {100 * r['ground.total']:.2f} | "
@@ -64,7 +65,7 @@ def main(out: Path) -> None:
     fig.tight_layout()
     dst = Path(__file__).resolve().parent / "img" / "lidar_ground_study.png"
     fig.savefig(dst, dpi=90)
-    print(f"\nwrote {dst}")
+    print(f"\nwrote {dst}")  # noqa: T201
 
 
 if __name__ == "__main__":

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.raster_io import Raster
 from data_synth.forest import ForestConfig, build_forest, terrain_height
 from data_synth.sloped_tile import sloped_tile
 from procgen.terrain import fractal_terrain, mean_slope, mountain_relief
