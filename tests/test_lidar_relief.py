@@ -111,3 +111,20 @@ def test_ground_holds_on_steep_slopes_under_shrubs(slope, total_max, rmse_max):
         assert e["total"] <= total_max, e
     assert e["type_ii"] <= 0.01, e
     assert err["rmse"] <= rmse_max, err
+
+
+def test_lidar_ground_study_kind_splits_forest_and_capture(tmp_path):
+    from core.validate import InputError
+    from scanamp.study.kinds import KINDS, build_configs
+
+    kind = KINDS["lidar-ground"]
+    cap, rec = build_configs(kind, {"forest.slope": 30.0, "forest.ravines": 1,
+                                    "density": 10.0, "reconstruct.ground.lower_passes": 2},
+                             tmp_path / "a.toml")
+    assert cap.forest == {"slope": 30.0, "ravines": 1} and cap.capture.density == 10.0
+    assert rec.ground.lower_passes == 2
+    with pytest.raises(InputError) as e:
+        build_configs(kind, {"forest.slope": 50.0}, tmp_path / "b.toml")
+    assert e.value.field == "forest.slope"
+    with pytest.raises(InputError):
+        build_configs(kind, {"forest.no_such_option": 1.0}, tmp_path / "c.toml")

@@ -17,6 +17,11 @@ Four steps, each after a published method:
    Remote Sensing 8(6), 501 (doi:10.3390/rs8060501): the cloud is turned upside down and a
    cloth of ``cloth_resolution`` dropped on it, stiff enough (``rigidness``) to bridge the
    gaps under trees and buildings; points within ``class_threshold`` of it are ground.
+   The cloth drops on the cloud less its lower plane (``cloth_detrend``: a plane through
+   the lowest point of every 10 m cell, reweighted towards the lower ones): a horizontal
+   cloth on a steep slope hangs off it, its springs pulling the particles of the slope's
+   low side up (on a 45-degree simulated stand it missed twice the ground it misses on
+   the slope less its plane). It runs on one OpenMP thread: the package's loops race.
    The ``CSF`` package stops its simulation once no particle moves more than 5 mm in a
    step; a particle pulled by gravity ``0.2 time_step²`` per step while held by its settled
    neighbours sags slower than that into a deep (upside down) pit -- a hill of the real

@@ -108,28 +108,13 @@ def stand_dtm_errors(dtm, truth, *, margin: float) -> dict:
             "max_abs": float(np.max(np.abs(e))), "n": int(len(e))}
 
 
-def scene_spec(scene: str) -> dict:
-    """The spec dict of a built-in scene name or a scene file / folder."""
-    from importlib import resources
-
-    from core.files import read_toml
-    from data_synth.scenes import scene_names
-
-    if scene in scene_names():
-        path = Path(str(resources.files("data_synth.scene_specs") / f"{scene}.toml"))
-    else:
-        path = Path(scene)
-        if path.is_dir():
-            path = path / "scene.toml"
-    return read_toml(path)
-
-
 def execute(cap: GroundSurvey, rec_cfg, *, scene: str, seed: int, work: Path,
             material: dict | None = None) -> dict:
     """Grow, fly, reconstruct and score one stand (see the module docstring)."""
+    from core.files import read_toml
     from core.las_io import read_las
     from core.raster_io import read_raster
-    from data_synth.scenes import build_scene, write_scene
+    from data_synth.scenes import build_scene, scene_spec_path, write_scene
     from procgen.terrain import mean_slope
     from reconstruct.lidar.evaluation import evaluate_lidar
     from reconstruct.lidar.pipeline import run as run_lidar
@@ -137,7 +122,7 @@ def execute(cap: GroundSurvey, rec_cfg, *, scene: str, seed: int, work: Path,
 
     if material:
         raise InputError("a LiDAR study takes no material overrides", field="material")
-    spec = copy.deepcopy(scene_spec(scene))
+    spec = copy.deepcopy(read_toml(scene_spec_path(scene)))
     if "forest" not in spec:
         raise InputError("a lidar-ground study needs a forest scene", field="study.scene")
     spec["forest"].update(cap.forest)
