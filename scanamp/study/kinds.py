@@ -193,7 +193,11 @@ def validate_run(study, run) -> None:
         try:
             build_configs(kind, run.overrides, Path(tmp) / "capture.toml")
             material_overrides(run.overrides)
-            if study.kind != "_test":
+            if study.kind == "lidar-ground":  # its runs grow their own forests: the spec
+                from scanamp.study.lidar_ground import check_scene
+
+                check_scene(study.scene)
+            elif study.kind != "_test":
                 _scene(study.scene, material_overrides(run.overrides))
         except InputError as exc:
             raise InputError(exc.message, path=study.path,

@@ -32,7 +32,8 @@ import numpy as np
 
 from core.validate import InputError
 
-__all__ = ["GroundSurvey", "load_capture", "recon_default", "execute", "ground_errors",
+__all__ = ["GroundSurvey", "load_capture", "recon_default", "execute", "check_scene",
+           "ground_errors",
            "stand_dtm_errors", "METRICS"]
 
 TRUE_GROUND_CLASSES = (2, 11)  # ground, road surface
@@ -108,13 +109,31 @@ def stand_dtm_errors(dtm, truth, *, margin: float) -> dict:
             "max_abs": float(np.max(np.abs(e))), "n": int(len(e))}
 
 
+def check_scene(scene: str) -> dict:
+    """The spec of ``scene``, checked to be a forest (a ``[forest]`` table
+    :class:`data_synth.forest.ForestConfig` reads) without growing it."""
+    from core.config import from_dict
+    from core.files import read_toml
+    from data_synth.forest import ForestConfig
+    from data_synth.scenes import scene_spec_path
+
+    path = scene_spec_path(scene)
+    spec = read_toml(path)
+    table = dict(spec.get("forest") or {})
+    if not table:
+        raise InputError("a lidar-ground study needs a forest scene (a [forest] table)",
+                         path=path, field="study.scene")
+    table.pop("inventory", None)
+    from_dict(ForestConfig, table, path=path, prefix="forest.")
+    return spec
+
+
 def execute(cap: GroundSurvey, rec_cfg, *, scene: str, seed: int, work: Path,
             material: dict | None = None) -> dict:
     """Grow, fly, reconstruct and score one stand (see the module docstring)."""
-    from core.files import read_toml
     from core.las_io import read_las
     from core.raster_io import read_raster
-    from data_synth.scenes import build_scene, scene_spec_path, write_scene
+    from data_synth.scenes import build_scene, write_scene
     from procgen.terrain import mean_slope
     from reconstruct.lidar.evaluation import evaluate_lidar
     from reconstruct.lidar.pipeline import run as run_lidar
@@ -122,9 +141,7 @@ def execute(cap: GroundSurvey, rec_cfg, *, scene: str, seed: int, work: Path,
 
     if material:
         raise InputError("a LiDAR study takes no material overrides", field="material")
-    spec = copy.deepcopy(read_toml(scene_spec_path(scene)))
-    if "forest" not in spec:
-        raise InputError("a lidar-ground study needs a forest scene", field="study.scene")
+    spec = copy.deepcopy(check_scene(scene))
     spec["forest"].update(cap.forest)
     spec.setdefault("scene", {})["seed"] = int(seed)
     bundle = build_scene(spec)
