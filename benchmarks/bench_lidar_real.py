@@ -2,12 +2,14 @@
 
 1. ``Topography.laz`` (285 x 285 m of forested hillside, 73,403 points, its own ground class
    2 and water class 9) with its classes removed: our ground (the cloth simulation filter)
-   against its own -- total error (target <= 5 %), type I and II -- and our DTM at its ground
-   points (target RMS <= 0.3 m). The water we find against its class 9, and what sets its
-   water apart from its ground besides its level (pulse density against the tile's,
-   intensity, scan angle). Also the floor of any filter that labels points by their
-   height above the true terrain: the file's own ground surface (a TIN of its ground points)
-   with a 0.1 m band, against the file's classes.
+   against its own -- total error, type I and II, reported: its class 2 is a sparse lower
+   envelope under a layer of grass and shrubs its pulses cannot split from the ground
+   (docs/lidar.md), so agreeing with it point by point is no target -- and our DTM at its
+   ground points, the measure there (target RMS <= 0.13 m). The water we find against
+   its class 9, and what sets its water apart from its ground besides its level (pulse
+   density against the tile's, intensity, scan angle). Also the floor of any filter that
+   labels points by their height above the true terrain: the file's own ground surface (a
+   TIN of its ground points) with a 0.1 m band, against the file's classes.
 2. ``MixedConifer.laz`` (90 x 90 m, 37,657 points, lidR's per-point ``treeID`` crowns of
    206 trees -- an algorithm's segmentation, not field truth): our trees against those
    crowns (position = the crown's highest point, height = its z; the tile is normalised).
@@ -74,8 +76,8 @@ def topography():
     rms = float(np.sqrt(np.mean(dz ** 2)))
     print(f"   Topography: {len(g)} points, its ground {g_ref.sum()} ({g_ref.mean():.1%}), "
           f"ours {g.sum()} ({g.mean():.1%}); CSF {res.timings['ground_s']:.1f} s")
-    print(f"   ground classification total error {total:.1%} (target <= 5 %) "
-          f"{'PASS' if total <= 0.05 else 'MISS'}; without its {water.sum()} water points "
+    print(f"   ground classification total error {total:.1%} (reported; its class 2 is a "
+          f"sparse lower envelope); without its {water.sum()} water points "
           f"{total_dry:.1%}; type I {t1:.1%}, type II {t2:.1%}")
     wf = res.water
     print(f"   water found {wf.sum()} points ({np.sum(wf & water)} of its {water.sum()} water, "
@@ -84,7 +86,7 @@ def topography():
     _water_cues(pts, water, g_ref)
     print(f"   DTM at its ground points: RMS {rms:.3f} m, bias {np.mean(dz):+.3f} m, median "
           f"{np.median(dz):+.3f} m, {np.sum(np.abs(dz) > 1)} beyond 1 m "
-          f"(target RMS <= 0.3 m) {'PASS' if rms <= 0.3 else 'MISS'}")
+          f"(target RMS <= 0.13 m) {'PASS' if rms <= 0.13 else 'MISS'}")
     _held_out(xyz, g, g_ref)
     c = xyz[g_ref, :2].mean(axis=0)
     h = xyz[:, 2] - LinearNDInterpolator(xyz[g_ref, :2] - c, xyz[g_ref, 2])(xyz[:, :2] - c)

@@ -1,15 +1,38 @@
-"""Small rendered captures for tests, built once and reused (each builder takes a root
-folder and returns the capture folder, rendering it only when it is missing).
+"""Small data sets with their truth for tests and benchmarks.
+
+Rendered captures built once and reused (each builder takes a root folder and returns the
+capture folder, rendering it only when it is missing), the faces a set of cameras sees of
+a mesh, and :func:`sloped_tile`, a quick airborne survey of a sloped forest floor:
+
+A quick airborne survey of a sloped forest floor with its exact truth, without ray casting.
+
+For tests and benchmarks of the ground filter that need seconds, not the minutes a
+simulated stand takes (:mod:`data_synth.forest` flown by ``scanamp capture lidar``): a
+terrain from :func:`procgen.terrain.mountain_relief` (a fractal floor with breaks of slope,
+a ravine and boulders, tilted to a mean slope), pulses at random over a square tile, and
+what they return:
+
+- shrubs 0.3-2.5 m tall on discs 0.3-1 m in radius at random, together covering
+  ``cover`` of the floor; a pulse under a shrub ends on it four times in five (its
+  surface: a half-ellipsoid, times 0.6-1 for the foliage's depth), on the ground otherwise;
+- a share ``canopy`` of the pulses ends in a crown 8-25 m up (a single, last return);
+- of the rest, 60 % also leave a first return in a crown (not their last).
+
+Every ground and shrub return is a last return; range noise 3 cm.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["sfm_capture", "seen_triangles"]
+from core.io.raster import Raster
+from core.validate import check_positive, check_range, check_rng
+
+__all__ = ["sfm_capture", "seen_triangles", "SlopedTile", "sloped_tile"]
 
 
 def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: int = 12,
@@ -73,3 +96,68 @@ def seen_triangles(vertices, triangles, eyes, *, target=None, fov_deg: float = 6
         hit = scene.cast_rays(o3d.core.Tensor(r))["primitive_ids"].numpy()
         seen[hit[hit != scene.INVALID_ID].astype(np.int64)] = True
     return f[seen]
+
+
+
+@dataclass
+class SlopedTile:
+    """Points (n, 3), last returns (n,), true ground (n,) and the true terrain."""
+
+    points: np.ndarray
+    last: np.ndarray
+    ground: np.ndarray
+    terrain: Raster
+
+
+def sloped_tile(slope: float, *, rng: np.random.Generator, size: float = 40.0,
+                density: float = 10.0, cover: float = 0.5, canopy: float = 0.5,
+                relief: float = 0.7) -> SlopedTile:
+    """A ``size`` x ``size`` m tile at ``density`` pulses/m2 on a ``slope``-degree terrain.
+
+    The terrain raster (0.5 m, exact: ground returns lie on its triangles) reaches 10 m
+    beyond the tile on every side; the tile spans ``[0, size]`` in x and y.
+    """
+    from scipy.spatial import cKDTree
+
+    from data_synth.forest import terrain_height
+    from procgen.terrain import fractal_terrain, mountain_relief
+
+    check_rng(rng)
+    s = check_range(slope, "slope", 0.0, 45.0)
+    size = check_positive(size, "size")
+    density = check_positive(density, "density")
+    cover = check_range(cover, "cover", 0.0, 0.95)
+    canopy = check_range(canopy, "canopy", 0.0, 1.0)
+    res = 0.5
+    cells = int(np.ceil((size + 20) / res)) + 1
+    side = 2 ** int(np.ceil(np.log2(cells - 1))) + 1
+    base = fractal_terrain(side, rng=rng, method="fbm", hurst=0.8, height=relief,
+                           frequency=max(side * res / 80.0, 1.0), octaves=5)[:cells, :cells]
+    z = mountain_relief(base, spacing=res, rng=rng, slope=s, slope_breaks=2, ravines=1,
+                        boulders=20.0)
+    terrain = Raster(z, x0=-10.0, y0=-10.0, res=res)
+    mean_area = np.pi * (1.0 - 0.3 ** 3) / (3 * 0.7)  # radii uniform in 0.3-1 m
+    span = size + 20
+    n_sh = int(-np.log(1 - cover) * span * span / mean_area)  # random discs covering this
+    sh_xy = rng.uniform(-10, size + 10, (n_sh, 2))
+    sh_r = rng.uniform(0.3, 1.0, n_sh)
+    sh_h = rng.uniform(0.3, 2.5, n_sh)
+    n = int(size * size * density)
+    xy = rng.uniform(0, size, (n, 2))
+    g = terrain_height(terrain, xy[:, 0], xy[:, 1])
+    if n_sh:
+        d, k = cKDTree(sh_xy).query(xy)
+        under = d < sh_r[k]
+        frac = np.sqrt(np.clip(1 - (d / sh_r[k]) ** 2, 0, 1))
+    else:
+        under, k, frac = np.zeros(n, bool), np.zeros(n, np.int64), np.zeros(n)
+    on_shrub = under & (rng.random(n) < 0.8)
+    top = np.where(on_shrub, sh_h[k] * frac * rng.uniform(0.6, 1.0, n), 0.0)
+    low = np.column_stack([xy, g + top + rng.normal(0, 0.03, n)])
+    crown = rng.random(n) < canopy
+    high = np.column_stack([xy, g + rng.uniform(8, 25, n)])
+    through = ~crown & (rng.random(n) < 0.6)  # a first return in a crown, then on
+    pts = np.vstack([low[~crown], high[crown], high[through]])
+    last = np.r_[np.ones((~crown).sum() + crown.sum(), bool), np.zeros(through.sum(), bool)]
+    truth = np.r_[~on_shrub[~crown], np.zeros(crown.sum() + through.sum(), bool)]
+    return SlopedTile(pts, last, truth, terrain)

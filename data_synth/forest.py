@@ -52,9 +52,10 @@ from core.io.raster import Raster, write_raster
 from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
 from core.validate import InputError
+from data_synth.scenes import SceneBundle
+from procgen.terrain import fractal_terrain, heightfield_to_mesh, mountain_relief
 from data_synth.bundle import SceneBundle
 from procgen.allometry import stand_crowns
-from procgen.terrain import fractal_terrain, heightfield_to_mesh
 from procgen.trees import (
     NEEDLE_CLUSTER,
     NEEDLE_DENSITY,
@@ -75,6 +76,7 @@ __all__ = ["ForestConfig", "ForestBundle", "build_forest", "forest_spec", "parse
 
 log = logging.getLogger(__name__)
 
+RELIEF_STREAM = 2  # the relief's generator: default_rng([seed, RELIEF_STREAM])
 STEM_SINK = 0.3  # metres: stems start this far below the ground (no gap on a slope)
 
 UNDERSTORY_DENSITY = 2044.0
@@ -152,6 +154,25 @@ class ForestConfig(Config):
     terrain_res: float = option(1.0, unit="m", range="(0, 20]",
                                 help="terrain grid spacing at most this")
     elevation: float = option(0.0, unit="m", help="terrain mean elevation")
+    # -- a mountainside's relief (procgen.terrain.mountain_relief; its own seeded stream)
+    slope: float = option(0.0, unit="deg", range="[0, 45]",
+                          help="mean slope of the stand's ground, relief and features "
+                               "included (0: no tilt)")
+    aspect: float = option(180.0, unit="deg", range="[0, 360)",
+                           help="direction the slope faces (downhill), clockwise from north")
+    slope_breaks: int = option(0, range="[0, 20]",
+                               help="breaks of slope across the fall line (the slope "
+                                    "alternates between steeper and gentler)")
+    terraces: int = option(0, range="[0, 20]",
+                           help="terraces down the slope: benches and risers")
+    cliffs: int = option(0, range="[0, 10]", help="cliffs across the slope")
+    cliff_height: float = option(4.0, unit="m", range="(0, 50]",
+                                 help="height of each cliff (a face over one terrain cell)")
+    ravines: int = option(0, range="[0, 10]", help="V-shaped ravines down the fall line")
+    ravine_depth: float = option(3.0, unit="m", range="(0, 30]",
+                                 help="depth of each ravine (4 times as wide)")
+    boulders: float = option(0.0, unit="1/ha", range="[0, 2000]",
+                             help="boulders (part of the ground: 0.5-1.5 m in radius)")
     roads: bool = option(False, help="a few roads and buildings of the procedural city")
     variants: int = option(0, range="[0, 32]",
                            help="individuals grown per species, each tree a scaled copy of "
@@ -256,7 +277,13 @@ def _procedural_trees(cfg: ForestConfig, rng: np.random.Generator, *, path) -> d
     return {"x": pts[:, 0], "y": pts[:, 1], "height": h, "species": sp}
 
 
-def _terrain(cfg: ForestConfig, lo: np.ndarray, hi: np.ndarray, rng) -> Raster:
+def _has_relief(cfg: ForestConfig) -> bool:
+    return bool(cfg.slope or cfg.slope_breaks or cfg.terraces or cfg.cliffs or cfg.ravines
+                or cfg.boulders)
+
+
+def _terrain(cfg: ForestConfig, lo: np.ndarray, hi: np.ndarray, rng,
+             relief_rng: np.random.Generator | None = None) -> Raster:
     extent = float(max(hi - lo)) + 2 * cfg.margin
     n = 2
     while extent / (2 ** n) > cfg.terrain_res:
@@ -265,6 +292,13 @@ def _terrain(cfg: ForestConfig, lo: np.ndarray, hi: np.ndarray, rng) -> Raster:
     z = fractal_terrain(size, rng=rng, method="fbm", hurst=0.8, height=cfg.relief,
                         frequency=max(extent / 80.0, 1.0), octaves=6)
     res = extent / (size - 1)
+    if relief_rng is not None:
+        stand = (cfg.margin, cfg.margin, extent - cfg.margin, extent - cfg.margin)
+        z = mountain_relief(z, spacing=res, rng=relief_rng, slope=cfg.slope,
+                            aspect=cfg.aspect, slope_breaks=cfg.slope_breaks,
+                            terraces=cfg.terraces, cliffs=cfg.cliffs,
+                            cliff_height=cfg.cliff_height, ravines=cfg.ravines,
+                            ravine_depth=cfg.ravine_depth, boulders=cfg.boulders, region=stand)
     return Raster(z + cfg.elevation, x0=float(lo[0] - cfg.margin),
                   y0=float(lo[1] - cfg.margin), res=res)
 
@@ -331,7 +365,10 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     else:
         lo, hi = np.zeros(2), np.full(2, cfg.size)
         origin = np.zeros(3)
-    dtm_local = _terrain(cfg, lo - origin[:2], hi - origin[:2], rng)
+    # the mountainside's features from their own generator: a stand without them is
+    # the same as before they existed
+    relief_rng = np.random.default_rng([seed, RELIEF_STREAM]) if _has_relief(cfg) else None
+    dtm_local = _terrain(cfg, lo - origin[:2], hi - origin[:2], rng, relief_rng)
     xl, yl = t["x"] - origin[0], t["y"] - origin[1]
     zg = terrain_height(dtm_local, xl, yl)
     allo = _allometric_crowns(t, dtm_local, xl, yl, zg, origin,

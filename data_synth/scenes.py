@@ -47,7 +47,7 @@ from core.validate import InputError
 from data_synth import shapes
 from data_synth.bundle import SceneBundle
 
-__all__ = ["build_scene", "load_scene", "write_scene", "scene_names"]
+__all__ = ["build_scene", "load_scene", "write_scene", "scene_names", "scene_spec_path"]
 
 SHAPES = ("sphere", "box", "cylinder", "torus", "plane", "blob", "terrain", "lsystem", "shell",
           "mesh", "charuco", "chessboard")
@@ -161,6 +161,21 @@ def _shape(obj, shape, *, path, prefix, seed, base_dir):
                      field=f"{prefix}.shape")
 
 
+def scene_spec_path(name) -> Path:
+    """The spec file of a built-in scene name, a ``.toml`` spec or a scene folder."""
+    s = str(name)
+    if s in scene_names():
+        return Path(str(resources.files("data_synth.scene_specs") / f"{s}.toml"))
+    path = Path(s)
+    if path.is_dir():
+        path = path / "scene.toml"
+    if path.suffix != ".toml":
+        names = ", ".join(scene_names())
+        raise InputError(f"unknown scene; expected a built-in name ({names}) "
+                         "or a .toml spec or scene folder", path=s)
+    return path
+
+
 def build_scene(spec_or_name, *, seed: int | None = None) -> SceneBundle:
     """Build a scene from a built-in name, a spec file path, or a spec dict.
 
@@ -175,17 +190,7 @@ def build_scene(spec_or_name, *, seed: int | None = None) -> SceneBundle:
     if isinstance(spec_or_name, dict):
         spec = copy.deepcopy(spec_or_name)
     else:
-        s = str(spec_or_name)
-        if s in scene_names():
-            path = Path(str(resources.files("data_synth.scene_specs") / f"{s}.toml"))
-        else:
-            path = Path(s)
-            if path.is_dir():
-                path = path / "scene.toml"
-            if path.suffix != ".toml":
-                names = ", ".join(scene_names())
-                raise InputError(f"unknown scene; expected a built-in name ({names}) "
-                                 "or a .toml spec or scene folder", path=s)
+        path = scene_spec_path(spec_or_name)
         spec = read_toml(path)
         base_dir = path.parent
     head = spec.setdefault("scene", {})

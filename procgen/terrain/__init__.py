@@ -12,9 +12,11 @@ from procgen.terrain.heightfield import (
     check_grid_size,
     fractal_terrain,
     heightfield_to_mesh,
+    mean_slope,
+    mountain_relief,
     tileable_terrain,
     water_mesh,
 )
 
 __all__ = ["heightfield_to_mesh", "water_mesh", "fractal_terrain", "tileable_terrain",
-           "check_grid_size"]
+           "mountain_relief", "mean_slope", "check_grid_size"]

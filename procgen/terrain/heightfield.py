@@ -27,6 +27,7 @@ from procgen.fractals.displacement import _check_hurst, diamond_square
 from procgen.noise.fractal import fbm, ridged, tileable
 
 __all__ = ["heightfield_to_mesh", "water_mesh", "fractal_terrain", "tileable_terrain",
+           "mountain_relief", "mean_slope",
            "check_grid_size"]
 
 
@@ -225,3 +226,154 @@ def tileable_terrain(size: int, *, rng: np.random.Generator, frequency: int = 4,
     z = z - z.mean()
     sd = z.std()
     return z * (amp / sd) if sd > 0 else z
+
+
+def mountain_relief(base, *, spacing: float, rng: np.random.Generator, slope: float = 0.0,
+                    aspect: float = 180.0, slope_breaks: int = 0, terraces: int = 0,
+                    cliffs: int = 0, cliff_height: float = 4.0, ravines: int = 0,
+                    ravine_depth: float = 3.0, boulders: float = 0.0,
+                    region=None) -> np.ndarray:
+    """A heightfield with the relief of a mountainside: a tilt, breaks of slope, terraces,
+    cliffs, ravines and boulders over ``base``.
+
+    The features are laid along the fall line ``u`` (horizontal distance downhill, towards
+    ``aspect``) and across it ``v``; each line across the slope (a break, a terrace's edge,
+    a cliff) wanders with a seeded sine of ``v`` so that none is straight.
+
+    - **Tilt and breaks of slope**: the terrain drops ``tan(t) * P(u)`` downhill, ``P`` a
+      profile whose gradient is 1 on average and changes at ``slope_breaks`` places (a
+      kink: the gradient alternates between 1.6 and 0.6 before normalising) and, with ``terraces``,
+      alternates between benches (gradient 0.15) and risers (the rest) ``terraces``
+      times across the stand.
+    - **Cliffs**: ``cliffs`` steps of ``cliff_height`` each, down the fall line, over one
+      grid spacing (a face of ``atan(cliff_height / spacing)``).
+    - **Ravines**: ``ravines`` V-shaped gullies down the fall line, ``ravine_depth`` deep
+      and ``4 x ravine_depth`` across, meandering.
+    - **Boulders**: ``boulders`` per hectare, ellipsoidal caps 0.5-1.5 m in radius and
+      0.5-1.2 times as high, on the ground.
+
+    The tilt ``t`` is found (bisection) so that the mean slope of the result over
+    ``region`` -- the mean of ``atan |grad z|`` over the grid's cells, relief and
+    features included -- is ``slope`` degrees; when the features alone are steeper the
+    tilt is 0. ``slope`` 0 is no tilt (and no breaks or terraces).
+
+    Parameters
+    ----------
+    base : (r, c) float64
+        Heights (metres), sample ``[i, j]`` at ``(j * spacing, i * spacing)``.
+    spacing : float
+        Metres.
+    rng : numpy.random.Generator
+    slope : float
+        Degrees in [0, 80).
+    aspect : float
+        Degrees clockwise from +y (north) the slope faces.
+    region : (4,) float, optional
+        ``xmin, ymin, xmax, ymax`` of the cells (grid coordinates, metres) whose mean
+        slope is ``slope``; default the whole grid.
+
+    Returns
+    -------
+    (r, c) float64
+
+    >>> z = mountain_relief(np.zeros((65, 65)), spacing=1.0, slope=30.0,
+    ...                     rng=np.random.default_rng(0))
+    >>> round(mean_slope(z, 1.0), 6)
+    30.0
+    """
+    z0 = check_array(base, "base", shape=(None, None))
+    h = check_positive(spacing, "spacing")
+    check_rng(rng)
+    s = check_finite(slope, "slope")
+    if not 0 <= s < 80:
+        raise ValueError(f"slope: expected degrees in [0, 80), got {slope!r}")
+    for name, v in (("slope_breaks", slope_breaks), ("terraces", terraces),
+                    ("cliffs", cliffs), ("ravines", ravines)):
+        check_int(v, name, 0)
+    check_positive(cliff_height, "cliff_height")
+    check_positive(ravine_depth, "ravine_depth")
+    check_positive(boulders, "boulders", allow_zero=True)
+    rows, cols = z0.shape
+    a = np.radians(check_finite(aspect, "aspect"))
+    X, Y = np.meshgrid(np.arange(cols) * h, np.arange(rows) * h)
+    cx, cy = X.mean(), Y.mean()
+    down = np.array([np.sin(a), np.cos(a)])
+    u = (X - cx) * down[0] + (Y - cy) * down[1]
+    v = -(X - cx) * down[1] + (Y - cy) * down[0]
+    umin, umax = float(u.min()), float(u.max())
+    length = max(umax - umin, h)
+
+    def wander(amp, along=v):  # a line's offset: a seeded sine of the coordinate along it
+        k, ph = rng.uniform(0.5, 1.5) * 2 * np.pi / length, rng.uniform(0, 2 * np.pi)
+        return amp * np.sin(k * along + ph)
+
+    # the profile's gradient along u: breaks (kinks) and terraces (benches and risers)
+    grad = np.ones_like(u)
+    if slope_breaks:
+        at = np.sort(rng.uniform(umin, umax, int(slope_breaks)))
+        passed = sum(((u + wander(0.05 * length)) > b).astype(np.int64) for b in at)
+        steep_first = rng.uniform() < 0.5
+        grad = np.where((passed % 2 == 0) == steep_first, 1.6, 0.6)
+    if terraces:
+        period = length / int(terraces)
+        phase = ((u + wander(0.05 * length) - umin) / period + rng.uniform()) % 1.0
+        grad = grad * np.where(phase < 0.5, 0.15, 1.85)
+    grad = grad / grad.mean()
+    # P(u): the integral of the gradient down every column of the fall line, on the grid
+    order = np.argsort(u, axis=None)
+    us, gs = u.ravel()[order], grad.ravel()[order]
+    prof = np.empty(u.size)
+    prof[order] = np.concatenate([[0.0], np.cumsum(0.5 * (gs[1:] + gs[:-1]) * np.diff(us))])
+    prof = prof.reshape(u.shape)
+    prof -= prof.mean()
+    feat = z0.copy()
+    for _ in range(int(cliffs)):
+        at = rng.uniform(umin + 0.2 * length, umax - 0.2 * length)
+        t = np.clip((u + wander(0.08 * length) - at) / h + 0.5, 0.0, 1.0)
+        feat -= cliff_height * t * t * (3 - 2 * t)
+    for _ in range(int(ravines)):
+        at = rng.uniform(-0.35, 0.35) * length
+        centre = at + wander(0.1 * length, u)
+        w = 2.0 * ravine_depth
+        feat -= ravine_depth * np.clip(1.0 - np.abs(v - centre) / w, 0.0, None)
+    m = int(rng.poisson(boulders * rows * cols * h * h / 1e4))
+    for _ in range(m):
+        px, py = rng.uniform(0, (cols - 1) * h), rng.uniform(0, (rows - 1) * h)
+        r = rng.uniform(0.5, 1.5)
+        top = r * rng.uniform(0.5, 1.2)
+        d2 = ((X - px) ** 2 + (Y - py) ** 2) / r ** 2
+        feat += top * np.sqrt(np.clip(1.0 - d2, 0.0, None))
+    if s == 0:
+        return feat
+    sel = None
+    if region is not None:
+        x0, y0, x1, y1 = (float(c) for c in region)
+        xc, yc = X[:-1, :-1] + h / 2, Y[:-1, :-1] + h / 2
+        sel = (xc >= x0) & (xc <= x1) & (yc >= y0) & (yc <= y1)
+
+    def mean_at(tan_t):
+        return mean_slope(feat - tan_t * prof, h, where=sel)
+
+    want = s
+    if mean_at(0.0) >= want:
+        return feat
+    lo, hi = 0.0, 1.0
+    while mean_at(hi) < want:
+        hi *= 2
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mean_at(mid) < want else (lo, mid)
+    return feat - 0.5 * (lo + hi) * prof
+
+
+def mean_slope(heights, spacing: float, *, where=None) -> float:
+    """Mean slope of a heightfield in degrees: ``atan`` of the gradient's magnitude on
+    each grid cell (its two triangles' mean gradient: forward differences averaged over
+    the cell's edges), averaged over the cells (or those of the ``(r-1, c-1)`` mask
+    ``where``)."""
+    z = check_array(heights, "heights", shape=(None, None))
+    h = check_positive(spacing, "spacing")
+    gx = 0.5 * ((z[:-1, 1:] - z[:-1, :-1]) + (z[1:, 1:] - z[1:, :-1])) / h
+    gy = 0.5 * ((z[1:, :-1] - z[:-1, :-1]) + (z[1:, 1:] - z[:-1, 1:])) / h
+    ang = np.degrees(np.arctan(np.hypot(gx, gy)))
+    return float(ang[where].mean() if where is not None else ang.mean())

@@ -202,7 +202,11 @@ def validate_run(study, run) -> None:
         with tempfile.TemporaryDirectory(prefix="scanamp-study-") as tmp:
             build_configs(kind, run.overrides, Path(tmp) / "capture.toml")
         material_overrides(run.overrides)
-        if study.kind != "_test":
+        if study.kind == "lidar-ground":  # its runs grow their own forests: the spec
+            from scanamp.study.lidar_ground import check_scene
+
+            check_scene(study.scene)
+        elif study.kind != "_test":
             _scene(study.scene, material_overrides(run.overrides))
     except InputError as exc:
         raise InputError(exc.message, path=study.path,
@@ -446,6 +450,13 @@ def _run_test(cfg: _TestConfig, rec: _TestRecon, *, scene: str, seed: int, work:
     return {"y": rec.scale * cfg.x ** 2, "x": cfg.x, "seed": seed}
 
 
+def _lidar_ground_kind() -> Kind:
+    """The ground filter on mountainsides (:mod:`scanamp.study.lidar_ground`)."""
+    from scanamp.study import lidar_ground as lg
+
+    return Kind("lidar-ground", lg.load_capture, lg.recon_default, lg.execute, lg.METRICS)
+
+
 class _Kinds(Mapping):
     """The study kinds: one per registered acquisition method (:mod:`scanamp.methods`,
     read at each look-up, so a method registered later is a kind too), then the kinds that
@@ -463,11 +474,14 @@ class _Kinds(Mapping):
                                       laser.recon_default, _run_peaks,
                                       ("peak_error.rms_px", "peak_error.detection_rate",
                                        "peak_error.outlier_rate")),
+                "lidar-ground": _lidar_ground_kind(),
                 "_test": _TEST_KIND}
 
     def __getitem__(self, name: str) -> Kind:
         if name == "_test":  # the runner's own tests: no method's modules to load
             return _TEST_KIND
+        if name == "lidar-ground":  # grows its own forests: no method's modules either
+            return _lidar_ground_kind()
         return self._all()[name]
 
     def __iter__(self):
