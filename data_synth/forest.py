@@ -52,10 +52,9 @@ from core.io.raster import Raster, write_raster
 from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
 from core.validate import InputError
-from data_synth.scenes import SceneBundle
-from procgen.terrain import fractal_terrain, heightfield_to_mesh, mountain_relief
 from data_synth.bundle import SceneBundle
 from procgen.allometry import stand_crowns
+from procgen.terrain import fractal_terrain, heightfield_to_mesh, mountain_relief
 from procgen.trees import (
     NEEDLE_CLUSTER,
     NEEDLE_DENSITY,

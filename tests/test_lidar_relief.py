@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from data_synth.forest import ForestConfig, build_forest, terrain_height
 from data_synth.fixtures import sloped_tile
+from data_synth.forest import ForestConfig, build_forest, terrain_height
 from procgen.terrain import fractal_terrain, mean_slope, mountain_relief
 from reconstruct.lidar.ground import classify_ground
 from reconstruct.lidar.rasters import dtm_from_ground
