@@ -15,11 +15,13 @@ an edge is the street between two of them, however it bends:
   their ends (1 for straight streets).
 
 >>> import numpy as np
->>> nodes = np.array([[x, y] for y in range(4) for x in range(4)], float) * 100
->>> edges = [(i, i + 1) for i in range(16) if i % 4 < 3] + [(i, i + 4) for i in range(12)]
->>> s = street_statistics(nodes, np.array(edges))
->>> round(s["orientation_order"], 6), round(s["circuity"], 6), s["dead_end_share"]
-(1.0, 1.0, 0.0)
+>>> ends = [(0, 1), (3, 1), (0, 2), (3, 2), (1, 0), (1, 3), (2, 0), (2, 3)]
+>>> nodes = 100.0 * np.array([(1, 1), (2, 1), (1, 2), (2, 2)] + ends)  # a '#' of streets
+>>> edges = np.array([(4, 0), (0, 1), (1, 5), (6, 2), (2, 3), (3, 7),
+...                   (8, 0), (0, 2), (2, 9), (10, 1), (1, 3), (3, 11)])
+>>> s = street_statistics(nodes, edges)
+>>> s["orientation_order"], s["circuity"], round(s["dead_end_share"], 3), s["mean_degree"]
+(1.0, 1.0, 0.667, 2.0)
 """
 
 from __future__ import annotations
