@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import logging
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+
+from core.config import Config, option
 
 NAME = "clean"
 HELP = ("remove the temporary files and scratch folders that killed scanamp runs left under "
@@ -21,21 +24,29 @@ HELP = ("remove the temporary files and scratch folders that killed scanamp runs
 log = logging.getLogger("scanamp")
 
 
+@dataclass(frozen=True)
+class CleanConfig(Config):
+    """The options of ``scanamp clean``."""
+
+    dry_run: bool = option(False, help="print what would be removed and remove nothing")
+
+
+CONFIG = CleanConfig
+
+
 def add_arguments(p):
     p.add_argument("folder", type=Path, help="the folder to clean (searched recursively)")
-    p.add_argument("--dry-run", action="store_true",
-                   help="print what would be removed and remove nothing")
 
 
-def run(args) -> int:
+def run(args, config: CleanConfig) -> int:
     from core.files import remove_stale, stale_temporaries
     from core.validate import InputError
 
     if not args.folder.is_dir():
         raise InputError("is not a folder", path=args.folder)
-    found = stale_temporaries(args.folder) if args.dry_run else remove_stale(args.folder)
+    found = stale_temporaries(args.folder) if config.dry_run else remove_stale(args.folder)
     for p in found:
         sys.stdout.write(f"{p}\n")
-    log.info("%s %d stale temporar%s under %s", "found" if args.dry_run else "removed",
+    log.info("%s %d stale temporar%s under %s", "found" if config.dry_run else "removed",
              len(found), "y" if len(found) == 1 else "ies", args.folder)
     return 0
