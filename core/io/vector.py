@@ -118,12 +118,21 @@ def write_polygons(path: str | os.PathLike, features: Sequence, columns: Mapping
             for v in cols.values()]
     import warnings
 
-    with atomic_file(path) as tmp, warnings.catch_warnings():
-        # a layer without a CRS is what the caller asked for (pyogrio warns of it)
-        warnings.filterwarnings("ignore", message="'crs' was not provided")
-        tmp.unlink()  # GDAL creates the file itself
-        write(str(tmp), geometry, data, list(cols), layer=layer, driver="GPKG",
-              geometry_type="MultiPolygon", crs=crs_wkt, promote_to_multi=False)
+    from pyogrio import get_gdal_config_option, set_gdal_config_options
+
+    # GeoPackage stamps the layer with the time of writing; a fixed stamp keeps the same
+    # input the same bytes (GDAL's OGR_CURRENT_DATE, meant for reproducible files)
+    before = get_gdal_config_option("OGR_CURRENT_DATE")
+    set_gdal_config_options({"OGR_CURRENT_DATE": "2000-01-01T00:00:00.000Z"})
+    try:
+        with atomic_file(path) as tmp, warnings.catch_warnings():
+            # a layer without a CRS is what the caller asked for (pyogrio warns of it)
+            warnings.filterwarnings("ignore", message="'crs' was not provided")
+            tmp.unlink()  # GDAL creates the file itself
+            write(str(tmp), geometry, data, list(cols), layer=layer, driver="GPKG",
+                  geometry_type="MultiPolygon", crs=crs_wkt, promote_to_multi=False)
+    finally:
+        set_gdal_config_options({"OGR_CURRENT_DATE": before})
     return Path(path)
 
 
