@@ -22,6 +22,11 @@ _os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 # spinning took the cores from Embree: a shaded frame took 4.3x the bare cast with
 # spinning, 3.0x without (bench_render). Set before libgomp loads (it reads it once).
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# COLMAP logs through glog, which by default writes a log file per severity into the
+# temporary directory at the first message (``.HOST.USER.log.INFO.DATE.PID``): a user's
+# /tmp fills with them. To stderr instead (quieted by pycolmap.logging.minloglevel, as the
+# SfM stages do). Read when pycolmap's library loads, so it is set here, before that.
+_os.environ.setdefault("GLOG_logtostderr", "1")
 
 
 def _keep_freed_blocks() -> None:
