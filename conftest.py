@@ -17,6 +17,10 @@ import tempfile
 from pathlib import Path
 
 os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+# COLMAP's glog writes log files into the temporary directory unless told to use stderr,
+# read when pycolmap loads: a test module importing pycolmap before our packages (whose
+# core sets it too) must find it set already
+os.environ.setdefault("GLOG_logtostderr", "1")
 
 import cv2  # noqa: E402,F401  (cv2 before pycolmap: see DESIGN.md)
 import pytest  # noqa: E402

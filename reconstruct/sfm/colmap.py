@@ -127,6 +127,7 @@ def _quiet_colmap(level: int) -> Iterator[None]:
     import pycolmap
 
     old = pycolmap.logging.minloglevel
+    pycolmap.logging.logtostderr = True  # never glog's files in the temporary directory
     pycolmap.logging.minloglevel = level
     try:
         yield
