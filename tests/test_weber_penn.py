@@ -523,3 +523,57 @@ def test_a_stand_instances_its_templates_at_the_heights_asked():
         wood = m.labels != 4
         top = v[wood, 2].max() - pos[k, 2]
         assert top == pytest.approx(heights[k], rel=1e-9)      # the skeleton's top, scaled
+
+
+def _leaves_whole_array(tree, rng):
+    """The leaves as one vectorised expression over every leaf at once: the formula the
+    blockwise builder must reproduce to the bit."""
+    from procgen.weber_penn.appearance import NEEDLES_PER_TUFT, leaf_outline
+    from procgen.weber_penn.params import leaf_shape_name
+    lv = tree.leaves
+    shape = leaf_shape_name(tree.params["LeafShape"])
+    side = np.cross(lv.normal, lv.axis)
+    if shape == "needles":
+        k = NEEDLES_PER_TUFT
+        ang = 2 * np.pi * (np.arange(k) / k)[None, :] + rng.uniform(0, 2 * np.pi, (len(lv), 1))
+        spread = np.radians(40) * min(tree.params["LeafScaleX"], 1.5)
+        d = (np.cos(spread) * lv.axis[:, None, :]
+             + np.sin(spread) * (np.cos(ang)[..., None] * side[:, None, :]
+                                 + np.sin(ang)[..., None] * lv.normal[:, None, :]))
+        tip = lv.position[:, None, :] + lv.length[:, None, None] * d
+        wid = 0.004 * (np.cos(ang)[..., None] * lv.normal[:, None, :]
+                       - np.sin(ang)[..., None] * side[:, None, :])
+        verts = np.stack([lv.position[:, None, :] + wid, lv.position[:, None, :] - wid, tip],
+                         2).reshape(-1, 3)
+        return verts, np.arange(len(verts)).reshape(-1, 3)
+    outline = leaf_outline(shape)
+    k = len(outline)
+    pts2 = np.concatenate([[[0.0, 0.5]], outline])
+    x = pts2[:, 0][None, :, None] * lv.width[:, None, None] * side[:, None, :]
+    y = pts2[:, 1][None, :, None] * lv.length[:, None, None] * lv.axis[:, None, :]
+    verts = (lv.position[:, None, :] + x + y).reshape(-1, 3)
+    fan = np.stack([np.zeros(k, int), np.arange(1, k + 1), np.arange(2, k + 2)], 1)
+    fan[-1, 2] = 1
+    return verts, (np.arange(len(lv))[:, None, None] * (k + 1) + fan[None]).reshape(-1, 3)
+
+
+@pytest.mark.parametrize("name", ["black_tupelo", "scots_pine"])
+def test_leaves_built_in_blocks_are_the_whole_array_formula_to_the_bit(name, monkeypatch):
+    # blocks of 13 leaves, the last one partial: every leaf and every index must land where
+    # the whole-array formula puts it, with the same bits
+    from procgen.weber_penn import appearance
+    monkeypatch.setattr(appearance, "LEAF_BLOCK", 13)
+    tree = grow(load_species(name), height=5.0, rng=np.random.default_rng(4))
+    assert len(tree.leaves) % 13 != 0 and len(tree.leaves) > 50
+    mesh = tree_mesh(tree, rng=np.random.default_rng(9))
+    rng = np.random.default_rng(9)
+    rng.integers(2 ** 31)                       # the bark's seed
+    rng.normal(size=3), rng.normal(size=len(tree.leaves))  # the leaf colours' draws
+    verts, tris = _leaves_whole_array(tree, rng)
+    leaf = mesh.labels == 4
+    n0 = int(np.argmax(leaf))
+    assert leaf[n0:].all() and leaf.sum() == len(verts)
+    assert mesh.vertices[n0:].tobytes() == verts.tobytes()
+    tail = mesh.triangles[len(mesh.triangles) - len(tris):]
+    np.testing.assert_array_equal(tail, tris + n0)
+    assert mesh.triangles.dtype == np.int64 and mesh.colors.shape == mesh.vertices.shape

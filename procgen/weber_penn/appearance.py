@@ -36,6 +36,7 @@ SEASONS = ("summer", "autumn", "winter")
 LODS = ("full", "cards")
 RING_SIDES = (20, 8, 5, 4)
 NEEDLES_PER_TUFT = 6
+LEAF_BLOCK = 2048  # leaves built at a time (their temporaries stay in cache)
 
 
 @dataclass
@@ -184,37 +185,61 @@ def _leaf_colours(tree: Tree, season: str, rng: np.random.Generator) -> np.ndarr
     return np.clip(col, 0, 1)
 
 
-def _leaf_geometry(tree: Tree, rng):
-    lv = tree.leaves
+def _leaf_sizes(tree: Tree) -> tuple[int, int]:
+    """Vertices and triangles a leaf (or needle tuft) of ``tree`` is drawn with."""
     shape = leaf_shape_name(tree.params["LeafShape"])
-    side = np.cross(lv.normal, lv.axis)
+    if shape == "needles":
+        return 3 * NEEDLES_PER_TUFT, NEEDLES_PER_TUFT
+    k = len(leaf_outline(shape))
+    return k + 1, k
+
+
+def _leaf_geometry(tree: Tree, rng, verts: np.ndarray, tris: np.ndarray, n0: int) -> None:
+    """Write every leaf's vertices into ``verts`` (k * per-leaf, 3) and its triangles
+    (offset by ``n0``) into ``tris``, in place.
+
+    A crown holds up to a few hundred thousand leaves: they are built a block of
+    :data:`LEAF_BLOCK` at a time, so the temporaries stay in cache instead of being a
+    mesh's size (on a weeping willow that was most of the mesh's time).
+    """
+    lv = tree.leaves
+    n = len(lv)
+    shape = leaf_shape_name(tree.params["LeafShape"])
     if shape == "needles":
         k = NEEDLES_PER_TUFT
-        ang = 2 * np.pi * (np.arange(k) / k)[None, :] + rng.uniform(0, 2 * np.pi, (len(lv), 1))
+        ang = 2 * np.pi * (np.arange(k) / k)[None, :] + rng.uniform(0, 2 * np.pi, (n, 1))
         spread = math.radians(40) * min(tree.params["LeafScaleX"], 1.5)
-        d = (np.cos(spread) * lv.axis[:, None, :]
-             + np.sin(spread) * (np.cos(ang)[..., None] * side[:, None, :]
-                                 + np.sin(ang)[..., None] * lv.normal[:, None, :]))
-        tip = lv.position[:, None, :] + lv.length[:, None, None] * d
-        wid = 0.004 * (np.cos(ang)[..., None] * lv.normal[:, None, :]
-                        - np.sin(ang)[..., None] * side[:, None, :])
-        b0 = lv.position[:, None, :] + wid
-        b1 = lv.position[:, None, :] - wid
-        verts = np.stack([b0, b1, tip], 2).reshape(-1, 3)
-        tris = np.arange(len(verts)).reshape(-1, 3)
-        per_leaf = 3 * k
-        return verts, tris, per_leaf
+        out = verts.reshape(n, k, 3, 3)
+        for a in range(0, n, LEAF_BLOCK):
+            s = slice(a, a + LEAF_BLOCK)
+            axis, normal, pos = lv.axis[s], lv.normal[s], lv.position[s]
+            side = np.cross(normal, axis)
+            c, sn = np.cos(ang[s])[..., None], np.sin(ang[s])[..., None]
+            d = (np.cos(spread) * axis[:, None, :]
+                 + np.sin(spread) * (c * side[:, None, :] + sn * normal[:, None, :]))
+            wid = 0.004 * (c * normal[:, None, :] - sn * side[:, None, :])
+            np.add(pos[:, None, :], wid, out=out[s, :, 0])
+            np.subtract(pos[:, None, :], wid, out=out[s, :, 1])
+            np.add(pos[:, None, :], lv.length[s, None, None] * d, out=out[s, :, 2])
+        tris[:] = np.arange(len(tris) * 3).reshape(-1, 3) + n0
+        return
     outline = leaf_outline(shape)
     k = len(outline)
-    centre = np.array([0.0, 0.5])
-    pts2 = np.concatenate([[centre], outline])            # fan about the centre
-    x = pts2[:, 0][None, :, None] * lv.width[:, None, None] * side[:, None, :]
-    y = pts2[:, 1][None, :, None] * lv.length[:, None, None] * lv.axis[:, None, :]
-    verts = (lv.position[:, None, :] + x + y).reshape(-1, 3)
+    pts2 = np.concatenate([[[0.0, 0.5]], outline])           # fan about the centre
+    px, py = pts2[:, 0][None, :, None], pts2[:, 1][None, :, None]
+    out = verts.reshape(n, k + 1, 3)
+    for a in range(0, n, LEAF_BLOCK):
+        s = slice(a, a + LEAF_BLOCK)
+        side = np.cross(lv.normal[s], lv.axis[s])
+        x = px * lv.width[s, None, None] * side[:, None, :]
+        y = py * lv.length[s, None, None] * lv.axis[s, None, :]
+        np.add(lv.position[s, None, :], x, out=out[s])
+        out[s] += y
     fan = np.stack([np.zeros(k, int), np.arange(1, k + 1), np.arange(2, k + 2)], 1)
     fan[-1, 2] = 1
-    tris = (np.arange(len(lv))[:, None, None] * (k + 1) + fan[None]).reshape(-1, 3)
-    return verts, tris, k + 1
+    t = tris.reshape(n, k, 3)
+    t[:] = fan[None] + n0
+    t += (np.arange(n) * (k + 1))[:, None, None]
 
 
 def _leaf_cards(tree: Tree, colours: np.ndarray):
@@ -255,17 +280,30 @@ def tree_mesh(tree: Tree, *, rng: np.random.Generator, season: str = "summer",
     seed = int(rng.integers(2 ** 31))
     V, T, C, L = _tubes(tree, seed)
     n0 = sum(len(v) for v in V)
+    t0 = sum(len(t) for t in T)
     leafless = season == "winter" and tree.params.appearance["deciduous"]
-    if len(tree.leaves) and not leafless:
-        colours = _leaf_colours(tree, season, rng)
-        if lod == "cards":
-            lv, lt, lc = _leaf_cards(tree, colours)
-        else:
-            lv, lt, per = _leaf_geometry(tree, rng)
-            lc = np.repeat(colours, per, 0)
-        V.append(lv)
-        T.append(lt + n0)
-        C.append(lc)
-        L.append(np.full(len(lv), LEAF_LABEL))
-    return TreeMesh(np.concatenate(V), np.concatenate(T).astype(np.int64), np.concatenate(C),
-                    np.concatenate(L).astype(np.int64))
+    has_leaves = bool(len(tree.leaves)) and not leafless
+    colours = _leaf_colours(tree, season, rng) if has_leaves else None
+    cards = None
+    nv = nt = 0
+    if has_leaves and lod == "cards":
+        cards = _leaf_cards(tree, colours)
+        nv, nt = len(cards[0]), len(cards[1])
+    elif has_leaves:
+        per_v, per_t = _leaf_sizes(tree)
+        nv, nt = per_v * len(tree.leaves), per_t * len(tree.leaves)
+    # the whole mesh is filled in place: a crown's leaves are millions of vertices
+    verts = np.empty((n0 + nv, 3))
+    tris = np.empty((t0 + nt, 3), np.int64)
+    cols = np.empty((n0 + nv, 3))
+    labels = np.empty(n0 + nv, np.int64)
+    for dst, parts in ((verts, V), (tris, T), (cols, C), (labels, L)):
+        if parts:
+            np.concatenate(parts, out=dst[:len(dst) - (nt if dst is tris else nv)])
+    labels[n0:] = LEAF_LABEL
+    if cards is not None:
+        verts[n0:], tris[t0:], cols[n0:] = cards[0], cards[1] + n0, cards[2]
+    elif has_leaves:
+        _leaf_geometry(tree, rng, verts[n0:], tris[t0:], n0)
+        cols[n0:].reshape(len(tree.leaves), -1, 3)[:] = colours[:, None, :]
+    return TreeMesh(verts, tris, cols, labels)
