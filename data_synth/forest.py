@@ -187,6 +187,14 @@ class ForestConfig(Config):
                                     "whorl widens its sprays in proportion")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
+    weber_penn: str = option("", help="species grown with Weber & Penn's model "
+                                      "(procgen.weber_penn) instead of the L-system trees: "
+                                      "'all' (PIAB, ABAL, PISY, LADE, FASY, ACPS: their "
+                                      "species files) or CODE=species,... (any shipped "
+                                      "species); empty: none")
+    weber_penn_lod: str = option("cards", choices=("cards", "full"),
+                                 help="leaves of the Weber & Penn trees: one card a twig, or "
+                                      "every leaf (millions of triangles a tree)")
 
 
 @dataclass
@@ -493,6 +501,7 @@ def _unlisted_trees(cfg, t, crowns, lo, hi, rng) -> dict:
 def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
     n = len(xl)
     models = {}
+    wp, wp_trees = _weber_penn(cfg)
     crowns, dbhs = np.empty(n), np.full(n, np.nan)
     codes = tuple(TREE_PARTS)
     lut = np.array([part_code(p) for p in codes], np.uint8)
@@ -500,7 +509,9 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
         sp = species_for(str(t["species"][k]))
         h = float(t["height"][k])
         allo_ratio = _at(t, "allometric_ratio", k)
-        if cfg.variants == 0:
+        if sp.code in wp:
+            model = None
+        elif cfg.variants == 0:
             ratio = (allo_ratio if allo_ratio > 0 else sp.crown_ratio) * rng.uniform(0.9, 1.1)
             years = crown_years(h, ratio) if sp.form == "conifer" else 14
             model = grow_tree(sp, rng=rng, years=years, crown_ratio=ratio)
@@ -519,13 +530,17 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
         if t.get("crown_dx") is not None and t.get("crown_dy") is not None:
             off = (float(t["crown_dx"][k]), float(t["crown_dy"][k]))
             off = off if np.all(np.isfinite(off)) else (0.0, 0.0)
-        V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
-                             height=h + STEM_SINK, crown_radius=float(cr),
-                             dbh=float(dbh) if dbh > 0 else None,
-                             azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
-                             needle_cluster=cfg.needle_cluster,
-                             needle_density=cfg.needle_density, crown_offset=off,
-                             whorl_area=cfg.whorl_area)
+        if model is None:
+            V, F, P, dbh = _species_tree(wp_trees, wp[sp.code], (xl[k], yl[k], zg[k]), h,
+                                         float(cr), dbh, rng)
+        else:
+            V, F, P = place_tree(model, position=(xl[k], yl[k], zg[k] - STEM_SINK),
+                                 height=h + STEM_SINK, crown_radius=float(cr),
+                                 dbh=float(dbh) if dbh > 0 else None,
+                                 azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng,
+                                 needle_cluster=cfg.needle_cluster,
+                                 needle_density=cfg.needle_density, crown_offset=off,
+                                 whorl_area=cfg.whorl_area)
         crowns[k] = cr
         if dbh > 0:
             dbhs[k] = dbh
@@ -536,6 +551,29 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
                 _add(objects, meshes, f"tree{k + first_id:05d}.{suffix}", V, F[sel],
                      lut[P[sel]], mat, k + first_id)
     return crowns, dbhs
+
+
+def _weber_penn(cfg):
+    """The codes grown with Weber & Penn's model (code -> species) and their grower."""
+    if not cfg.weber_penn:
+        return {}, None
+    from procgen.weber_penn.placement import SpeciesTrees, species_map
+
+    try:
+        wp = species_map(cfg.weber_penn, field_name="forest.weber_penn")
+    except ValueError as e:
+        raise InputError(str(e).partition(": ")[2], field="forest.weber_penn") from None
+    return wp, SpeciesTrees(lod=cfg.weber_penn_lod, variants=cfg.variants)
+
+
+def _species_tree(trees, name, ground, h, cr, dbh, rng):
+    """A Weber & Penn tree standing at ``ground`` (its stem sunk as the others), its top at
+    ground + ``h``, its crown of radius ``cr``; its dbh the one built."""
+    x, y, z = ground
+    t = trees.place(name, position=(x, y, z - STEM_SINK), height=h + STEM_SINK,
+                    crown_radius=cr, dbh=dbh if dbh > 0 else None,
+                    azimuth=float(rng.uniform(0, 2 * np.pi)), rng=rng)
+    return t.vertices, t.triangles, t.parts, t.dbh
 
 
 def _at(t: dict, key: str, k: int) -> float:

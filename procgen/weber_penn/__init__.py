@@ -7,6 +7,8 @@
 - :mod:`~procgen.weber_penn.appearance`: :func:`tree_mesh` (bark, leaves, seasons, LOD);
 - :mod:`~procgen.weber_penn.qsm`: :func:`tree_qsm`, the skeleton as TreeQSM cylinders;
 - :mod:`~procgen.weber_penn.stand`: :func:`grow_stand`, forests by instancing;
+- :mod:`~procgen.weber_penn.placement`: :class:`SpeciesTrees`, species trees placed in a
+  scene (height, crown radius, dbh, parts), :func:`species_map` of forestry codes;
 - :mod:`~procgen.weber_penn.laws`: Leonardo's rule, taper, angles, allometry, crown
   envelope, measured on any QSM.
 
@@ -24,7 +26,8 @@ _EXPORTS = {
     "grow": "growth", "TreeMesh": "appearance", "tree_mesh": "appearance",
     "TREE_LABELS": "appearance", "bark_texture": "appearance", "tree_qsm": "qsm",
     "leonardo_exponents": "laws", "allometric_exponent": "laws", "crown_profile": "laws",
-    "Stand": "stand", "grow_stand": "stand",
+    "Stand": "stand", "grow_stand": "stand", "SpeciesTrees": "placement",
+    "PlacedTree": "placement", "species_map": "placement", "FORESTRY_SPECIES": "placement",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,0 +1,97 @@
+"""Weber & Penn species trees where scenes plant trees: a placed tree has the height, crown
+radius and dbh asked; forest stands (scene forest, LiDAR stands) grow the species named;
+the city lines its streets and fills its parks with them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from core.validate import InputError
+from procgen.weber_penn import grow, load_species
+from procgen.weber_penn.placement import (
+    SpeciesTrees,
+    crown_area_radius,
+    species_map,
+    stem_dbh,
+)
+
+
+def test_species_map_reads_codes_and_names():
+    assert species_map("") == {}
+    assert species_map("all")["PIAB"] == "norway_spruce"
+    assert species_map("fasy, QURO=CA black oak") == {"FASY": "european_beech",
+                                                       "QURO": "ca_black_oak"}
+    with pytest.raises(ValueError, match="unknown species 'baobab'"):
+        species_map("FASY=baobab")
+    with pytest.raises(ValueError, match="'QURO' has no species file"):
+        species_map("QURO")
+
+
+def test_a_placed_tree_has_the_height_crown_and_dbh_asked():
+    trees = SpeciesTrees(lod="cards")
+    t = trees.place("european_beech", position=(3.0, -2.0, 5.0), height=14.0, crown_radius=4.5,
+                    dbh=0.31, azimuth=0.7, rng=np.random.default_rng(1))
+    assert t.vertices[:, 2].max() == pytest.approx(19.0, abs=1e-9)
+    crown = t.parts > 0
+    used = np.unique(t.triangles[crown])
+    assert crown_area_radius(t.vertices[used, :2]) == pytest.approx(4.5, rel=0.02)
+    assert t.crown_radius == pytest.approx(4.5, rel=1e-9)
+    assert t.dbh == pytest.approx(0.31, rel=0.05)
+    # the trunk stands on its position: its lowest ring is centred there
+    trunk = np.unique(t.triangles[t.parts == 0])
+    low = trunk[t.vertices[trunk, 2] < 5.0 + 0.05]
+    np.testing.assert_allclose(t.vertices[low, :2].mean(0), [3.0, -2.0], atol=0.02)
+    assert set(np.unique(t.parts).tolist()) == {0, 1, 2}
+
+
+def test_stem_dbh_is_the_trunk_diameter_at_breast_height():
+    tree = grow(load_species("sycamore_maple"), height=12.0, rng=np.random.default_rng(0))
+    sk = tree.skeleton
+    a, b = sk.ptr[0], sk.ptr[1]
+    z = sk.points[a:b, 2]
+    i = np.searchsorted(z, 1.3)
+    assert sk.radius[a + i] * 2 <= stem_dbh(tree) <= sk.radius[a + i - 1] * 2
+
+
+def test_variants_place_scaled_copies():
+    trees = SpeciesTrees(lod="cards", variants=1)
+    a = trees.place("scots_pine", position=(0, 0, 0), height=10.0, rng=np.random.default_rng(0))
+    b = trees.place("scots_pine", position=(0, 0, 0), height=20.0, rng=np.random.default_rng(1))
+    assert len(a.vertices) == len(b.vertices)
+    np.testing.assert_allclose(b.vertices, 2 * a.vertices, atol=1e-9)
+    assert b.dbh == pytest.approx(2 * a.dbh) and b.crown_radius == pytest.approx(2 * a.crown_radius)
+
+
+def _stand(**kw):
+    from data_synth.forest import ForestConfig, build_forest
+
+    cfg = ForestConfig(size=14.0, margin=2.0, density=300.0, species="PIAB:0.5,FASY:0.5",
+                       understory=0.0, **kw)
+    return build_forest(cfg, seed=5)
+
+
+def test_a_forest_grows_the_species_named_with_their_heights_and_crowns():
+    from core.meshes import mesh_arrays
+
+    b = _stand(weber_penn="FASY")
+    tr = b.trees
+    objs = {o.name: o for o in b.render_scene.objects}
+    beech = np.flatnonzero(tr["species"] == "FASY")
+    spruce = np.flatnonzero(tr["species"] == "PIAB")
+    assert len(beech) and len(spruce)
+    for k in range(len(tr["x"])):
+        v = np.vstack([mesh_arrays(o.mesh)[0] for n, o in objs.items()
+                       if n.startswith(f"tree{k + 1:05d}.")])
+        # every tree's top is ground + height, whichever model grew it
+        assert v[:, 2].max() == pytest.approx(tr["z_ground"][k] + tr["height"][k], abs=1e-6)
+        if k in beech:
+            # a Weber & Penn beech: the crown radius of the truth is its projection's
+            assert crown_area_radius(v[:, :2]) == pytest.approx(tr["crown_radius"][k], rel=0.05)
+            leaf = mesh_arrays(objs[f"tree{k + 1:05d}.leaf"].mesh)[1]
+            assert len(leaf) % 2 == 0     # leaf cards: two triangles each
+
+
+def test_a_forest_refuses_an_unknown_species():
+    with pytest.raises(InputError, match="forest.weber_penn.*baobab"):
+        _stand(weber_penn="FASY=baobab")
