@@ -95,3 +95,87 @@ def test_a_forest_grows_the_species_named_with_their_heights_and_crowns():
 def test_a_forest_refuses_an_unknown_species():
     with pytest.raises(InputError, match="forest.weber_penn.*baobab"):
         _stand(weber_penn="FASY=baobab")
+
+
+@pytest.fixture(scope="module")
+def treed_city():
+    from procgen.city import CityConfig, generate_city
+
+    cfg = CityConfig(size=400.0, max_segments=14, parks=1, park_radius=60.0, river_width=0.0,
+                     tree_species="lombardy_poplar,ca_black_oak", tree_spacing=15.0,
+                     park_trees=60.0)
+    return generate_city(np.random.default_rng(3), cfg)
+
+
+def test_street_trees_line_the_verges_and_park_trees_stand_in_parks(treed_city):
+    from procgen.city.lots import road_area
+
+    city, tr = treed_city, treed_city.trees
+    assert {"street", "park"} <= set(tr.kind.tolist())
+    xy = tr.positions[:, :2]
+    # a street tree is a verge away from the nearest roadway's centreline: its half width
+    # plus 1.5 m (at a bend or crossing a farther road may be nearer: most, not all)
+    a, b = city.nodes[city.edges[:, 0]], city.nodes[city.edges[:, 1]]
+    st = xy[tr.kind == "street"]
+    d = b - a
+    s = np.clip(np.einsum("kej,ej->ke", st[:, None, :] - a[None], d)
+                / np.einsum("ej,ej->e", d, d), 0, 1)
+    foot = a[None] + s[..., None] * d[None]
+    dist = np.linalg.norm(st[:, None, :] - foot, axis=2) - city.half_widths()[None]
+    assert np.mean(np.abs(dist.min(1) - 1.5) < 1e-6) > 0.8
+    # none stands on a roadway, in a building or (park trees) outside a park
+    import shapely
+    roads = road_area(city.nodes, city.edges, city.half_widths())
+    assert not shapely.intersects(roads, shapely.points(xy)).any()
+    for bld in city.buildings:
+        assert not shapely.Polygon(bld.footprint).buffer(0.5).intersects(
+            shapely.MultiPoint(xy))
+    assert np.asarray(city.park(xy[tr.kind == "park"]), bool).all()
+
+
+def test_each_city_tree_has_its_species_height(treed_city):
+    from procgen.weber_penn import load_species
+
+    tr = treed_city.trees
+    mesh_tops = []
+    st = tr.stand
+    for k in range(len(tr.positions)):
+        p = load_species(str(tr.species[k]))
+        lo, hi = p["Scale"] - p["ScaleV"], p["Scale"] + p["ScaleV"]
+        assert lo - 1e-9 <= tr.heights[k] <= hi + 1e-9
+        m = st.templates[st.template[k]]
+        s = st.world_from_tree[k, 2, 2]
+        mesh_tops.append(s * m.vertices[:, 2].max())
+    # the instanced tree's top is its height (leaves may reach a few percent above the
+    # skeleton's top)
+    np.testing.assert_allclose(mesh_tops, tr.heights, rtol=0.05)
+    poplars = tr.species == "lombardy_poplar"        # 25 +- 5 m against the oak's 10 +- 5 m
+    assert poplars.any() and (~poplars).any()
+    assert tr.heights[poplars].min() > tr.heights[~poplars].max()
+
+
+def test_a_city_without_trees_is_the_city_of_before():
+    from procgen.city import CityConfig, generate_city
+
+    cfg = dict(size=300.0, max_segments=8, parks=0, river_width=0.0)
+    a = generate_city(np.random.default_rng(0), CityConfig(**cfg))
+    b = generate_city(np.random.default_rng(0), CityConfig(**cfg, tree_species="palm"))
+    assert a.trees is None and len(b.trees.positions) > 0
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.triangles, b.triangles)
+
+
+def test_city_cli_writes_the_trees_and_refuses_an_unknown_species(tmp_path, capsys):
+    from core.io.mesh import read_labeled_mesh
+    from scanamp.amplify.labels import LABELS
+    from scanamp.cli import main
+
+    out = tmp_path / "city.ply"
+    args = ["procgen", "city", "--out", str(out), "--size", "300", "--max-segments", "6",
+            "--parks", "0", "--river-width", "0", "--no-preview", "--seed", "1"]
+    assert main([*args, "--tree-species", "baobab"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "baobab" in err[0] and not out.exists()
+    assert main([*args, "--tree-species", "scots_pine"]) == 0
+    labels = read_labeled_mesh(out)["labels"]
+    ids = {v: k for k, v in LABELS.items()}
+    assert (labels == ids["bark"]).any() and (labels == ids["leaf"]).any()

@@ -3,7 +3,8 @@
 Roads grown with global goals by street pattern and local constraints (``roads``), blocks
 cut into lots that front a street (``lots``), buildings from a split grammar whose rule
 files are data (``cga``, ``rules/*.toml``), the city put together (``generate``), Boeing's
-street statistics (``streets``), GeoJSON and CityJSON output (``io``) and the solids of
+street statistics (``streets``), street and park trees of Weber & Penn species (``trees``),
+GeoJSON and CityJSON output (``io``) and the solids of
 constructive solid geometry (``csg``).
 
 Every name below is importable from the room (``from procgen.city import NAME``), loaded on
@@ -44,6 +45,8 @@ _EXPORTS = {
     "grow_roads": "roads",
     "segments_cross": "roads",
     "street_statistics": "streets",
+    "CityTrees": "trees",
+    "city_trees": "trees",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

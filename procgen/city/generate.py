@@ -82,6 +82,13 @@ class CityConfig(Config):
                                             "tall_floors floors")
     tall_floors: int = option(5, range="[1, 200]",
                               help="buildings with more floors use tall_rules")
+    tree_species: str = option("", help="Weber & Penn species planted along the streets and "
+                                        "in the parks, comma-separated (shipped names or "
+                                        ".toml files; empty: no trees)")
+    tree_spacing: float = option(12.0, unit="m", range="(0, inf)",
+                                 help="distance between street trees along a verge")
+    park_trees: float = option(40.0, unit="1/ha", range="[0, 10000]",
+                               help="trees per hectare of park (with tree_species)")
 
 
 @dataclass
@@ -132,6 +139,8 @@ class City:
     heights : (b,) float64
         Height of each building's top (its ridge), metres.
     maps : procgen.city.roads.CityMaps
+    trees : procgen.city.trees.CityTrees or None
+        Street and park trees (``config.tree_species``), instanced.
     """
 
     config: CityConfig
@@ -149,6 +158,7 @@ class City:
     element: np.ndarray = field(default_factory=lambda: np.empty(0, np.int8))
     heights: np.ndarray = field(default_factory=lambda: np.empty(0))
     maps: CityMaps | None = None
+    trees: object = None
 
     @property
     def density(self):
@@ -285,6 +295,13 @@ def generate_city(rng: np.random.Generator, config: CityConfig | None = None, *,
     city.vertices = np.vstack(vs)
     city.triangles = np.vstack(fs).astype(np.int64)
     city.element = np.concatenate(els)
+    if cfg.tree_species:   # drawn last: a city without trees is the city of before
+        from procgen.city.trees import city_trees
+
+        city.trees = city_trees(city, rng=rng, species=[s.strip() for s in
+                                                         cfg.tree_species.split(",")
+                                                         if s.strip()],
+                                spacing=cfg.tree_spacing, park_density=cfg.park_trees)
     return city
 
 

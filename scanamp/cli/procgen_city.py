@@ -33,9 +33,11 @@ log = logging.getLogger(__name__)
 COLORS = {"wall": (0.82, 0.76, 0.66), "window": (0.35, 0.45, 0.55),
           "door": (0.40, 0.25, 0.15), "ledge": (0.92, 0.90, 0.86),
           "roof": (0.62, 0.28, 0.22), "street": (0.25, 0.25, 0.27),
-          "highway": (0.12, 0.12, 0.14), "ground": (0.62, 0.72, 0.5)}
+          "highway": (0.12, 0.12, 0.14), "ground": (0.62, 0.72, 0.5),
+          "tree_bark": (0.36, 0.27, 0.2), "tree_leaf": (0.25, 0.5, 0.18)}
 _LABEL_OF = {"wall": "building", "window": "window", "door": "building", "ledge": "building",
-             "roof": "roof", "street": "road", "highway": "road", "ground": "ground"}
+             "roof": "roof", "street": "road", "highway": "road", "ground": "ground",
+             "tree_bark": "bark", "tree_leaf": "leaf"}
 
 
 def companions(args, config=None):
@@ -103,13 +105,21 @@ def run(args, config: CityConfig) -> int:
         if len(tri) and kind in COLORS:
             pieces.append((kind, make_mesh(v, tri)))
     pieces.append(("ground", ground))
+    if city.trees is not None and city.trees.stand is not None:   # --tree-species
+        from procgen.weber_penn.appearance import LEAF_LABEL
+
+        trees = city.trees.stand.mesh()
+        leaf = trees.labels[trees.triangles[:, 0]] == LEAF_LABEL
+        pieces += [("tree_bark", make_mesh(trees.vertices, trees.triangles[~leaf])),
+                   ("tree_leaf", make_mesh(trees.vertices, trees.triangles[leaf]))]
     write_parts(out, [(m, kind, COLORS[kind]) for kind, m in pieces], label_of=_LABEL_OF)
     write_city_files(city, out)
     stats = street_statistics(city.nodes, city.edges)
-    log.info("wrote %s: %d road segments (%d highway), %d lots, %d buildings; streets: "
-             "orientation order %.2f, mean degree %.2f, dead ends %.0f %%, circuity %.3f",
-             out, len(city.edges), int(city.highway.sum()), len(city.lots),
-             len(city.buildings), stats["orientation_order"], stats["mean_degree"],
+    log.info("wrote %s: %d road segments (%d highway), %d lots, %d buildings, %d trees; "
+             "streets: orientation order %.2f, mean degree %.2f, dead ends %.0f %%, "
+             "circuity %.3f", out, len(city.edges), int(city.highway.sum()), len(city.lots),
+             len(city.buildings), 0 if city.trees is None else len(city.trees.positions),
+             stats["orientation_order"], stats["mean_degree"],
              100 * stats["dead_end_share"], stats["circuity"])
     if not args.no_preview:
         log.info("wrote %s", render_preview([(m, COLORS[k]) for k, m in pieces],
