@@ -76,6 +76,7 @@ def test_best_reconstruction_is_amplified_and_animated(demo_out, report):
     assert [s["kind"] for s in amp["steps"]] == ["clean", "displace", "scatter"]
     cleaned = amp["steps"][0]["after"]["triangles"]
     assert amp["steps"][2]["plants"] > 0                              # the forest was added
+    assert amp["steps"][2]["params"]["species"] == "european_beech, scots_pine, sycamore_maple"
     assert amp["output"]["triangles"] > amp["steps"][1]["after"]["triangles"] > cleaned
     assert "before (colour)" in report["figures"]["amplify"]
     best = read_mesh(demo_out / "recon" / f"{report['best']}_aligned.ply")

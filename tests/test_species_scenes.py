@@ -179,3 +179,86 @@ def test_city_cli_writes_the_trees_and_refuses_an_unknown_species(tmp_path, caps
     labels = read_labeled_mesh(out)["labels"]
     ids = {v: k for k, v in LABELS.items()}
     assert (labels == ids["bark"]).any() and (labels == ids["leaf"]).any()
+
+
+def _distance_to(v, f, pts):
+    import open3d as o3d
+
+    tm = o3d.t.geometry.TriangleMesh()
+    tm.vertex.positions = o3d.core.Tensor(np.asarray(v, np.float32))
+    tm.triangle.indices = o3d.core.Tensor(np.asarray(f, np.int32))
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(tm)
+    return scene.compute_distance(o3d.core.Tensor(np.asarray(pts, np.float32))).numpy()
+
+
+def _wall(width=6.0, height=6.0, n=30):
+    from core.meshes import make_mesh
+    from procgen.terrain import heightfield_to_mesh
+
+    m = heightfield_to_mesh(np.zeros((n + 1, n + 1)), spacing=width / n)
+    v = np.asarray(m.vertices)[:, [0, 2, 1]]   # the x-y grid stood up as the x-z plane
+    v[:, 2] *= height / width
+    return make_mesh(v, np.asarray(m.triangles)[:, ::-1])
+
+
+def test_a_climbing_plant_stays_on_its_wall_and_climbs():
+    from core.meshes import mesh_arrays
+    from procgen.amplify.vines import LEAF_TILT_DEG, grow_vines
+
+    wall = _wall()
+    r, size = 0.01, 0.08
+    res = grow_vines(wall, rng=np.random.default_rng(0), count=4, length=3.0, step=0.05,
+                     radius=r, climb=0.8, branches=1.5, leaf_size=size, leaf_spacing=0.1)
+    v, f = mesh_arrays(res.mesh)
+    assert res.shoots > 0 and len(res.paths) == 4 + res.shoots
+    # every point of stems, shoots and leaves within the bound the docstring states
+    bound = 2 * r + 1.2 * size * np.sin(np.radians(LEAF_TILT_DEG))
+    d = np.abs(v[:, 1])                     # the wall is the plane y = 0
+    assert d.max() <= bound + 1e-9
+    assert d[res.leaf].max() > 0.5 * bound   # leaves do stand off the wall
+    # leaves face away from the wall (its normal is -y), on both sides of their stems
+    lf = f[res.leaf[f].all(1)]
+    n = np.cross(v[lf[:, 1]] - v[lf[:, 0]], v[lf[:, 2]] - v[lf[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    assert np.median(np.abs(n[:, 1])) > np.cos(np.radians(LEAF_TILT_DEG)) - 0.05
+    # leaves every leaf_spacing along each stem: as many as the stems' length allows
+    stems = sum(np.linalg.norm(np.diff(P, axis=0), axis=1).sum() for P in res.paths)
+    assert abs(res.leaves - stems / 0.1) <= len(res.paths) + 1
+    # main stems climb: their tips above their roots, by most of their length
+    rise = [P[-1, 2] - P[0, 2] for P in res.paths[:4]]
+    assert np.median(rise) > 0.5 * 3.0
+
+
+def test_a_facade_grows_ivy_through_the_sweep_step(tmp_path):
+    from core.io.mesh import read_labeled_mesh, write_mesh
+    from core.meshes import make_mesh
+    from data_synth.facades import facade_mesh
+    from scanamp.amplify import run
+
+    v, f, _ = facade_mesh(np.random.default_rng(1), width=12.0, height=9.0, floors=3, bays=4,
+                          rotate=False)
+    src = tmp_path / "facade.ply"
+    write_mesh(src, make_mesh(v, f))
+    recipe = tmp_path / "ivy.toml"
+    recipe.write_text('[[step]]\nkind = "sweep"\ncount = 6\nlength = 0.3\nstep = 0.004\n'
+                      'radius = 0.0008\nslope_min_deg = 60.0\nclimb = 0.6\nbranches = 0.3\n'
+                      'leaf_size = 0.006\n[render]\nwidth = 64\nheight = 48\n')
+    out = run(src, recipe, tmp_path / "out", seed=2, up=(0.0, 0.0, 1.0))
+    rep = __import__("json").loads((out / "report.json").read_text())
+    step = rep["steps"][0]
+    assert step["shoots"] > 0 and step["leaves"] > 0
+    m = read_labeled_mesh(out / "mesh.ply")
+    ids = {name: int(k) for k, name in m["names"].items()}
+    lab = m["labels"]
+    assert (lab == ids["vine"]).any() and (lab == ids["leaf"]).any()
+    # the ivy stays on the facade: within the flat-surface bound of it (the facade's vertex
+    # noise, 1 cm, added) but where a leaf overhangs an edge (a sill into the open window,
+    # the cornice),
+    # and never farther than a leaf's whole reach, blade and petiole
+    diag = np.linalg.norm(v.max(0) - v.min(0))
+    plant = (lab == ids["vine"]) | (lab == ids["leaf"])
+    d = _distance_to(v, f, m["vertices"][plant])
+    flat = (2 * 0.0008 + 1.2 * 0.006 * np.sin(np.radians(20.0))) * diag + 0.03
+    assert np.mean(d <= flat) > 0.95
+    assert d.max() <= (2 * 0.0008 + 1.2 * 0.006 * 4 / 3) * diag + 0.03

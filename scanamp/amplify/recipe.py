@@ -119,8 +119,12 @@ SPECS: dict[str, dict[str, _F]] = {
         "climb": _F(float, 0.0, 0.0, 1.0),            # lean toward up each step
         "sides": _F(int, 6, 3, 32),
         "taper": _F(float, 0.6, 0.0, 1.0),
+        "branches": _F(float, 0.0, 0.0, 1e4),       # side shoots per diagonal of stem
+        "leaf_size": _F(float, 0.0, 0.0, 0.1),      # relative; 0: a bare vine
+        "leaf_spacing": _F(float, 0.0, 0.0, 0.1),   # relative; 0: the leaf size
         "merge": _F(bool, True),
         "color": _F(list, [0.25, 0.45, 0.15], 0.0, 1.0, length=3),
+        "leaf_color": _F(list, [0.16, 0.38, 0.12], 0.0, 1.0, length=3),
     },
     "snow": {
         "depth": _F(float, 0.01, 0.0, 1.0, lo_open=True),     # relative

@@ -154,14 +154,26 @@ def _sweep(state: State, step, rng, **_):
     v, _ = mesh_arrays(state.surface)
     diag = bbox_diagonal(v)
     length, stp = p["length"] * diag, p["step"] * diag
+    leaf = p["leaf_size"] * diag
     res = grow_vines(state.surface, rng=rng, count=p["count"], length=length,
                      step=min(stp, length), radius=p["radius"] * diag,
                      wander_deg=p["wander_deg"], slope_max_deg=p["slope_max_deg"],
                      slope_min_deg=p["slope_min_deg"], climb=p["climb"],
-                     sides=p["sides"], taper=p["taper"])
-    name = state.place("vines", res.mesh, p["color"], p["merge"])
-    return {"vines": len(res.paths), "length": length, "radius": p["radius"] * diag,
-            "part": name}
+                     sides=p["sides"], taper=p["taper"], branches=p["branches"] / diag,
+                     leaf_size=leaf,
+                     leaf_spacing=p["leaf_spacing"] * diag if p["leaf_spacing"] > 0 else None)
+    facts = {"vines": len(res.paths) - res.shoots, "shoots": res.shoots, "length": length,
+             "radius": p["radius"] * diag}
+    if leaf > 0:   # stems and leaves as two parts, so each keeps its label
+        vv, ff = mesh_arrays(res.mesh)
+        on_leaf = res.leaf[ff].all(axis=1)
+        facts["part"] = state.place("vines", submesh(vv, ff[~on_leaf]), p["color"], p["merge"])
+        facts["leaf_part"] = state.place("leaf", submesh(vv, ff[on_leaf]), p["leaf_color"],
+                                         p["merge"])
+        facts["leaves"] = res.leaves
+    else:
+        facts["part"] = state.place("vines", res.mesh, p["color"], p["merge"])
+    return facts
 
 
 def _snow(state: State, step, rng, **_):
