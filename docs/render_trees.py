@@ -77,6 +77,29 @@ def barks(out: Path):
     write_image(out / "trees_bark.png", np.round(row * 255).astype(np.uint8))
 
 
+def ivy_facade(out: Path):
+    """Ivy (the vines recipe's climbing plant) on a facade, and street trees of the city."""
+    from core.meshes import make_mesh, mesh_arrays
+    from data_synth.facades import facade_mesh
+    from procgen.amplify.vines import grow_vines
+
+    v, f, _ = facade_mesh(np.random.default_rng(1), width=12.0, height=9.0, floors=3, bays=4,
+                          rotate=False)
+    res = grow_vines(make_mesh(v, f), rng=np.random.default_rng(4), count=10, length=9.0,
+                     step=0.06, radius=0.015, wander_deg=20.0, slope_min_deg=60.0, climb=0.5,
+                     taper=0.7, branches=1.0, leaf_size=0.12, leaf_spacing=0.1)
+    pv_faces = lambda t: np.hstack([np.full((len(t), 1), 3), t]).ravel()  # noqa: E731
+    pl = pv.Plotter(off_screen=True, window_size=(900, 640))
+    pl.add_mesh(pv.PolyData(v, pv_faces(f)), color=(0.80, 0.74, 0.64))
+    vv, ff = mesh_arrays(res.mesh)
+    leaf = res.leaf[ff].all(1)
+    pl.add_mesh(pv.PolyData(vv, pv_faces(ff[~leaf])), color=(0.36, 0.27, 0.2))
+    pl.add_mesh(pv.PolyData(vv, pv_faces(ff[leaf])), color=(0.18, 0.42, 0.14))
+    pl.camera_position = [(6.0, -16.0, 6.5), (6.0, 0.0, 4.5), (0.0, 0.0, 1.0)]
+    pl.screenshot(str(out / "ivy_facade.png"))
+    pl.close()
+
+
 if __name__ == "__main__":
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "img"
     out.mkdir(parents=True, exist_ok=True)
