@@ -100,6 +100,33 @@ def ivy_facade(out: Path):
     pl.close()
 
 
+def city_trees(out: Path):
+    """A small city whose streets are lined with Weber & Penn trees (procgen.city.trees)."""
+    from procgen.city import CityConfig, generate_city
+    from procgen.weber_penn.appearance import LEAF_LABEL
+
+    cfg = CityConfig(size=300.0, max_segments=10, parks=1, park_radius=40.0, river_width=0.0,
+                     max_floors=6, tree_species="lombardy_poplar,sycamore_maple",
+                     tree_spacing=14.0, park_trees=50.0)
+    city = generate_city(np.random.default_rng(4), cfg)
+    faces = lambda t: np.hstack([np.full((len(t), 1), 3), t]).ravel()  # noqa: E731
+    pl = pv.Plotter(off_screen=True, window_size=(1000, 640))
+    pl.add_mesh(pv.PolyData(city.vertices, faces(city.triangles)), color=(0.80, 0.76, 0.70))
+    lo, hi = city.vertices[:, :2].min(0), city.vertices[:, :2].max(0)
+    pl.add_mesh(pv.Plane(center=(*(lo + hi) / 2, -0.05), i_size=hi[0] - lo[0] + 20,
+                         j_size=hi[1] - lo[1] + 20), color=(0.55, 0.62, 0.45))
+    m = city.trees.stand.mesh()
+    leaf = m.labels[m.triangles[:, 0]] == LEAF_LABEL
+    for sel in (~leaf, leaf):
+        poly = pv.PolyData(m.vertices, faces(m.triangles[sel]))
+        poly.point_data["rgb"] = (m.colors * 255).astype(np.uint8)
+        pl.add_mesh(poly, scalars="rgb", rgb=True)
+    c = (lo + hi) / 2
+    pl.camera_position = [(c[0] - 120, c[1] - 170, 110), (c[0], c[1], 0.0), (0, 0, 1)]
+    pl.screenshot(str(out / "city_trees.png"))
+    pl.close()
+
+
 if __name__ == "__main__":
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "img"
     out.mkdir(parents=True, exist_ok=True)
@@ -107,3 +134,5 @@ if __name__ == "__main__":
     thumbnails(out)
     seasons(out)
     barks(out)
+    ivy_facade(out)
+    city_trees(out)
