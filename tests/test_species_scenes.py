@@ -52,6 +52,8 @@ def test_stem_dbh_is_the_trunk_diameter_at_breast_height():
     z = sk.points[a:b, 2]
     i = np.searchsorted(z, 1.3)
     assert sk.radius[a + i] * 2 <= stem_dbh(tree) <= sk.radius[a + i - 1] * 2
+    small = grow(load_species("sycamore_maple"), height=1.0, rng=np.random.default_rng(0))
+    assert stem_dbh(small) == 2 * small.skeleton.radius[0]
 
 
 def test_variants_place_scaled_copies():

@@ -100,6 +100,8 @@ def stem_dbh(tree: Tree) -> float:
     trunk = int(np.flatnonzero(sk.level == 0)[0])
     a, b = sk.ptr[trunk], sk.ptr[trunk + 1]
     z = sk.points[a:b, 2] - sk.points[a, 2]
+    if z[-1] < BREAST_HEIGHT:
+        return float(2.0 * sk.radius[a])
     return float(2.0 * np.interp(BREAST_HEIGHT, z, sk.radius[a:b]))
 
 
