@@ -73,15 +73,6 @@ def test_small_orbit_dense_mesh_matches_the_scene(small_recon):
     assert mesh["precision"] > 0.9 and mesh["recall"] > 0.9
 
 
-def test_sparse_stage_is_deterministic(small_capture, small_recon, tmp_path):
-    from reconstruct.sfm.pipeline import SfmConfig, run
-
-    res = run(SfmConfig(seed=0, num_threads=1, dense=False), small_capture, tmp_path / "again")
-    for f in ("images.bin", "points3D.bin", "cameras.bin"):
-        a = (small_recon.out_dir / "sparse" / "0" / f).read_bytes()
-        assert (res.out_dir / "sparse" / "0" / f).read_bytes() == a, f
-
-
 def _cli(capsys, *argv):
     code = main(list(map(str, argv)))
     err = capsys.readouterr().err.strip().splitlines()
@@ -283,6 +274,8 @@ def test_named_stages_rerun_only_what_changed(small_capture, small_recon, tmp_pa
 @pytest.mark.slow
 def test_same_seed_same_bytes_for_every_output(small_capture, small_recon, tmp_path,
                                                output_differences):
+    """Every output of a second run from scratch (the sparse model's binaries, the depth
+    maps, the fused points, the mesh) is the same bytes as the first."""
     from reconstruct.sfm.pipeline import SfmConfig, run
 
     again = run(SfmConfig(seed=0, num_threads=1), small_capture, tmp_path / "rec")

@@ -36,6 +36,7 @@ Every reader error is an :class:`core.validate.InputError` naming the file and f
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import enum
 import os
@@ -356,6 +357,18 @@ def _fields(info: LasInfo, fields, path: Path) -> tuple:
     return names
 
 
+@contextlib.contextmanager
+def _points_reader(path: Path, fields):
+    """``(reader, info, names)`` of an open LAS/LAZ file that has points; ``fields``
+    checked against its dimensions."""
+    with _open_reader(path) as reader:
+        info = _info(path, reader.header)
+        names = _fields(info, fields, path)
+        if info.point_count == 0:
+            raise InputError("the file has no points", path=path, field="points")
+        yield reader, info, names
+
+
 def read_las(path: str | os.PathLike, *, fields=None) -> tuple[dict, LasInfo]:
     """All points of a LAS/LAZ file: ``(dict name -> (n,) array, LasInfo)``.
 
@@ -363,11 +376,7 @@ def read_las(path: str | os.PathLike, *, fields=None) -> tuple[dict, LasInfo]:
     format has, and every extra dimension). A file without points raises InputError.
     """
     path = Path(path)
-    with _open_reader(path) as reader:
-        info = _info(path, reader.header)
-        names = _fields(info, fields, path)
-        if info.point_count == 0:
-            raise InputError("the file has no points", path=path, field="points")
+    with _points_reader(path, fields) as (reader, info, names):
         try:
             rec = reader.read_points(info.point_count)
         except Exception as e:
@@ -385,11 +394,7 @@ def iter_las_chunks(path: str | os.PathLike, n: int = 1_000_000, *,
     path = Path(path)
     if int(n) < 1:
         raise InputError(f"expected a chunk size >= 1, got {n}", field="n")
-    with _open_reader(path) as reader:
-        info = _info(path, reader.header)
-        names = _fields(info, fields, path)
-        if info.point_count == 0:
-            raise InputError("the file has no points", path=path, field="points")
+    with _points_reader(path, fields) as (reader, info, names):
         try:
             for rec in reader.chunk_iterator(int(n)):
                 yield _as_dict(rec, info, names), info
