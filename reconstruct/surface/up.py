@@ -176,13 +176,19 @@ def _candidate_axes(n, a, cos_g, sin_w, directions: int, count: int = 3,
     return out
 
 
-def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.ndarray:
-    """Heights of ``n`` points spread over faces by area (a fixed draw), from each face's
-    vertex heights ``(faces, 3)``: where a face's area lies, not only its corners."""
+def _area_draw(area: np.ndarray, n: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points spread over faces by area (a fixed draw): each one's face and its
+    barycentric weights ``(n, 3)``."""
     rng = np.random.default_rng(0)
     pick = rng.choice(len(area), n, p=area / area.sum())
     r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
-    w = np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+    return pick, np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+
+
+def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.ndarray:
+    """Heights of ``n`` points spread over faces by area (a fixed draw), from each face's
+    vertex heights ``(faces, 3)``: where a face's area lies, not only its corners."""
+    pick, w = _area_draw(area, n)
     return (heights[pick] * w).sum(axis=1)
 
 
@@ -341,11 +347,7 @@ def _rest_poses(v, n, a, tri, directions: int = 4000) -> list[RestPose]:
             face = int(stable[np.argmax(nrm[stable] @ d[down[s0]])])
         prob[int(face)] = prob.get(int(face), 0.0) + count / len(d)
     extent = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    # the surface as points spread over the faces by area (a fixed draw)
-    rng = np.random.default_rng(0)
-    pick = rng.choice(len(a), 20_000, p=a / a.sum())
-    r1, r2 = np.sqrt(rng.random(20_000)), rng.random(20_000)
-    w = np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+    pick, w = _area_draw(a)  # the surface as points spread over the faces by area
     corners, normals = tri[pick] - com, n[pick]
     pts = (corners * w[:, :, None]).sum(axis=1)
     band = CONTACT_BAND * extent
