@@ -245,6 +245,23 @@ def test_hydraulic_erosion_makes_the_land_drain():
     assert route_flow(out, spacing=10.0).area.max() > 10 * route_flow(z, spacing=10.0).area.max()
 
 
+def test_hydraulic_erosion_cuts_channels_only_from_their_drainage_area_on():
+    """Sheet flow (water draining fewer than ``channel_cells`` cells) leaves the bed alone:
+    on a rough slope with no creep, a threshold above the grid's size cuts nothing; a
+    threshold of 40 cells cuts the cells that drain 40 or more and leaves every cell
+    that drains fewer untouched after the first step."""
+    z = _ds(33, seed=4, height=5.0) + np.linspace(0, 60, 33)[None, :]
+    cfg = dict(iterations=1, creep=0.0, deposition=0.0)
+    none = hydraulic_erosion(z, spacing=10.0, config=ErosionConfig(channel_cells=1e9, **cfg))
+    assert np.all(none >= z - 1e-12)
+    out = hydraulic_erosion(z, spacing=10.0, config=ErosionConfig(channel_cells=40, **cfg))
+    from procgen.terrain.flow import fill_depressions
+
+    drains = route_flow(fill_depressions(z, epsilon=1e-9), spacing=10.0).area / 100.0
+    cut = out < z - 1e-12
+    assert cut.any() and np.all(drains[cut] >= 40 - 1e-9)
+
+
 def test_erode_dispatches_and_refuses_bad_input():
     z = _ds(17)
     assert np.array_equal(erode(z, kind="none"), z)

@@ -14,8 +14,9 @@ the outlets up, which is stable at any step and O(n). At steady state
 along the flow network): each step the rain is routed downhill on the surface with its
 lakes filled to their spill points (priority-flood), and the water walks the network
 from the divides down, dissolving the bed where it can carry more than it does
-(capacity ``k q^m S``: discharge and slope) and dropping its load where it slows or
-stands in a lake; hillslope creep between steps. It runs in cell units (heights over
+(capacity ``k q^m S``: discharge and slope; channels only, from a critical drainage area
+on) and dropping its load where it slows or stands in a lake; hillslope creep between
+steps. It runs in cell units (heights over
 the grid step) so a rate means the same on a 10 m and a 10 km terrain.
 
 **Thermal** (Musgrave, Kolb & Mace 1989): material above the talus angle slides to
@@ -98,6 +99,10 @@ class ErosionConfig(Config):
     evaporation: float = option(0.0, range="[0, 1)",
                                 help="hydraulic: share of the water lost at each cell it "
                                      "passes (evaporation, seepage)")
+    channel_cells: float = option(40.0, range="[0, inf)",
+                                  help="hydraulic: the drainage area, in cells, below which "
+                                       "water runs off as sheet flow and does not "
+                                       "dissolve the bed")
     creep: float = option(0.05, range="[0, 10]",
                           help="hydraulic: hillslope creep between steps (linear "
                                "diffusion), in grid steps squared")
@@ -213,11 +218,12 @@ def stream_power(z, *, spacing=1.0, config: ErosionConfig | None = None) -> np.n
 
 # -------------------------------------------------------------------------- hydraulic
 @nb.njit(cache=True)
-def _carry(a, filled, rec, dist, stack, rain, keep, kc, ks, kd, m, trap):
+def _carry(a, filled, rec, dist, stack, rain, keep, kc, ks, kd, m, qc, trap):
     """One pass of the water and its load down the routed network, upstream first: in
     a lake (``filled`` above the bed) still water drops what it carries on its way;
     elsewhere the water dissolves ``ks`` of what its capacity ``kc q^m S`` misses (never
-    below the bed of the cell it flows to) or drops ``kd`` of the excess; ``keep`` of the
+    below the bed of the cell it flows to; only from a discharge ``qc`` on, sheet flow
+    above it leaves the bed alone) or drops ``kd`` of the excess; ``keep`` of the
     water goes on at each cell (evaporation and seepage take the rest). What reaches a
     base level leaves."""
     n = len(stack)
@@ -240,7 +246,7 @@ def _carry(a, filled, rec, dist, stack, rain, keep, kc, ks, kd, m, trap):
                 d = kd * (load[k] - cap)
                 af[k] += d
                 load[k] -= d
-            else:
+            elif q[k] >= qc:
                 e = min(ks * (cap - load[k]), drop)
                 af[k] -= e
                 load[k] += e
@@ -281,9 +287,12 @@ def hydraulic_erosion(z, *, spacing=1.0, config: ErosionConfig | None = None) ->
     moving water can carry ``capacity q^m S`` (``m`` the ``area_exponent``, ``S`` the
     slope to the receiver): a cell dissolves ``dissolving`` of what is missing from its
     bed (never cutting below its receiver, so erosion makes no pit) or drops
-    ``deposition`` of the excess; lakes trap their inflow's load, filling from where it
-    enters. Hillslope ``creep`` (linear diffusion) between steps rounds the ridges and
-    fills the one-cell pits that noise leaves. What reaches the grid edge leaves.
+    ``deposition`` of the excess. Water dissolves only once it drains ``channel_cells``
+    cells: channels begin at a critical drainage area (Montgomery & Dietrich 1988), and
+    above it sheet flow leaves the hillslopes' relief, whose converging paths make the
+    network branch. Lakes trap their inflow's load, which settles over their bed
+    (:func:`_settle`). Hillslope ``creep`` (linear diffusion) between steps fills the
+    one-cell pits that noise leaves. What reaches the grid edge leaves.
     """
     cfg = config or ErosionConfig()
     z = check_array(z, "heights", shape=(None, None))
@@ -298,7 +307,7 @@ def hydraulic_erosion(z, *, spacing=1.0, config: ErosionConfig | None = None) ->
         trap = np.zeros(a.size)
         _carry(a, filled, rec, dist, _stack(rec), float(cfg.rain), 1.0 - cfg.evaporation,
                float(cfg.capacity), float(cfg.dissolving), float(cfg.deposition),
-               float(cfg.area_exponent), trap)
+               float(cfg.area_exponent), float(cfg.rain * cfg.channel_cells), trap)
         _settle(a, filled, trap.reshape(a.shape))
         if cfg.creep > 0:
             a = _diffuse(a, boundary, float(cfg.creep), 1.0, 1.0)
