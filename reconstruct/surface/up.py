@@ -240,6 +240,9 @@ REST_WEIGHT = 1.0
 #: a level share this large at one end of a candidate axis (``low - high``) is a ground:
 #: the resting pose then does not count (a terrain does not rest like an object)
 GROUND_SHARE = 0.3
+#: a mesh whose convex hull is thinner than this share of its extent is a sheet, not an
+#: object that rests
+SHEET = 0.05
 #: a candidate up within this angle of a resting pose's up takes that pose's share
 REST_DEG = 10.0
 
@@ -276,7 +279,9 @@ def _centre_of_mass(tri: np.ndarray, a: np.ndarray) -> np.ndarray:
 def rest_poses(vertices: np.ndarray, triangles: np.ndarray, *,
                directions: int = 4000) -> list[RestPose]:
     """The stable resting poses of a mesh as an object on a floor, most likely first
-    (:class:`RestPose`); empty when it spans no volume. The winding does not matter."""
+    (:class:`RestPose`); empty when it spans no volume or its convex hull is thinner
+    than :data:`SHEET` of its extent (a sheet: an open terrain, a wall). The winding does
+    not matter."""
     n, a, tri, v = _faces(vertices, triangles)
     return _rest_poses(_used(v, triangles), n, a, tri, directions)
 
@@ -328,7 +333,11 @@ def _rest_poses(v, n, a, tri, directions: int = 4000) -> list[RestPose]:
         hit[i:i + 256] = np.argmin(t, axis=1)
     # an unstable face rolls on: steepest descent of the support function (the height of
     # the centre of mass over the floor) from its normal, on the sphere of directions
-    h = np.concatenate([np.max(d[i:i + 256] @ hv.T, axis=1) for i in range(0, len(d), 256)])
+    proj_d = [d[i:i + 256] @ hv.T for i in range(0, len(d), 256)]
+    h = np.concatenate([p.max(axis=1) for p in proj_d])
+    width = h - np.concatenate([p.min(axis=1) for p in proj_d])
+    if width.min() < SHEET * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))):
+        return []  # a sheet (an open terrain, a wall) does not rest like an object
     tree = cKDTree(d)
     _, nb = tree.query(d, k=7)
     down = nb[np.arange(len(d)), np.argmin(h[nb], axis=1)]
