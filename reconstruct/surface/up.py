@@ -409,15 +409,23 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
         centres = np.asarray(centres, np.float64).reshape(-1, 3)
     rest = _rest_poses(_used(v, triangles), n, a, tri)
     near = np.cos(np.radians(REST_DEG))
-    ups = []   # the candidates, each once (two axes may refine to one)
-    for u in [sign * axis for axis in _candidate_axes(n, a, cos_g, sin_w, directions)
-              for sign in (1.0, -1.0)] + [r.up for r in rest[:3] if r.share >= 0.05]:
+    axes = [sign * axis for axis in _candidate_axes(n, a, cos_g, sin_w, directions)
+            for sign in (1.0, -1.0)]
+    resting = [r.up for r in rest[:3] if r.share >= 0.05]
+    scored = [(u, _structure(u, n, a, tri, cos_g, sin_w)) for u in axes + resting]
+    # the resting pose counts where the mesh has no ground: a level share at one end
+    ground = max(st["low"] - st["high"] for _, st in scored)
+    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    # each candidate once (two axes may refine to one, a resting pose may lie near an
+    # axis): on an object the resting pose's own face normal is kept, on a scene the axis
+    # refined by its ground
+    if rest_w >= 0.5 * REST_WEIGHT:
+        scored = scored[len(axes):] + scored[:len(axes)]
+    ups, structure = [], []
+    for u, st in scored:
         if all(u @ w <= near for w in ups):
             ups.append(u)
-    structure = [_structure(u, n, a, tri, cos_g, sin_w) for u in ups]
-    # the resting pose counts where the mesh has no ground: a level share at one end
-    ground = max(st["low"] - st["high"] for st in structure)
-    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+            structure.append(st)
     options = []
     for u, st in zip(ups, structure, strict=True):
         st["rest"] = max([r.share for r in rest if r.up @ u > near], default=0.0)
