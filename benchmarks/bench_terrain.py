@@ -67,15 +67,15 @@ def main():
                  check=True)
     hydraulic_erosion(fractal_terrain(65, rng=np.random.default_rng(0)), spacing=spacing,
                       config=ErosionConfig(iterations=2))
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     hy = hydraulic_erosion(z, spacing=spacing, config=ErosionConfig())
-    t_hy = time.perf_counter() - t
+    t_hy, c_hy = time.perf_counter() - t, time.process_time() - c
     try:
-        ok_hy = _row("hydraulic (Musgrave), 400 steps",
+        ok_hy = _row("hydraulic (routed), 100 steps",
                      terrain_figures(hy, spacing=spacing, reach=REACH), check=True)
     except ValueError as exc:   # no channel network to measure
         ok_hy = False
-        print(f"   hydraulic (Musgrave), 400 steps   : no network to measure ({exc})")
+        print(f"   hydraulic (routed), 100 steps   : no network to measure ({exc})")
     print(f"   eroded terrain within every target: stream power "
           f"{'PASS' if ok_sp else 'MISS'}, hydraulic {'PASS' if ok_hy else 'MISS'}")
 
@@ -96,7 +96,7 @@ def main():
     print(f"   stream power 513^2 over 10^4 yr: {t_sp513:.1f} s")
     print(f"   stream power 1025^2 over 10^4 yr: {t_sp:.1f} s (target <= 60 s) "
           f"{'PASS' if t_sp <= 60 else 'MISS'}")
-    print(f"   hydraulic 513^2, 400 steps: {t_hy:.1f} s (target <= 30 s) "
+    print(f"   hydraulic 513^2, 100 steps: {t_hy:.1f} s, CPU {c_hy:.1f} s (target <= 30 s) "
           f"{'PASS' if t_hy <= 30 else 'MISS'}")
 
 

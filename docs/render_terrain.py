@@ -59,7 +59,8 @@ def main(out: Path):
     shots = [("terrain_before.png", z, level, "diamond-square, water at a level"),
              ("terrain_stream_power.png", sp, "flow",
               "stream power, 10^4 yr: lakes to their spill points, rivers down the flow"),
-             ("terrain_hydraulic.png", hy, "flow", "hydraulic erosion (Musgrave), 400 steps")]
+             ("terrain_hydraulic.png", hy, "flow",
+              "hydraulic erosion, 100 steps of water routed down the land")]
     for name, h, water, title in shots:
         land = build_landscape(h, spacing=step, origin=origin, water=water, seed=1)
         shares = ", ".join(f"{k} {v:.0%}" for k, v in land.shares.items())

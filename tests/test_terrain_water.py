@@ -225,6 +225,43 @@ def test_hydraulic_erosion_moves_earth_downhill_and_is_scale_free():
     np.testing.assert_allclose(scaled, 10 * out, rtol=1e-9, atol=1e-9)
 
 
+def _drained_share(z, spacing):
+    """Share of the cells whose water reaches the grid edge along D8 with no filling."""
+    fl = route_flow(z, spacing=spacing)
+    edge = np.zeros(z.shape, bool)
+    edge[0, :] = edge[-1, :] = edge[:, 0] = edge[:, -1] = True
+    return fl.area[edge].sum() / (z.size * spacing ** 2)  # the edge collects what drains
+
+
+def test_hydraulic_erosion_makes_the_land_drain():
+    """Water routed downhill through its lakes carves a connected network: the noise's
+    closed pits are gone (filled by sediment, crept over or cut through), several times
+    more of the land drains to the edge, and the discharge gathers into rivers (the
+    largest drainage area is ten times the raw noise's)."""
+    z = _ds(129, seed=2, height=40.0)
+    out = hydraulic_erosion(z, spacing=10.0, config=ErosionConfig(iterations=60))
+    assert pit_share(z) > 0.02 and pit_share(out) <= 0.002
+    assert _drained_share(z, 10.0) < 0.1 and _drained_share(out, 10.0) > 0.5
+    assert route_flow(out, spacing=10.0).area.max() > 10 * route_flow(z, spacing=10.0).area.max()
+
+
+def test_hydraulic_erosion_cuts_channels_only_from_their_drainage_area_on():
+    """Sheet flow (water draining fewer than ``channel_cells`` cells) leaves the bed alone:
+    on a rough slope with no creep, a threshold above the grid's size cuts nothing; a
+    threshold of 40 cells cuts the cells that drain 40 or more and leaves every cell
+    that drains fewer untouched after the first step."""
+    z = _ds(33, seed=4, height=5.0) + np.linspace(0, 60, 33)[None, :]
+    cfg = dict(iterations=1, creep=0.0, deposition=0.0)
+    none = hydraulic_erosion(z, spacing=10.0, config=ErosionConfig(channel_cells=1e9, **cfg))
+    assert np.all(none >= z - 1e-12)
+    out = hydraulic_erosion(z, spacing=10.0, config=ErosionConfig(channel_cells=40, **cfg))
+    from procgen.terrain.flow import fill_depressions
+
+    drains = route_flow(fill_depressions(z, epsilon=1e-9), spacing=10.0).area / 100.0
+    cut = out < z - 1e-12
+    assert cut.any() and np.all(drains[cut] >= 40 - 1e-9)
+
+
 def test_erode_dispatches_and_refuses_bad_input():
     z = _ds(17)
     assert np.array_equal(erode(z, kind="none"), z)

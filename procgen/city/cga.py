@@ -260,6 +260,7 @@ class _Builder:
         self.faces: list[_Face] = []
         self.budget = max_shapes
         self._values: dict = {}
+        self._splits: dict = {}
 
     def value(self, v) -> tuple[float, bool]:
         """``(metres, relative)`` of a size."""
@@ -329,7 +330,15 @@ class _Builder:
             self.run(succ, _Rect(face, 0.0, 0.0, float(sc.size[0]), float(sc.size[1])), name)
 
     def _sizes(self, rule, total: float) -> list:
-        """The parts of a split of ``total`` metres: ``[(size, successor), ...]``."""
+        """The parts of a split of ``total`` metres: ``[(size, successor), ...]`` (kept per
+        rule and total: a facade splits hundreds of floors and tiles of one width)."""
+        key = (id(rule), total)
+        got = self._splits.get(key)
+        if got is None:
+            got = self._splits[key] = self._split_sizes(rule, total)
+        return got
+
+    def _split_sizes(self, rule, total: float) -> list:
         parts = []
         for part in rule["parts"]:
             size, rel = self.value(part["size"])

@@ -10,10 +10,14 @@ each from its pit outward), orders the cells by the stack, and solves the erosio
 the outlets up, which is stable at any step and O(n). At steady state
 ``S = (U / K)^(1/n) A^(-m/n)``: the channel concavity is ``m / n``.
 
-**Hydraulic** (Musgrave, Kolb & Mace 1989): rain falls on every cell, water runs to
-lower neighbours, dissolves the bed where it can carry more than it does, drops its load
-where it slows or pools, and evaporates. It runs in cell units (heights over the grid
-step) so a rate means the same on a 10 m and a 10 km terrain.
+**Hydraulic** (the dissolve-and-deposit rule of Musgrave, Kolb & Mace 1989, carried
+along the flow network): each step the rain is routed downhill on the surface with its
+lakes filled to their spill points (priority-flood), and the water walks the network
+from the divides down, dissolving the bed where it can carry more than it does
+(capacity ``k q^m S``: discharge and slope; channels only, from a critical drainage area
+on) and dropping its load where it slows or stands in a lake; hillslope creep between
+steps. It runs in cell units (heights over
+the grid step) so a rate means the same on a 10 m and a 10 km terrain.
 
 **Thermal** (Musgrave, Kolb & Mace 1989): material above the talus angle slides to
 lower neighbours until slopes rest at it.
@@ -50,6 +54,11 @@ __all__ = ["ErosionConfig", "erode", "stream_power", "hydraulic_erosion", "therm
 
 log = logging.getLogger(__name__)
 
+#: hydraulic erosion's steps when ``iterations`` is not given
+HYDRAULIC_STEPS = 100
+#: thermal erosion's steps when ``iterations`` is not given
+THERMAL_STEPS = 400
+
 #: the erosion models, ``none`` included
 KINDS = ("none", "hydraulic", "thermal", "stream-power")
 
@@ -64,7 +73,8 @@ class ErosionConfig(Config):
                              help="stream power: time step (the solver is implicit)")
     erodibility: float = option(1e-3, unit="m^(1-2m)/yr", range="[0, inf)",
                                 help="stream power: K of the incision rate K A^m S^n")
-    area_exponent: float = option(0.5, range="(0, 2)", help="stream power: m")
+    area_exponent: float = option(0.5, range="(0, 2)",
+                                  help="stream power and hydraulic: m of A^m (q^m)")
     slope_exponent: float = option(1.0, range="(0, 4)", help="stream power: n")
     uplift: float | None = option(None, unit="m/yr", range="[0, inf)",
                                   help="stream power: rock uplift rate; default: the rate "
@@ -72,18 +82,30 @@ class ErosionConfig(Config):
     diffusivity: float | None = option(None, unit="m2/yr", range="[0, inf)",
                                        help="stream power: hillslope diffusivity; default "
                                             "1e-3 grid steps squared per year")
-    iterations: int = option(400, range="[1, 100000]",
-                             help="hydraulic and thermal: simulation steps")
+    iterations: int | None = option(None, range="[1, 100000]",
+                                    help="hydraulic and thermal: simulation steps; default "
+                                         "100 for hydraulic (each routes the water over "
+                                         "the whole terrain), 400 for thermal")
     rain: float = option(0.01, range="[0, inf)",
-                         help="hydraulic: water added per step, in grid steps of depth")
-    capacity: float = option(0.1, range="[0, inf)",
-                             help="hydraulic: sediment a unit of moving water can carry")
+                         help="hydraulic: water falling on each cell a step, in grid steps "
+                              "of depth")
+    capacity: float = option(1.0, range="[0, inf)",
+                             help="hydraulic: k of the sediment the water can carry, "
+                                  "k q^m S (q discharge, S slope)")
     dissolving: float = option(0.3, range="[0, 1]",
                                help="hydraulic: share of the missing capacity picked up a step")
     deposition: float = option(0.3, range="[0, 1]",
                                help="hydraulic: share of the excess sediment dropped a step")
-    evaporation: float = option(0.02, range="[0, 1)",
-                                help="hydraulic: share of the water evaporated a step")
+    evaporation: float = option(0.0, range="[0, 1)",
+                                help="hydraulic: share of the water lost at each cell it "
+                                     "passes (evaporation, seepage)")
+    channel_cells: float = option(40.0, range="[0, inf)",
+                                  help="hydraulic: the drainage area, in cells, below which "
+                                       "water runs off as sheet flow and does not "
+                                       "dissolve the bed")
+    creep: float = option(0.05, range="[0, 10]",
+                          help="hydraulic: hillslope creep between steps (linear "
+                               "diffusion), in grid steps squared")
     talus_deg: float = option(35.0, unit="deg", range="(0, 90)",
                               help="thermal: the angle of repose")
     thermal_rate: float = option(0.5, range="(0, 1]",
@@ -196,88 +218,100 @@ def stream_power(z, *, spacing=1.0, config: ErosionConfig | None = None) -> np.n
 
 # -------------------------------------------------------------------------- hydraulic
 @nb.njit(cache=True)
-def _hydraulic(a, iters, rain, kc, ks, kd, ke):
-    r, c = a.shape
-    w = np.zeros((r, c))
-    s = np.zeros((r, c))
-    dw = np.zeros((r, c))
-    ds = np.zeros((r, c))
-    drop = np.zeros(9)
-    for _ in range(iters):
-        for i in range(r):
-            for j in range(c):
-                w[i, j] += rain
-        dw[:] = 0.0
-        ds[:] = 0.0
-        for i in range(r):
-            for j in range(c):
-                h = a[i, j] + w[i, j]
-                tot = 0.0
-                big = 0.0
-                for q in range(9):
-                    di, dj = q // 3 - 1, q % 3 - 1
-                    ii, jj = i + di, j + dj
-                    drop[q] = 0.0
-                    if q == 4 or ii < 0 or jj < 0 or ii >= r or jj >= c:
-                        continue
-                    dh = h - a[ii, jj] - w[ii, jj]
-                    if dh > 0:
-                        drop[q] = dh
-                        tot += dh
-                        big = max(big, dh)
-                if tot <= 0.0 or w[i, j] <= 0.0:
-                    dep = kd * s[i, j]      # still water drops what it carries
-                    a[i, j] += dep
-                    s[i, j] -= dep
-                    continue
-                move = min(w[i, j], 0.5 * big)
-                cap = kc * move
-                if s[i, j] >= cap:
-                    dep = kd * (s[i, j] - cap)
-                    a[i, j] += dep
-                    s[i, j] -= dep
-                    carry = cap
-                else:
-                    ero = ks * (cap - s[i, j])
-                    a[i, j] -= ero
-                    s[i, j] += ero
-                    carry = s[i, j]
-                dw[i, j] -= move
-                ds[i, j] -= carry
-                for q in range(9):
-                    if drop[q] > 0:
-                        f = drop[q] / tot
-                        dw[i + q // 3 - 1, j + q % 3 - 1] += move * f
-                        ds[i + q // 3 - 1, j + q % 3 - 1] += carry * f
-        for i in range(r):
-            for j in range(c):
-                w[i, j] = (w[i, j] + dw[i, j]) * (1.0 - ke)
-                s[i, j] += ds[i, j]
-                if i == 0 or j == 0 or i == r - 1 or j == c - 1:
-                    w[i, j] = 0.0   # water and its load leave the terrain at the edge
-                    s[i, j] = 0.0
-    # what is still suspended settles where it is
-    return a + s
+def _carry(a, filled, rec, dist, stack, rain, keep, kc, ks, kd, m, qc, trap):
+    """One pass of the water and its load down the routed network, upstream first: in
+    a lake (``filled`` above the bed) still water drops what it carries on its way;
+    elsewhere the water dissolves ``ks`` of what its capacity ``kc q^m S`` misses (never
+    below the bed of the cell it flows to; only from a discharge ``qc`` on, sheet flow
+    above it leaves the bed alone) or drops ``kd`` of the excess; ``keep`` of the
+    water goes on at each cell (evaporation and seepage take the rest). What reaches a
+    base level leaves."""
+    n = len(stack)
+    q = np.full(n, rain)
+    load = np.zeros(n)
+    af = a.ravel()
+    ff = filled.ravel()
+    for t in range(n - 1, -1, -1):
+        k = stack[t]
+        r = rec[k]
+        if r == k:
+            continue
+        if ff[k] > af[k]:     # a lake: still water drops what it carries
+            trap[k] += load[k]
+            load[k] = 0.0
+        else:
+            drop = max(af[k] - af[r], 0.0)
+            cap = kc * q[k] ** m * drop / dist[k]
+            if load[k] > cap:
+                d = kd * (load[k] - cap)
+                af[k] += d
+                load[k] -= d
+            elif q[k] >= qc:
+                e = min(ks * (cap - load[k]), drop)
+                af[k] -= e
+                load[k] += e
+        load[r] += load[k]
+        q[r] += q[k] * keep
+
+
+def _settle(a, filled, trap) -> None:
+    """The load each lake caught settles over its bed: every cell of the lake rises by
+    the same share of its depth (the share the load is of the lake's volume, at most
+    all of it), so the bed keeps its shape as the lake shallows and a lake with load
+    enough fills to its spill point and drains."""
+    from scipy import ndimage
+
+    depth = filled - a
+    lake = depth > 0
+    if not lake.any():
+        return
+    labels, count = ndimage.label(lake, structure=np.ones((3, 3)))
+    volume = np.bincount(labels.ravel(), weights=np.where(lake, depth, 0.0).ravel(),
+                         minlength=count + 1)
+    caught = np.bincount(labels.ravel(), weights=trap.ravel(), minlength=count + 1)
+    share = np.minimum(caught / np.maximum(volume, 1e-300), 1.0)
+    share[0] = 0.0
+    a += share[labels] * np.where(lake, depth, 0.0)
 
 
 def hydraulic_erosion(z, *, spacing=1.0, config: ErosionConfig | None = None) -> np.ndarray:
-    """Musgrave et al. (1989) grid hydraulic erosion of ``z`` (metres) for
-    ``config.iterations`` steps, in cell units (heights over the grid step).
+    """Hydraulic erosion of ``z`` (metres) by water that follows the land: Musgrave et
+    al.'s (1989) dissolve-and-deposit rule with a capacity, carried along the flow
+    network instead of between neighbours, for ``config.iterations`` steps (default
+    :data:`HYDRAULIC_STEPS`), in cell units (heights over the grid step).
 
-    Each step it rains; each cell's water moves toward its lower neighbours (by water
-    surface, in proportion to the drop) up to half the largest drop; the water moved can
-    carry ``capacity`` times its volume of sediment: a cell dissolves ``dissolving`` of
-    what is missing from its bed or drops ``deposition`` of the excess, and still water
-    drops its load. Water evaporates; what reaches the grid edge leaves with its load.
+    Each step routes the rain on the surface with its depressions filled to their spill
+    points (Priority-Flood+epsilon, Barnes et al. 2014): lakes hold still water, and
+    every other cell sends its water to its D8 receiver, so the discharge ``q`` of a
+    cell is the rain of everything upstream. Walking the network from the divides down,
+    moving water can carry ``capacity q^m S`` (``m`` the ``area_exponent``, ``S`` the
+    slope to the receiver): a cell dissolves ``dissolving`` of what is missing from its
+    bed (never cutting below its receiver, so erosion makes no pit) or drops
+    ``deposition`` of the excess. Water dissolves only once it drains ``channel_cells``
+    cells: channels begin at a critical drainage area (Montgomery & Dietrich 1988), and
+    above it sheet flow leaves the hillslopes' relief, whose converging paths make the
+    network branch. Lakes trap their inflow's load, which settles over their bed
+    (:func:`_settle`). Hillslope ``creep`` (linear diffusion) between steps fills the
+    one-cell pits that noise leaves. What reaches the grid edge leaves.
     """
     cfg = config or ErosionConfig()
     z = check_array(z, "heights", shape=(None, None))
     dx, dy = _spacing(spacing)
     step = float(np.sqrt(dx * dy))
     a = np.ascontiguousarray(z / step)
-    out = _hydraulic(a.copy(), int(cfg.iterations), float(cfg.rain), float(cfg.capacity),
-                     float(cfg.dissolving), float(cfg.deposition), float(cfg.evaporation))
-    return out * step
+    boundary = boundary_mask(a)
+    steps = HYDRAULIC_STEPS if cfg.iterations is None else int(cfg.iterations)
+    for _ in range(steps):
+        filled = drain(a, boundary, 1e-9)
+        rec, dist = _receivers(filled, boundary, 1.0, 1.0)
+        trap = np.zeros(a.size)
+        _carry(a, filled, rec, dist, _stack(rec), float(cfg.rain), 1.0 - cfg.evaporation,
+               float(cfg.capacity), float(cfg.dissolving), float(cfg.deposition),
+               float(cfg.area_exponent), float(cfg.rain * cfg.channel_cells), trap)
+        _settle(a, filled, trap.reshape(a.shape))
+        if cfg.creep > 0:
+            a = _diffuse(a, boundary, float(cfg.creep), 1.0, 1.0)
+    return a * step
 
 
 # ---------------------------------------------------------------------------- thermal
@@ -325,7 +359,8 @@ def thermal_erosion(z, *, spacing=1.0, config: ErosionConfig | None = None) -> n
     cfg = config or ErosionConfig()
     z = check_array(z, "heights", shape=(None, None))
     dx, dy = _spacing(spacing)
-    return _thermal(z.copy(), int(cfg.iterations), float(np.tan(np.radians(cfg.talus_deg))),
+    steps = THERMAL_STEPS if cfg.iterations is None else int(cfg.iterations)
+    return _thermal(z.copy(), steps, float(np.tan(np.radians(cfg.talus_deg))),
                     float(cfg.thermal_rate), dx, dy)
 
 

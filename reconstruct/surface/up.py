@@ -24,6 +24,15 @@ is built on it (plants, snow, a city) needs gravity. Two sources, in order of tr
    winner from the runner-up, the margin (1 - runner-up / winner) as the confidence,
    and the runner-up; a close call (under :data:`CLOSE_MARGIN`) is logged and makes
    ``scanamp amplify`` warn naming ``--up``.
+3. **How the object would rest**, for a mesh with no ground (a scanned statue, the
+   dragon): the stable faces of its convex hull, the face the centre of mass projects
+   into, each with its quasi-static probability (the share of drop directions whose
+   descent on the hull's support function ends on it: Moll & Erdmann's quasi-static
+   pose distribution; Fu et al. 2008 use the same stability for upright orientation),
+   over the share of the surface hugging the floor in that pose (an object stands on
+   its base or its feet; the side it stood on was not seen when it was captured). It
+   adds to the structural score with a weight that vanishes as the level
+   share at one end grows, so a scene with a ground is decided by its ground.
 
 :func:`orient_winding` then turns the triangles so what is seen from the sky faces up, so
 steps that read normals (plants on gentle slopes, snow) work on a mesh written with the
@@ -52,8 +61,9 @@ import numpy as np
 
 from core.validate import check_unit_vector
 
-__all__ = ["UpEstimate", "estimate_up", "up_from_cameras", "up_from_mesh", "find_camera_model",
-           "is_close", "orient_winding", "CLOSE_MARGIN", "CUES", "BAND"]
+__all__ = ["UpEstimate", "RestPose", "estimate_up", "up_from_cameras", "up_from_mesh",
+           "rest_poses", "find_camera_model", "is_close", "orient_winding", "CLOSE_MARGIN",
+           "CUES", "BAND"]
 
 log = logging.getLogger(__name__)
 
@@ -166,13 +176,19 @@ def _candidate_axes(n, a, cos_g, sin_w, directions: int, count: int = 3,
     return out
 
 
-def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.ndarray:
-    """Heights of ``n`` points spread over faces by area (a fixed draw), from each face's
-    vertex heights ``(faces, 3)``: where a face's area lies, not only its corners."""
+def _area_draw(area: np.ndarray, n: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points spread over faces by area (a fixed draw): each one's face and its
+    barycentric weights ``(n, 3)``."""
     rng = np.random.default_rng(0)
     pick = rng.choice(len(area), n, p=area / area.sum())
     r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
-    w = np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+    return pick, np.stack([1 - r1, r1 * (1 - r2), r1 * r2], axis=1)
+
+
+def _area_samples(heights: np.ndarray, area: np.ndarray, n: int = 20_000) -> np.ndarray:
+    """Heights of ``n`` points spread over faces by area (a fixed draw), from each face's
+    vertex heights ``(faces, 3)``: where a face's area lies, not only its corners."""
+    pick, w = _area_draw(area, n)
     return (heights[pick] * w).sum(axis=1)
 
 
@@ -217,12 +233,156 @@ def _structure(up, n, a, tri, cos_g, sin_w) -> dict:
     return out
 
 
+#: the share of the extent above the support plane where a resting pose's contact is measured
+CONTACT_BAND = 0.01
+#: the weight of the resting pose against the structural score, on a mesh with no ground
+REST_WEIGHT = 1.0
+#: a level share this large at one end of a candidate axis (``low - high``) is a ground:
+#: the resting pose then does not count (a terrain does not rest like an object)
+GROUND_SHARE = 0.3
+#: a mesh whose convex hull is thinner than this share of its extent is a sheet, not an
+#: object that rests
+SHEET = 0.05
+#: a candidate up within this angle of a resting pose's up takes that pose's share
+REST_DEG = 10.0
+
+
+@dataclass(frozen=True)
+class RestPose:
+    """A stable pose of an object on a floor: ``up`` (the outward normal of the convex
+    hull face it rests on, negated), its quasi-static ``probability``, the ``contact``
+    (share of the surface hugging the floor, a flat base excepted) and its ``share`` of
+    the resting cue. An object stands on its base or its feet, and the side it stood on
+    was not seen when it was captured; lying on its flank, much of its surface hugs the
+    floor: the share favours likely poses that touch the floor little."""
+
+    up: np.ndarray
+    probability: float
+    contact: float
+    share: float
+
+
+def _centre_of_mass(tri: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The centre of mass of the solid when the mesh closes one (the signed tetrahedra
+    about the area centroid give a volume of either sign, whatever the winding, and the
+    centroid is their ratio), else the area centroid of the surface (a merged scan)."""
+    c0 = (tri.mean(axis=1) * a[:, None]).sum(axis=0) / a.sum()
+    t = tri - c0
+    vol = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])) / 6.0
+    total = float(vol.sum())
+    # a closed mesh: the signed volumes add up to nearly the sum of their sizes' share
+    if abs(total) > 0.05 * float(np.abs(vol).sum()):
+        return c0 + ((t.sum(axis=1) / 4.0) * vol[:, None]).sum(axis=0) / total
+    return c0
+
+
+def rest_poses(vertices: np.ndarray, triangles: np.ndarray, *,
+               directions: int = 4000) -> list[RestPose]:
+    """The stable resting poses of a mesh as an object on a floor, most likely first
+    (:class:`RestPose`); empty when it spans no volume or its convex hull is thinner
+    than :data:`SHEET` of its extent (a sheet: an open terrain, a wall). The winding does
+    not matter."""
+    n, a, tri, v = _faces(vertices, triangles)
+    return _rest_poses(_used(v, triangles), n, a, tri, directions)
+
+
+def _used(v, triangles) -> np.ndarray:
+    """The vertices the triangles use (a file may hold others: the hull is of the mesh)."""
+    return v[np.unique(np.asarray(triangles, np.int64))]
+
+
+def _rest_poses(v, n, a, tri, directions: int = 4000) -> list[RestPose]:
+    """The stable resting poses (the convex hull faces the centre of mass projects into),
+    each with its quasi-static probability: the share of the directions of a drop (a
+    Fibonacci sphere of ``directions``) that land on it, the ray from the centre of mass
+    leaving the hull through it, or on an unstable face that rolls to it (steepest
+    descent of the hull's support function about the centre of mass).
+    Each pose's ``contact`` is the share of the surface within :data:`CONTACT_BAND` of the
+    extent from its support plane and facing it (within 45 degrees, either way: walls
+    rising from the floor do not hug it), flat faces lying on the plane excepted (a
+    base); its
+    ``share`` is probability over contact (at least 1e-3), normalised to sum to 1."""
+    from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+    com = _centre_of_mass(tri, a)
+    try:
+        hull = ConvexHull(v)
+    except (QhullError, ValueError):
+        return []
+    hv = v[hull.vertices] - com
+    nrm, off = hull.equations[:, :3], hull.equations[:, 3]
+    depth = -(nrm @ com + off)  # the centre of mass's height above each face's plane
+    if depth.min() <= 0:  # the centre of mass on or outside the hull: a sheet
+        return []
+    # the faces the centre of mass projects into: each a stable pose
+    proj = com - (nrm @ com + off)[:, None] * nrm
+    p3 = v[hull.simplices]
+    sides = np.stack([np.einsum("ij,ij->i", np.cross(p3[:, (k + 1) % 3] - p3[:, k],
+                                                     proj - p3[:, k]), nrm)
+                      for k in range(3)], axis=1)
+    stable = np.nonzero(np.all(sides >= 0, axis=1) | np.all(sides <= 0, axis=1))[0]
+    if len(stable) == 0:
+        return []
+    d = _fibonacci(directions)
+    # the face a drop in each direction lands on: the hull face the ray from the centre
+    # of mass along it leaves through (the radial projection of the hull on the sphere)
+    hit = np.empty(len(d), np.int64)
+    for i in range(0, len(d), 256):
+        c = d[i:i + 256] @ nrm.T
+        t = np.where(c > 1e-12, depth / np.maximum(c, 1e-12), np.inf)
+        hit[i:i + 256] = np.argmin(t, axis=1)
+    # an unstable face rolls on: steepest descent of the support function (the height of
+    # the centre of mass over the floor) from its normal, on the sphere of directions
+    proj_d = [d[i:i + 256] @ hv.T for i in range(0, len(d), 256)]
+    h = np.concatenate([p.max(axis=1) for p in proj_d])
+    width = h - np.concatenate([p.min(axis=1) for p in proj_d])
+    if width.min() < SHEET * float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))):
+        return []  # a sheet (an open terrain, a wall) does not rest like an object
+    tree = cKDTree(d)
+    _, nb = tree.query(d, k=7)
+    down = nb[np.arange(len(d)), np.argmin(h[nb], axis=1)]
+    while True:
+        nxt = down[down]
+        if np.array_equal(nxt, down):
+            break
+        down = nxt
+    is_stable = np.zeros(len(nrm), bool)
+    is_stable[stable] = True
+    faces, counts = np.unique(hit, return_counts=True)
+    _, start = tree.query(nrm[faces])
+    prob = {}
+    for face, count, s0 in zip(faces, counts, start, strict=True):
+        if not is_stable[face]:
+            face = int(stable[np.argmax(nrm[stable] @ d[down[s0]])])
+        prob[int(face)] = prob.get(int(face), 0.0) + count / len(d)
+    extent = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    pick, w = _area_draw(a)  # the surface as points spread over the faces by area
+    corners, normals = tri[pick] - com, n[pick]
+    pts = (corners * w[:, :, None]).sum(axis=1)
+    band = CONTACT_BAND * extent
+    poses = []
+    for face, p in prob.items():
+        if p < 0.01:  # a pose hardly ever reached
+            continue
+        height = depth[face] - pts @ nrm[face]  # above the support plane
+        facing = np.abs(normals @ nrm[face])
+        base = (depth[face] - (corners @ nrm[face]).min(axis=1) < 0.25 * band) \
+            & (facing > np.cos(np.radians(5.0)))
+        near = (height < band) & (facing > np.sqrt(0.5)) & ~base
+        poses.append((-nrm[face], p, float(near.mean())))
+    s = sum(p / max(c, 1e-3) for _, p, c in poses)
+    return sorted((RestPose(u, p, c, p / max(c, 1e-3) / s) for u, p, c in poses),
+                  key=lambda r: -r.share)
+
+
 #: what each structural cue means, for the report
 CUES = {"area": "ground and wall area (the largest level part is the ground)",
         "base": "the ground lies at the walls' lower end",
         "top": "roofs lie at the walls' upper end",
         "low": "the ground is the scene's extreme along -up (things stand on it)",
-        "cameras": "the cameras are above the ground"}
+        "cameras": "the cameras are above the ground",
+        "rest": "the object rests on a stable face of its convex hull (quasi-static "
+                "probability), touching the floor little"}
 
 
 def _cameras_above(up, tri, a, centres) -> float:
@@ -235,23 +395,46 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
                  wall_deg: float = 10.0, directions: int = 4000,
                  centres: np.ndarray | None = None) -> UpEstimate:
     """Up from the mesh (and camera centres ``(k, 3)`` when given): the best candidate axes
-    (module docstring), each with both signs, scored by structure (:func:`_structure`,
-    times ``0.1 + `` the share of the cameras above the ground); ``decision`` names the
+    (module docstring), each with both signs, and the likeliest resting poses
+    (:func:`rest_poses`), scored by structure (:func:`_structure`) plus the resting
+    pose's share times :data:`REST_WEIGHT` ``(1 - ground / GROUND_SHARE)`` (``ground`` the
+    largest level share at one end less that at the other, over the candidates: the pose
+    counts on an object, not on a scene with a ground), times ``0.1 + `` the share of
+    the cameras above the ground when given; ``decision`` names the
     cue that separated the winner from the runner-up, the confidence (the margin) and the
     runner-up. A close call is logged as a warning naming ``--up``."""
     n, a, tri, v = _faces(vertices, triangles)
     cos_g, sin_w = np.cos(np.radians(ground_deg)), np.sin(np.radians(wall_deg))
     if centres is not None:
         centres = np.asarray(centres, np.float64).reshape(-1, 3)
+    rest = _rest_poses(_used(v, triangles), n, a, tri)
+    near = np.cos(np.radians(REST_DEG))
+    axes = [sign * axis for axis in _candidate_axes(n, a, cos_g, sin_w, directions)
+            for sign in (1.0, -1.0)]
+    resting = [r.up for r in rest[:3] if r.share >= 0.05]
+    scored = [(u, _structure(u, n, a, tri, cos_g, sin_w)) for u in axes + resting]
+    # the resting pose counts where the mesh has no ground: a level share at one end
+    ground = max(st["low"] - st["high"] for _, st in scored)
+    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    # each candidate once (two axes may refine to one, a resting pose may lie near an
+    # axis): on an object the resting pose's own face normal is kept, on a scene the axis
+    # refined by its ground
+    if rest_w >= 0.5 * REST_WEIGHT:
+        scored = scored[len(axes):] + scored[:len(axes)]
+    ups, structure = [], []
+    for u, st in scored:
+        if all(u @ w <= near for w in ups):
+            ups.append(u)
+            structure.append(st)
     options = []
-    for axis in _candidate_axes(n, a, cos_g, sin_w, directions):
-        for sign in (1.0, -1.0):
-            st = _structure(sign * axis, n, a, tri, cos_g, sin_w)
-            st["cameras"] = None
-            if centres is not None and len(centres):
-                st["cameras"] = _cameras_above(sign * axis, tri, a, centres)
-                st["score"] *= 0.1 + st["cameras"]
-            options.append((sign * axis, st))
+    for u, st in zip(ups, structure, strict=True):
+        st["rest"] = max([r.share for r in rest if r.up @ u > near], default=0.0)
+        st["score"] += rest_w * st["rest"]
+        st["cameras"] = None
+        if centres is not None and len(centres):
+            st["cameras"] = _cameras_above(u, tri, a, centres)
+            st["score"] *= 0.1 + st["cameras"]
+        options.append((u, st))
     options.sort(key=lambda o: -o[1]["score"])
     up, best = options[0]
     decision = {"cue": "only candidate", "margin": 1.0, "runner_up": None}
@@ -269,6 +452,7 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
                 "base": best["area"] * (best["base"] - other["base"]),
                 "top": best["area"] * 0.5 * (best["top"] - other["top"]),
                 "low": best["area"] * (ext(best) - ext(other))}
+        lead["rest"] = rest_w * (best["rest"] - other["rest"])
         if best["cameras"] is not None:
             lead["cameras"] = best["area"] * weight * (best["cameras"] - other["cameras"])
         cue = max(lead, key=lead.get)
@@ -288,7 +472,8 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
     return UpEstimate(up, "mesh", best["ground"] + best["walls"],
                       f"ground {best['ground']:.2f} and walls {best['walls']:.2f} of the "
                       f"area; {best['base']:.2f} of the ground at the walls' foot, "
-                      f"{best['low']:.2f} at the scene's bottom; decided by "
+                      f"{best['low']:.2f} at the scene's bottom; resting pose share "
+                      f"{best['rest']:.2f} (weight {rest_w:.2f}); decided by "
                       f"{decision['cue']} (margin {decision['margin']:.2f})",
                       decision)
 
