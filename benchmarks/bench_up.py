@@ -7,6 +7,7 @@ each with its winding as written and reversed, under 5 random rotations.
 Target: within 10 degrees on every one.
 """
 
+import os
 import time
 from pathlib import Path
 
@@ -19,7 +20,10 @@ from data_synth.fixtures import seen_triangles
 from data_synth.scenes import build_scene, scene_names
 from reconstruct.surface.up import up_from_mesh
 
-DRAGON = Path("/work/shared/data/real/dragon_stand/dragonStandRight.conf")
+# the real data beside the repository (``../shared/data/real``), or where SCANAMP_REAL_DATA says
+REAL = Path(os.environ.get("SCANAMP_REAL_DATA",
+                           Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
+DRAGON = REAL / "dragon_stand" / "dragonStandRight.conf"
 Z = np.array([0.0, 0.0, 1.0])
 
 
