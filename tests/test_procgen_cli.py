@@ -152,6 +152,13 @@ def test_city_cli_writes_roads_buildings_and_gis_files(tmp_path):
     assert all(f["properties"]["floors"] >= 1 for f in buildings["features"])
     doc = json.loads(out.with_name("c.city.json").read_text())
     assert check_cityjson(doc) == [] and len(doc["CityObjects"]) == len(buildings["features"])
+    # cjio (the CityJSON tool) reads it as a 2.0 file with every building, and finds no
+    # orphan or duplicate vertex to remove
+    cjio = pytest.importorskip("cjio.cityjson")
+    cm = cjio.CityJSON(file=open(out.with_name("c.city.json")))
+    assert cm.get_version() == "2.0" and cm.is_transform()
+    assert cm.remove_orphan_vertices() == 0 and cm.remove_duplicate_vertices() == 0
+    assert cm.number_city_objects_level1() == len(buildings["features"])
 
 
 def test_city_cli_bad_rule_file_and_map_exit_2_writing_nothing(tmp_path, capsys):
