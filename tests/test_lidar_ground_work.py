@@ -157,3 +157,17 @@ def test_lower_surface_fit_is_the_batched_least_squares():
         ref = _reference_trim(p, ground, offset=0.1, neighbours=k)
         assert np.array_equal(ours, ref)
         assert 0 < ground.sum() - ours.sum() < 0.5 * ground.sum()
+
+
+def test_disc_sums_are_the_direct_convolution():
+    from scipy import ndimage
+
+    from reconstruct.lidar.ground import _disc_sum
+
+    rng = np.random.default_rng(0)
+    for shape, pad in (((40, 70), 15), ((9, 5), 3), ((30, 30), 1)):
+        a = rng.poisson(2.0, shape).astype(float)
+        k = np.arange(-pad, pad + 1)
+        disc = k[:, None] ** 2 + k[None, :] ** 2 <= pad ** 2
+        direct = ndimage.convolve(a, disc.astype(float), mode="constant", cval=0.0)
+        assert np.array_equal(_disc_sum(a, disc), direct)

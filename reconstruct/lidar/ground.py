@@ -203,15 +203,20 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
                           slope_rise=o.densify_slope_rise,
                           local=o.densify_local)
+        state = None
         for k in range(o.lower_passes if o.lower_offset > 0 else 0):
             # a cluster of points above the ground (a shrub's) holds itself up: each is
             # its neighbours' support; without its top the rest stands out. Later passes
             # take only what stands LOWER_CERTAIN above (where the robust weights are 0):
             # at lower_offset they would erode sparse ground's convex tops pass by pass
-            trimmed = trim_above_lower_surface(
-                p, out, offset=o.lower_offset if k == 0 else max(o.lower_offset,
-                                                                 LOWER_CERTAIN),
-                neighbours=_lower_k(p, out, o), within=0.0 if k == 0 else LOWER_CLUSTER)
+            if out.sum() < 7:
+                break
+            state = _lower_fit(p, out, min(_lower_k(p, out, o), int(out.sum()) - 1),
+                               prev=state)
+            trimmed = _trim(out, p[:, 2] - state["fit"],
+                            offset=o.lower_offset if k == 0 else max(o.lower_offset,
+                                                                     LOWER_CERTAIN),
+                            reach=state["reach"], within=0.0 if k == 0 else LOWER_CLUSTER)
             if np.array_equal(trimmed, out):
                 break
             out = trimmed
@@ -252,7 +257,7 @@ def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
     csf.setPointCloud(np.ascontiguousarray(local))
     ground, rest = CSF.VecInt(), CSF.VecInt()
     said: list[str] = []
-    with native_output(said, fds=(1, 2)), _one_openmp_thread():  # it prints its progress
+    with native_output(said, fds=(1, 2), open3d=False), _one_openmp_thread():  # progress
         csf.do_filtering(ground, rest, exportCloth=False)
     log.debug("CSF: %s", "; ".join(said))
     return np.asarray(ground, np.int64)
@@ -453,27 +458,56 @@ def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float
     -------
     (n,) bool
     """
+    g = np.asarray(ground, bool)
+    if g.sum() < 7:
+        return g.copy()
+    f = _lower_fit(p, g, min(int(neighbours), int(g.sum()) - 1), iterations=iterations)
+    return _trim(g, p[:, 2] - f["fit"], offset=offset, reach=f["reach"], within=within)
+
+
+def _trim(ground, height, *, offset, reach, within):
+    """``ground`` less its points ``height`` more than ``offset`` above their lower surface
+    (with ``within``, only those whose neighbours lie within it: ``reach``)."""
+    above = ground & (height > offset)
+    if within > 0:  # only where the ground is dense enough for a shrub to hold k points
+        above &= reach < within
+    return ground & ~above
+
+
+def _lower_fit(p, ground, k, *, iterations=4, prev=None):
+    """The robust lower surface of ``ground`` at each of its points (the quadratic of its
+    ``k`` nearest other ground points, :func:`trim_above_lower_surface`).
+
+    Returns a dict of (n,) arrays by point: ``fit`` (its height; NaN off the ground),
+    ``reach`` (the distance to its k-th neighbour) and ``nb`` (n, k) its neighbours, and
+    ``k``. With ``prev``, such a dict for a superset of ``ground`` and the same ``k``,
+    only the points that lost a neighbour are fitted again: the others' k nearest are
+    the same points, so is their fit.
+    """
     from scipy.spatial import cKDTree
 
     from reconstruct.lidar._kernels import lower_surface
 
-    g = np.asarray(ground, bool).copy()
-    gi = np.flatnonzero(g)
-    if len(gi) < 7:
-        return g
-    q = p[gi]
-    xy = q[:, :2] - q[:, :2].mean(axis=0)
-    k = min(int(neighbours), len(gi) - 1)
-    dist, nb = cKDTree(xy).query(xy, k + 1)
-    dist, nb = dist[:, 1:], nb[:, 1:]  # the point itself left out
-    fit = np.empty(len(gi))
-    lower_surface(xy, q[:, 2], nb.astype(np.int64), np.arange(len(gi)), int(iterations),
-                  LOWER_CERTAIN, 0.25, 1e-6, fit)
-    above = q[:, 2] - fit > offset
-    if within > 0:  # only where the ground is dense enough for a shrub to hold k points
-        above &= dist[:, -1] < within
-    g[gi[above]] = False
-    return g
+    n = len(p)
+    gi = np.flatnonzero(ground)
+    xy = p[gi, :2] - p[:, :2].mean(axis=0)
+    if prev is not None and prev["k"] == k:
+        rows = np.flatnonzero(~np.all(ground[prev["nb"][gi]], axis=1))
+        fit, reach, nb = prev["fit"].copy(), prev["reach"].copy(), prev["nb"].copy()
+    else:
+        rows = np.arange(len(gi))
+        fit, reach, nb = np.full(n, np.nan), np.full(n, np.inf), np.zeros((n, k), np.int64)
+    if len(rows):
+        dist, j = cKDTree(xy).query(xy[rows], k + 1, workers=-1)  # the same on any count
+        nb[gi[rows]] = gi[j[:, 1:]]  # the point itself left out
+        reach[gi[rows]] = dist[:, -1]
+        local = np.full(n, -1, np.int64)
+        local[gi] = np.arange(len(gi))
+        out = np.empty(len(gi))
+        lower_surface(xy, p[gi, 2], local[nb[gi]], rows, int(iterations), LOWER_CERTAIN,
+                      0.25, 1e-6, out)
+        fit[gi[rows]] = out[rows]
+    return {"fit": fit, "reach": reach, "nb": nb, "k": k}
 
 
 def delaunay_2d(xy: np.ndarray):
@@ -521,7 +555,6 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
     (n,) bool
     """
     from scipy import ndimage
-    from scipy.signal import fftconvolve
 
     idx = np.flatnonzero(eligible)
     out = np.zeros(len(p), bool)
@@ -543,7 +576,7 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
     disc = k[:, None] ** 2 + k[None, :] ** 2 <= radius ** 2
     top = ndimage.maximum_filter(zmax, footprint=disc, mode="constant", cval=-np.inf)
     low = ndimage.minimum_filter(zmin, footprint=disc, mode="constant", cval=np.inf)
-    n = fftconvolve(count, disc.astype(np.float64), mode="same")  # points per disc
+    n = _disc_sum(count, disc)  # points per disc
     level = (n > 2.5) & (top - low < flatness)  # centres of level discs (empty ones too)
     # a disc must lie within the points' bounds: beyond them the ground is unknown, and
     # half a disc at a tile's edge would take a strip as narrow as a clearing
@@ -554,4 +587,23 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
         level &= inside[:, None] if a == 0 else inside[None, :]
     wet = ndimage.binary_dilation(level, structure=disc)
     out[idx[wet[at]]] = True
+    return out
+
+
+def _disc_sum(a: np.ndarray, disc: np.ndarray) -> np.ndarray:
+    """Sum of ``a`` over the (odd-sized, symmetric) footprint ``disc`` centred on every
+    cell, zero beyond ``a``: a row of the disc is an interval, summed from the rows'
+    running sums -- exact, and one pass of ``a`` per disc row."""
+    h = disc.shape[0] // 2
+    c = np.zeros((a.shape[0] + 2 * h, a.shape[1] + 2 * h + 1))
+    c[h:h + a.shape[0], h + 1:h + 1 + a.shape[1]] = a
+    c = np.cumsum(c, axis=1)  # c[i, j + 1] - c[i, j - w]: a's row from j - w - h to j - h
+    out = np.zeros(a.shape)
+    cols = np.arange(a.shape[1]) + h
+    for r in range(disc.shape[0]):
+        on = np.flatnonzero(disc[r])
+        if len(on) == 0:
+            continue
+        lo, hi = on[0] - h, on[-1] - h
+        out += c[r:r + a.shape[0], cols + hi + 1] - c[r:r + a.shape[0], cols + lo]
     return out
