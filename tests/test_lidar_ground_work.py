@@ -171,3 +171,37 @@ def test_disc_sums_are_the_direct_convolution():
         disc = k[:, None] ** 2 + k[None, :] ** 2 <= pad ** 2
         direct = ndimage.convolve(a, disc.astype(float), mode="constant", cval=0.0)
         assert np.array_equal(_disc_sum(a, disc), direct)
+
+
+def _cliff(rng, density=12.0):
+    """A 30-degree slope falling in +x with a 4 m cliff at x = 20, under shrubs (discs of
+    0.5-1 m radius, 0.5-2 m high, 40 % of the ground's pulses on them)."""
+    n = int(40 * 30 * density)
+    xy = rng.uniform(0, 40, (n, 2)) * [1, 0.75]
+    ground = -np.tan(np.radians(30)) * xy[:, 0] - 4.0 * (xy[:, 0] > 20)
+    sh = rng.uniform(0, 40, (120, 2)) * [1, 0.75]
+    sh = sh[np.abs(sh[:, 0] - 20) > 1.5]  # none on the cliff's edge itself
+    r = rng.uniform(0.5, 1.0, len(sh))
+    hgt = rng.uniform(0.5, 2.0, len(sh))
+    from scipy.spatial import cKDTree
+
+    d, k = cKDTree(sh).query(xy)
+    on = (d < r[k]) & (rng.random(n) < 0.4)
+    z = ground + rng.normal(0, 0.03, n) + np.where(on, hgt[k] * rng.uniform(0.5, 1, n), 0)
+    return np.column_stack([xy, z]), ~on
+
+
+def test_a_cliffs_top_edge_stays_ground_and_shrubs_do_not():
+    from reconstruct.lidar.ground import GroundOptions, classify_ground
+
+    p, truth = _cliff(np.random.default_rng(4))
+    edge = truth & (p[:, 0] > 18.5) & (p[:, 0] < 20) & (p[:, 1] > 2) & (p[:, 1] < 28)
+    g = classify_ground(p)
+    flat = classify_ground(p, options=GroundOptions(lower_edges=False))
+    # the trim fits a surface pulled down by the cliff's foot: its top edge stood above it
+    # (kept: up to about 1 m back, where half the other side is the foot)
+    assert np.mean(g[edge]) > 0.55
+    assert np.mean(flat[edge]) < np.mean(g[edge]) - 0.4
+    # and the shrubs are no more ground than without the edge rule
+    assert np.mean(g[~truth]) <= np.mean(flat[~truth]) + 0.002
+    assert np.mean(g[~truth]) < 0.02

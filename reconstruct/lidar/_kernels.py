@@ -438,3 +438,66 @@ def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out):
                     e -= a[j, r] * v[r]
                 w[j] = min(max((certain - e) / ramp, 0.0), 1.0)
         out[i] = v[0]
+
+
+@nb.njit(cache=True)
+def edge_surface(xy, z, nb_idx, rows, directions, min_side, drop, share, iterations,
+                 certain, ramp, ridge, out):
+    """For each point of ``rows``: the least distance from it to the robust plane of its
+    neighbours on one side of it (``directions`` half-discs, ``(dx, dy) . u >= 0``, of
+    ``min_side`` points or more) where at least ``share`` of the other side's points lie
+    more than ``drop`` below that plane; inf when no side is such. A point on the top
+    edge of a cliff lies on the plane of the ground behind it, and the cliff's foot far
+    below it; a shrub lies on no side's plane, and grass or low shrubs on a bank drop
+    less than their own height."""
+    k = nb_idx.shape[1]
+    a = np.empty((k, 3))
+    zz = np.empty(k)
+    w = np.empty(k)
+    m = np.empty((3, 3))
+    v = np.empty(3)
+    for ii in range(len(rows)):
+        i = rows[ii]
+        best = np.inf
+        for d in range(directions):
+            ang = 2.0 * np.pi * d / directions
+            ux, uy = np.cos(ang), np.sin(ang)
+            ns = 0
+            for j in range(k):
+                q = nb_idx[i, j]
+                dx, dy = xy[q, 0] - xy[i, 0], xy[q, 1] - xy[i, 1]
+                if dx * ux + dy * uy >= 0.0:
+                    a[ns, 0], a[ns, 1], a[ns, 2] = 1.0, dx, dy
+                    zz[ns] = z[q]
+                    w[ns] = 1.0
+                    ns += 1
+            if ns < min_side:
+                continue
+            for _ in range(iterations):
+                for r in range(3):
+                    v[r] = 0.0
+                    for c in range(3):
+                        m[r, c] = ridge if r == c else 0.0
+                for j in range(ns):
+                    for r in range(3):
+                        wr = w[j] * a[j, r]
+                        v[r] += wr * zz[j]
+                        for c in range(3):
+                            m[r, c] += wr * a[j, c]
+                _solve(m, v)
+                for j in range(ns):
+                    e = zz[j] - v[0] - a[j, 1] * v[1] - a[j, 2] * v[2]
+                    w[j] = min(max((certain - e) / ramp, 0.0), 1.0)
+            # the other side must drop: most of its points well below the side's plane
+            below = 0
+            other = 0
+            for j in range(k):
+                q = nb_idx[i, j]
+                dx, dy = xy[q, 0] - xy[i, 0], xy[q, 1] - xy[i, 1]
+                if dx * ux + dy * uy < 0.0:
+                    other += 1
+                    if z[q] - v[0] - dx * v[1] - dy * v[2] < -drop:
+                        below += 1
+            if other > 0 and below >= share * other:
+                best = min(best, abs(z[i] - v[0]))
+        out[i] = best
