@@ -392,6 +392,39 @@ def _solve(m, v):
 
 
 @nb.njit(cache=True)
+def _robust_fit(a, zz, w, ns, iterations, certain, ramp, ridge, m, v):
+    """Weighted least squares of ``zz[:ns]`` on the columns of ``a[:ns]`` (``v`` the
+    coefficients), ``iterations`` times, the weights ``w`` after each fit
+    ``clip((certain - e) / ramp, 0, 1)`` of its residuals (Kraus and Pfeifer's asymmetric
+    weights; ``w`` starts at 1). ``m`` is scratch, ``ridge`` added to its diagonal."""
+    p = v.shape[0]
+    for j in range(ns):
+        w[j] = 1.0
+    for _ in range(iterations):
+        for r in range(p):
+            v[r] = 0.0
+            for c in range(p):
+                m[r, c] = ridge if r == c else 0.0
+        for j in range(ns):
+            if w[j] == 0.0:
+                continue
+            for r in range(p):
+                wr = w[j] * a[j, r]
+                v[r] += wr * zz[j]
+                for c in range(r, p):
+                    m[r, c] += wr * a[j, c]
+        for r in range(p):
+            for c in range(r):
+                m[r, c] = m[c, r]
+        _solve(m, v)
+        for j in range(ns):
+            e = zz[j]
+            for r in range(p):
+                e -= a[j, r] * v[r]
+            w[j] = min(max((certain - e) / ramp, 0.0), 1.0)
+
+
+@nb.njit(cache=True)
 def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out):
     """Height at each point of ``rows`` of the robust quadratic through its neighbours.
 
@@ -414,29 +447,7 @@ def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out):
             a[j, 0], a[j, 1], a[j, 2] = 1.0, dx, dy
             a[j, 3], a[j, 4], a[j, 5] = dx * dx, dx * dy, dy * dy
             zz[j] = z[q]
-            w[j] = 1.0
-        for _ in range(iterations):
-            for r in range(6):
-                v[r] = 0.0
-                for c in range(6):
-                    m[r, c] = ridge if r == c else 0.0
-            for j in range(k):
-                if w[j] == 0.0:
-                    continue
-                for r in range(6):
-                    wr = w[j] * a[j, r]
-                    v[r] += wr * zz[j]
-                    for c in range(r, 6):
-                        m[r, c] += wr * a[j, c]
-            for r in range(6):
-                for c in range(r):
-                    m[r, c] = m[c, r]
-            _solve(m, v)
-            for j in range(k):
-                e = zz[j]
-                for r in range(6):
-                    e -= a[j, r] * v[r]
-                w[j] = min(max((certain - e) / ramp, 0.0), 1.0)
+        _robust_fit(a, zz, w, k, iterations, certain, ramp, ridge, m, v)
         out[i] = v[0]
 
 
@@ -469,25 +480,10 @@ def edge_surface(xy, z, nb_idx, rows, directions, min_side, drop, share, iterati
                 if dx * ux + dy * uy >= 0.0:
                     a[ns, 0], a[ns, 1], a[ns, 2] = 1.0, dx, dy
                     zz[ns] = z[q]
-                    w[ns] = 1.0
                     ns += 1
             if ns < min_side:
                 continue
-            for _ in range(iterations):
-                for r in range(3):
-                    v[r] = 0.0
-                    for c in range(3):
-                        m[r, c] = ridge if r == c else 0.0
-                for j in range(ns):
-                    for r in range(3):
-                        wr = w[j] * a[j, r]
-                        v[r] += wr * zz[j]
-                        for c in range(3):
-                            m[r, c] += wr * a[j, c]
-                _solve(m, v)
-                for j in range(ns):
-                    e = zz[j] - v[0] - a[j, 1] * v[1] - a[j, 2] * v[2]
-                    w[j] = min(max((certain - e) / ramp, 0.0), 1.0)
+            _robust_fit(a, zz, w, ns, iterations, certain, ramp, ridge, m, v)
             # the other side must drop: most of its points well below the side's plane
             below = 0
             other = 0
