@@ -56,6 +56,9 @@ Four steps, each after a published method:
    (``lower_passes``, 3 at most): on a steep slope under shrubs the ground is seen in
    patches, and a shrub taken in whole holds itself up -- its points are each other's
    neighbours -- until its top is gone; 30 neighbours reach past it to the ground around.
+   A cliff's top edge stands above the surface its foot pulls down; it is kept when it
+   lies on the robust plane of its neighbours on one side and most of the other side
+   lies 2 m or more below that plane (``lower_edges``).
 
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
