@@ -26,3 +26,15 @@ def test_labeled_mesh_round_trip_and_readers_agree(tmp_path):
     (tmp_path / "t.ply").write_bytes(p.read_bytes()[:300])
     with pytest.raises(InputError, match="t.ply.*truncated"):
         read_labeled_mesh(tmp_path / "t.ply")
+
+
+def test_native_output_captures_descriptors_without_open3d():
+    import os
+
+    from core.io.mesh import native_output
+
+    said = []
+    with native_output(said, fds=(1, 2), open3d=False):
+        os.write(1, b"progress 50%\n")
+        os.write(2, b"a warning\n")
+    assert said == ["progress 50%", "a warning"]

@@ -374,15 +374,20 @@ def _write_empty_ply(path, *, normals: bool, colors: bool) -> Path:
 
 
 @contextlib.contextmanager
-def native_output(said: list[str], fds: tuple[int, ...] = (2,)):
+def native_output(said: list[str], fds: tuple[int, ...] = (2,), *, open3d: bool = True):
     """Capture file descriptors ``fds`` (C libraries such as RPly and PoissonRecon print
     there directly) and Open3D's own warnings; what they said is appended to ``said``,
     one string per line, so that the caller can log it or put it in a one-line error
-    instead of a stray line on the terminal."""
+    instead of a stray line on the terminal. ``open3d=False`` for a block that calls no
+    Open3D: importing it only to quiet it costs seconds."""
     import tempfile
 
-    import open3d as o3d
+    if open3d:
+        import open3d as o3d
 
+        quiet = o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error)
+    else:
+        quiet = contextlib.nullcontext()
     sys.stdout.flush()
     sys.stderr.flush()
     try:
@@ -390,8 +395,7 @@ def native_output(said: list[str], fds: tuple[int, ...] = (2,)):
     except OSError:  # pragma: no cover - no such descriptor at all
         yield
         return
-    with tempfile.TemporaryFile() as sink, o3d.utility.VerbosityContextManager(
-            o3d.utility.VerbosityLevel.Error):
+    with tempfile.TemporaryFile() as sink, quiet:
         for fd in fds:
             os.dup2(sink.fileno(), fd)
         try:

@@ -56,6 +56,9 @@ Four steps, each after a published method:
    (``lower_passes``, 3 at most): on a steep slope under shrubs the ground is seen in
    patches, and a shrub taken in whole holds itself up -- its points are each other's
    neighbours -- until its top is gone; 30 neighbours reach past it to the ground around.
+   A cliff's top edge stands above the surface its foot pulls down; it is kept when it
+   lies on the robust plane of its neighbours on one side and most of the other side
+   lies 2 m or more below that plane (``lower_edges``).
 
 >>> import numpy as np
 >>> rng = np.random.default_rng(0)
@@ -85,6 +88,11 @@ log = logging.getLogger(__name__)
 
 LOWER_CERTAIN = 0.3  # metres above the robust lower surface: Kraus and Pfeifer's weight 0
 LOWER_CLUSTER = 2.0  # metres: later trims only where a point's neighbours lie this close
+EDGE_DIRECTIONS = 8  # the half-discs a point's sides are fitted on
+# metres: a top edge is kept when most of its other side lies this far below the plane of
+# the ground behind it -- a step, not the 0.3-1.1 m that vegetation stands over a bank
+# (on lidR's Topography.laz, a 1-1.5 m drop kept such vegetation: its DTM 0.125 -> 0.133 m)
+EDGE_DROP = 2.0
 
 
 @dataclass
@@ -144,6 +152,11 @@ class GroundOptions(Config):
                                  help="the lower surface's neighbours are also all those "
                                       "within this radius at the ground's mean density (60 "
                                       "at most; 0: lower_neighbours alone)")
+    lower_edges: bool = option(True, help="the lower-surface trim keeps a point lying on "
+                                          "the plane of its ground neighbours on one side "
+                                          "of it when most of the other side lies 2 m or "
+                                          "more below that plane: a cliff's top edge, "
+                                          "which the points of its foot make stand out")
     lower_passes: int = option(3, range="[1, 20]",
                                help="the lower-surface trim repeated on what it kept, until "
                                     "it removes nothing, this many times at most")
@@ -203,15 +216,20 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
                           slope_rise=o.densify_slope_rise,
                           local=o.densify_local)
+        state = None
         for k in range(o.lower_passes if o.lower_offset > 0 else 0):
             # a cluster of points above the ground (a shrub's) holds itself up: each is
             # its neighbours' support; without its top the rest stands out. Later passes
             # take only what stands LOWER_CERTAIN above (where the robust weights are 0):
             # at lower_offset they would erode sparse ground's convex tops pass by pass
-            trimmed = trim_above_lower_surface(
-                p, out, offset=o.lower_offset if k == 0 else max(o.lower_offset,
-                                                                 LOWER_CERTAIN),
-                neighbours=_lower_k(p, out, o), within=0.0 if k == 0 else LOWER_CLUSTER)
+            if out.sum() < 7:
+                break
+            state = _lower_fit(p, out, min(_lower_k(p, out, o), int(out.sum()) - 1),
+                               prev=state, edges=o.lower_offset if o.lower_edges else 0.0)
+            trimmed = _trim(out, state["height"],
+                            offset=o.lower_offset if k == 0 else max(o.lower_offset,
+                                                                     LOWER_CERTAIN),
+                            reach=state["reach"], within=0.0 if k == 0 else LOWER_CLUSTER)
             if np.array_equal(trimmed, out):
                 break
             out = trimmed
@@ -252,7 +270,7 @@ def _cloth(local: np.ndarray, o: GroundOptions) -> np.ndarray:
     csf.setPointCloud(np.ascontiguousarray(local))
     ground, rest = CSF.VecInt(), CSF.VecInt()
     said: list[str] = []
-    with native_output(said, fds=(1, 2)), _one_openmp_thread():  # it prints its progress
+    with native_output(said, fds=(1, 2), open3d=False), _one_openmp_thread():  # progress
         csf.do_filtering(ground, rest, exportCloth=False)
     log.debug("CSF: %s", "; ".join(said))
     return np.asarray(ground, np.int64)
@@ -337,15 +355,19 @@ def _hull(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
                 angle: float = 6.0, distance: float = 1.4, offset: float = 0.1,
                 passes: int = 50, slope_gain: float = 0.0, slope_rise: float = 90.0,
-                local: bool = False) -> np.ndarray:
+                local: bool = False, stats: dict | None = None) -> np.ndarray:
     """Axelsson's progressive TIN densification from ``seeds``.
 
     A point of ``eligible`` inside a triangle of the current ground joins the ground when
     its distance ``d`` to the triangle's plane is below ``distance`` and
     ``atan(|d| / r) < angle``, ``r`` the horizontal distance to the triangle's nearest
     corner, or when ``|d| < offset`` (close to a corner the angle measures the range
-    noise, not the terrain); all such points join at once, then the triangulation is
-    redone, ``passes`` times at most or until none joins. With ``slope_gain`` the angle
+    noise, not the terrain); all such points join at once, then they are inserted into
+    the triangulation, ``passes`` times at most or until none joins. The triangulation is
+    the seeds' Delaunay kept Delaunay by insertion (Bowyer-Watson, in
+    :mod:`reconstruct.lidar._kernels`), and a pass re-locates only the candidates whose
+    triangle changed: a pass costs what joined, not the whole cloud (rebuilding it
+    every pass took minutes on 1 ha at 15 pts/m2). With ``slope_gain`` the angle
     of a triangle sloping ``s`` degrees is ``angle + slope_gain * s`` (89 at most): a
     terrain slope term, as TerraScan's guidance ties its angles to the terrain's. ``s`` is
     at most ``slope_rise`` degrees more than the slope of the seeds' TIN under the point:
@@ -370,6 +392,9 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     slope_rise : float
         Degrees the slope term's slope may exceed the seeds' (90: unbounded).
     local : bool
+    stats : dict, optional
+        Filled with the work done: ``passes``, ``walks`` (point locations), ``steps``
+        (triangles the walks stepped through), ``inserted`` and ``candidates``.
 
     Returns
     -------
@@ -378,68 +403,52 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     """
     from scipy.spatial import QhullError
 
+    from reconstruct.lidar._kernels import densify
+
     g = np.asarray(seeds, bool).copy()
     elig = np.asarray(eligible, bool)
-    q = p[:, :2] - p[:, :2].mean(axis=0)  # projected coordinates lose digits in Qhull
-    tan_max = np.tan(np.radians(angle))
+    gi = np.flatnonzero(g)
+    cand = np.flatnonzero(elig & ~g)
+    if len(gi) < 3 or len(cand) == 0 or passes < 1:
+        return g
+    # projected coordinates lose digits in Qhull; the candidates in a space-filling order,
+    # so that each walk to a candidate's triangle starts near it
+    pc = np.column_stack([p[:, :2] - p[:, :2].mean(axis=0), p[:, 2]])
+    cand = cand[np.argsort(_morton(pc[cand, :2]), kind="stable")]
+    try:
+        tri = delaunay_2d(pc[gi, :2])
+    except QhullError:
+        return g
+    loc = tri.find_simplex(pc[cand, :2], bruteforce=False).astype(np.int64)  # -1: outside
+    tv = gi[tri.simplices].astype(np.int64)
+    tn = tri.neighbors.astype(np.int64)
+    c = pc[tv, :2]
+    cw = ((c[:, 1, 0] - c[:, 0, 0]) * (c[:, 2, 1] - c[:, 0, 1])
+          - (c[:, 1, 1] - c[:, 0, 1]) * (c[:, 2, 0] - c[:, 0, 0])) < 0
+    tv[cw] = tv[cw][:, [0, 2, 1]]  # counter-clockwise, neighbours still opposite
+    tn[cw] = tn[cw][:, [0, 2, 1]]
     # the slope term's slope is the seeds' (fixed): the current triangle's own slope fed
     # back -- a shrub that joined steepened its triangles, which let more of it in, up a
     # cliff's edge and into the canopy (a 45-degree stand: type II 12 %, DTM RMSE 12 m)
-    seed_slope = _seed_slope(p, q, g) if slope_gain > 0 and slope_rise < 90 else None
-    for _ in range(int(passes)):
-        gi = np.flatnonzero(g)
-        try:
-            tri = delaunay_2d(q[gi])
-        except QhullError:
-            break
-        cand = np.flatnonzero(elig & ~g)
-        s = tri.find_simplex(q[cand], bruteforce=False)  # outside the hull: -1, fast
-        cand, s = cand[s >= 0], s[s >= 0]
-        if len(cand) == 0:
-            break
-        k = gi[tri.simplices[s]]  # (m, 3 corners)
-        corners = p[k]
-        normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        normal /= np.linalg.norm(normal, axis=1)[:, None]
-        d = np.abs(np.einsum("ij,ij->i", p[cand] - corners[:, 0], normal))
-        rc = np.linalg.norm(q[cand][:, None] - q[k], axis=2)
-        r = rc.min(axis=1)
-        d_angle = d
-        if local:
-            vn = _vertex_normals(p[gi], tri.simplices)
-            near = tri.simplices[s, np.argmin(rc, axis=1)]
-            dl = np.abs(np.einsum("ij,ij->i", p[cand] - p[gi[near]], vn[near]))
-            d_angle = np.minimum(d, dl)
-        tan_a = tan_max
-        if slope_gain > 0:
-            slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
-            if seed_slope is not None:
-                slope = np.minimum(slope, np.nan_to_num(seed_slope[cand], nan=90.0)
-                                   + slope_rise)
-            tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
-        join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
-        if not np.any(join):
-            break
-        g[cand[join]] = True
+    rise = float(slope_rise) if slope_gain > 0 and slope_rise < 90 else 90.0
+    work = np.zeros(4, np.int64)
+    densify(pc, tv, tn, g, cand, loc, float(angle), float(distance), float(offset),
+            int(passes), float(slope_gain), rise, bool(local), work)
+    if stats is not None:
+        stats.update(passes=int(work[0]), walks=int(work[1]), steps=int(work[2]),
+                     inserted=int(work[3]), candidates=len(cand))
     return g
 
 
-def _seed_slope(p, q, seeds):
-    """(n,) slope in degrees of the seeds' TIN triangle over every point (NaN outside)."""
-    from scipy.spatial import QhullError
-
-    gi = np.flatnonzero(seeds)
-    out = np.full(len(p), np.nan)
-    try:
-        tri = delaunay_2d(q[gi])
-    except QhullError:
-        return out
-    c = p[gi][tri.simplices]
-    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
-    sl = np.degrees(np.arccos(np.minimum(np.abs(n[:, 2]) / np.linalg.norm(n, axis=1), 1.0)))
-    s = tri.find_simplex(q, bruteforce=False)
-    out[s >= 0] = sl[s[s >= 0]]
-    return out
+def _morton(xy: np.ndarray) -> np.ndarray:
+    """Z-order keys of ``(n, 2)`` points on a grid of 2^16 cells a side over their box."""
+    lo, span = xy.min(axis=0), np.maximum(np.ptp(xy, axis=0), 1e-9)
+    ij = np.minimum((xy - lo) / span * 65535, 65535).astype(np.uint64)
+    key = np.zeros(len(xy), np.uint64)
+    for b in range(16):
+        bit = np.uint64(1 << b)
+        key |= ((ij[:, 0] & bit) << np.uint64(b)) | ((ij[:, 1] & bit) << np.uint64(b + 1))
+    return key
 
 
 def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float = 0.1,
@@ -462,46 +471,75 @@ def trim_above_lower_surface(p: np.ndarray, ground: np.ndarray, *, offset: float
     -------
     (n,) bool
     """
+    g = np.asarray(ground, bool)
+    if g.sum() < 7:
+        return g.copy()
+    f = _lower_fit(p, g, min(int(neighbours), int(g.sum()) - 1), iterations=iterations)
+    return _trim(g, p[:, 2] - f["fit"], offset=offset, reach=f["reach"], within=within)
+
+
+def _trim(ground, height, *, offset, reach, within):
+    """``ground`` less its points ``height`` more than ``offset`` above their lower surface
+    (with ``within``, only those whose neighbours lie within it: ``reach``)."""
+    above = ground & (height > offset)
+    if within > 0:  # only where the ground is dense enough for a shrub to hold k points
+        above &= reach < within
+    return ground & ~above
+
+
+def _lower_fit(p, ground, k, *, iterations=4, prev=None, edges=0.0):
+    """The robust lower surface of ``ground`` at each of its points (the quadratic of its
+    ``k`` nearest other ground points, :func:`trim_above_lower_surface`).
+
+    Returns a dict of (n,) arrays by point: ``fit`` (its height; NaN off the ground),
+    ``reach`` (the distance to its k-th neighbour) and ``nb`` (n, k) its neighbours, and
+    ``k``. With ``prev``, such a dict for a superset of ``ground`` and the same ``k``,
+    only the points that lost a neighbour are fitted again: the others' k nearest are
+    the same points, so is their fit. With ``edges`` > 0, ``height`` is the point's
+    height above its fit, or, for those more than ``edges`` above it, its least
+    distance to the robust plane of its neighbours on one side of it when less
+    (:func:`reconstruct.lidar._kernels.edge_surface`): a cliff's or a terrace's top edge
+    stands above the fit that its foot pulls down, but lies on the plane of the ground
+    behind it; a shrub lies on no side's.
+    """
     from scipy.spatial import cKDTree
 
-    g = np.asarray(ground, bool).copy()
-    gi = np.flatnonzero(g)
-    if len(gi) < 7:
-        return g
-    q = p[gi]
-    xy = q[:, :2] - q[:, :2].mean(axis=0)
-    k = min(int(neighbours), len(gi) - 1)
-    dist, nb = cKDTree(xy).query(xy, k + 1)
-    dist, nb = dist[:, 1:], nb[:, 1:]  # the point itself left out
-    dx = xy[nb] - xy[:, None]
-    z = q[nb, 2]
-    a = np.stack([np.ones_like(dx[..., 0]), dx[..., 0], dx[..., 1], dx[..., 0] ** 2,
-                  dx[..., 0] * dx[..., 1], dx[..., 1] ** 2], axis=-1)
-    w = np.ones(z.shape)
-    ridge = 1e-6 * np.eye(6)
-    for _ in range(int(iterations)):
-        aw = a * w[..., None]
-        coef = np.linalg.solve(np.einsum("nki,nkj->nij", aw, a) + ridge,
-                               np.einsum("nki,nk->ni", aw, z)[..., None])[..., 0]
-        e = z - np.einsum("nki,ni->nk", a, coef)
-        w = np.clip((LOWER_CERTAIN - e) / 0.25, 0.0, 1.0)
-    above = q[:, 2] - coef[:, 0] > offset
-    if within > 0:  # only where the ground is dense enough for a shrub to hold k points
-        above &= dist[:, -1] < within
-    g[gi[above]] = False
-    return g
+    from reconstruct.lidar._kernels import edge_surface, lower_surface
 
-
-def _vertex_normals(v: np.ndarray, simplices: np.ndarray) -> np.ndarray:
-    """(n, 3) unit upward normals of the vertices ``v`` of a TIN: the area-weighted mean of
-    their triangles' normals."""
-    c = v[simplices]
-    tn = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])  # |tn| = twice the area
-    tn *= np.where(tn[:, 2] < 0, -1.0, 1.0)[:, None]
-    vn = np.zeros((len(v), 3))
-    for j in range(3):
-        np.add.at(vn, simplices[:, j], tn)
-    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
+    n = len(p)
+    gi = np.flatnonzero(ground)
+    xy = p[gi, :2] - p[:, :2].mean(axis=0)
+    if prev is not None and prev["k"] == k:
+        rows = np.flatnonzero(~np.all(ground[prev["nb"][gi]], axis=1))
+        fit, reach, nb = prev["fit"].copy(), prev["reach"].copy(), prev["nb"].copy()
+    else:
+        rows = np.arange(len(gi))
+        fit, reach, nb = np.full(n, np.nan), np.full(n, np.inf), np.zeros((n, k), np.int64)
+    if len(rows):
+        dist, j = cKDTree(xy).query(xy[rows], k + 1, workers=-1)  # the same on any count
+        nb[gi[rows]] = gi[j[:, 1:]]  # the point itself left out
+        reach[gi[rows]] = dist[:, -1]
+        local = np.full(n, -1, np.int64)
+        local[gi] = np.arange(len(gi))
+        out = np.empty(len(gi))
+        lower_surface(xy, p[gi, 2], local[nb[gi]], rows, int(iterations), LOWER_CERTAIN,
+                      0.25, 1e-6, out)
+        fit[gi[rows]] = out[rows]
+    height = p[:, 2] - fit
+    edge = prev["edge"].copy() if prev is not None and prev["k"] == k else np.full(n, np.nan)
+    if edges > 0:  # NaN: not measured; inf: no side
+        edge[gi[rows]] = np.nan  # fitted again: its sides too
+        todo = np.flatnonzero((height[gi] > edges) & np.isnan(edge[gi]))
+        if len(todo):
+            local = np.full(n, -1, np.int64)
+            local[gi] = np.arange(len(gi))
+            out = np.full(len(gi), np.inf)
+            edge_surface(xy, p[gi, 2], local[nb[gi]], todo, EDGE_DIRECTIONS,
+                         max(6, k // 4), EDGE_DROP, 0.5, int(iterations),
+                         LOWER_CERTAIN, 0.25, 1e-6, out)
+            edge[gi[todo]] = out[todo]
+        height = np.minimum(height, np.nan_to_num(edge, nan=np.inf))
+    return {"fit": fit, "reach": reach, "nb": nb, "k": k, "edge": edge, "height": height}
 
 
 def delaunay_2d(xy: np.ndarray):
@@ -549,7 +587,6 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
     (n,) bool
     """
     from scipy import ndimage
-    from scipy.signal import fftconvolve
 
     idx = np.flatnonzero(eligible)
     out = np.zeros(len(p), bool)
@@ -571,7 +608,7 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
     disc = k[:, None] ** 2 + k[None, :] ** 2 <= radius ** 2
     top = ndimage.maximum_filter(zmax, footprint=disc, mode="constant", cval=-np.inf)
     low = ndimage.minimum_filter(zmin, footprint=disc, mode="constant", cval=np.inf)
-    n = fftconvolve(count, disc.astype(np.float64), mode="same")  # points per disc
+    n = _disc_sum(count, disc)  # points per disc
     level = (n > 2.5) & (top - low < flatness)  # centres of level discs (empty ones too)
     # a disc must lie within the points' bounds: beyond them the ground is unknown, and
     # half a disc at a tile's edge would take a strip as narrow as a clearing
@@ -582,4 +619,23 @@ def find_water(p: np.ndarray, eligible: np.ndarray, *, radius: float = 15.0,
         level &= inside[:, None] if a == 0 else inside[None, :]
     wet = ndimage.binary_dilation(level, structure=disc)
     out[idx[wet[at]]] = True
+    return out
+
+
+def _disc_sum(a: np.ndarray, disc: np.ndarray) -> np.ndarray:
+    """Sum of ``a`` over the (odd-sized, symmetric) footprint ``disc`` centred on every
+    cell, zero beyond ``a``: a row of the disc is an interval, summed from the rows'
+    running sums -- exact, and one pass of ``a`` per disc row."""
+    h = disc.shape[0] // 2
+    c = np.zeros((a.shape[0] + 2 * h, a.shape[1] + 2 * h + 1))
+    c[h:h + a.shape[0], h + 1:h + 1 + a.shape[1]] = a
+    c = np.cumsum(c, axis=1)  # c[i, j + 1] - c[i, j - w]: a's row from j - w - h to j - h
+    out = np.zeros(a.shape)
+    cols = np.arange(a.shape[1]) + h
+    for r in range(disc.shape[0]):
+        on = np.flatnonzero(disc[r])
+        if len(on) == 0:
+            continue
+        lo, hi = on[0] - h, on[-1] - h
+        out += c[r:r + a.shape[0], cols + hi + 1] - c[r:r + a.shape[0], cols + lo]
     return out
