@@ -5,6 +5,13 @@ at least ``min_height`` tall and the highest within a disc whose diameter grows 
 height, ``window_base + window_slope * height`` (the variable window of Popescu and Wynne
 2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
 tops (flooding from the highest level down), within the cells at least ``min_height`` tall.
+Then the tops are pruned on the crowns' adjacency graph: a top whose *dynamic* (how far the
+smoothed canopy falls from it before a path reaches a higher top) is below ``prominence``
+is a bump of the higher crown (a broadleaf's branch clusters, a conifer's side shoot), and a
+top lower than ``understory`` times the higher top its crown meets is regeneration under or
+beside that tree, not a tree of the stand; either way its crown joins the higher one's. The
+window alone cannot do this: a window wide enough to hold one broadleaf crown to one top
+merges conifers two metres apart, and one narrow enough to part them splits the broadleaf.
 
 A tree's top and height: given the surface (DSM) and terrain (DTM) on the CHM's grid, the top
 is the highest *elevation* of its crown, and its height that elevation less the ground under
@@ -36,7 +43,7 @@ import numpy as np
 from core.config import Config, option
 from core.io.raster import Raster
 
-__all__ = ["TreeOptions", "detect_trees"]
+__all__ = ["TreeOptions", "detect_trees", "dynamics"]
 
 
 @dataclass
@@ -52,6 +59,17 @@ class TreeOptions(Config):
     window_slope: float = option(0.1, range="[0, 2]",
                                  help="window diameter grows by this many metres per metre "
                                       "of height")
+    prominence: float = option(0.25, unit="m", range="[0, 50]",
+                               help="a top is a tree of its own only when the canopy dips "
+                                    "at least this much (plus prominence_slope x its "
+                                    "height) between it and any higher top; else its "
+                                    "crown joins the higher one's")
+    understory: float = option(0.3, range="[0, 1]",
+                               help="a top lower than this share of the higher top its "
+                                    "crown meets is understory, not a tree")
+    prominence_slope: float = option(0.0, range="[0, 1]",
+                                     help="the dip a top needs grows by this many metres "
+                                          "per metre of its height")
 
 
 def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
@@ -144,6 +162,11 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     crowns = np.zeros(raw.shape, np.int32)
     crowns[ti, tj] = np.arange(1, k + 1)
     crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * o.smooth + 0.05))
+    if o.prominence > 0 or o.prominence_slope > 0 or o.understory > 0:
+        keep, crowns = _merge_shallow(s, crowns, k, o.prominence, o.prominence_slope,
+                                      o.understory)
+        ti, tj = ti[keep], tj[keep]
+        k = len(ti)
     area = np.bincount(crowns.ravel(), minlength=k + 1)[1:] * res * res
     if dsm is not None:
         ai, aj = _highest(dsm.values, crowns, ti, tj)
@@ -158,6 +181,96 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     return {"x": chm.x0 + tj * res, "y": chm.y0 + ti * res, "height": height,
             "crown_area": area.astype(np.float64), "stem_z": stem_z,
             "crowns": crowns.astype(np.int32)}
+
+
+def _saddles(s: np.ndarray, crowns: np.ndarray):
+    """The pass between every two touching crowns (8-neighbours): ``(a, b, level)``, the
+    highest of ``min(s)`` over the cell pairs where crown ``a`` meets crown ``b`` (a < b,
+    1-based)."""
+    a_all, b_all, lv_all = [], [], []
+    r, c = s.shape
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        i0, i1 = 0, r - di
+        j0, j1 = max(0, -dj), c - max(0, dj)
+        la = crowns[i0:i1, j0:j1]
+        lb = crowns[i0 + di:i1 + di, j0 + dj:j1 + dj]
+        sel = (la > 0) & (lb > 0) & (la != lb)
+        if not np.any(sel):
+            continue
+        lv = np.minimum(s[i0:i1, j0:j1][sel], s[i0 + di:i1 + di, j0 + dj:j1 + dj][sel])
+        a, b = la[sel], lb[sel]
+        a_all.append(np.minimum(a, b))
+        b_all.append(np.maximum(a, b))
+        lv_all.append(lv)
+    if not a_all:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
+    a, b, lv = np.concatenate(a_all), np.concatenate(b_all), np.concatenate(lv_all)
+    key = a.astype(np.int64) * (int(crowns.max()) + 1) + b
+    order = np.lexsort((lv, key))          # by pair, then level: the last of each is highest
+    last = np.r_[key[order][1:] != key[order][:-1], True]
+    o = order[last]
+    return a[o].astype(np.int64), b[o].astype(np.int64), lv[o]
+
+
+def dynamics(s: np.ndarray, crowns: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each top's dynamic: how far the canopy must fall from it before a path reaches a
+    higher top (its peak less the highest pass to a higher crown; Grimaud 1992; the
+    h-maxima of Soille 2003 keep the maxima of dynamic at least h), and the crown of that
+    higher top. Crowns ``1..k`` sorted by top height, tallest first; the tallest of each
+    group of touching crowns has an infinite dynamic and itself as its higher crown.
+
+    The passes are taken highest first (Kruskal's order on the crowns' adjacency graph):
+    when a pass joins two groups, the lower group's top has met a higher one at that level.
+    Returns ``(dynamic (k,), higher (k,) 1-based)``."""
+    peak = np.zeros(k + 1)
+    np.maximum.at(peak, crowns.ravel(), s.ravel())
+    a, b, lv = _saddles(s, crowns)
+    parent = np.arange(k + 1)
+
+    def find(x):
+        root = x
+        while parent[root] != root:
+            root = parent[root]
+        while parent[x] != root:
+            parent[x], x = root, parent[x]
+        return root
+
+    owner = np.arange(k + 1)   # each group's highest top (its lowest label)
+    dyn = np.full(k + 1, np.inf)
+    higher = np.arange(k + 1)
+    for i in np.argsort(-lv, kind="stable"):
+        ra, rb = find(a[i]), find(b[i])
+        if ra == rb:
+            continue
+        ha, hb = owner[ra], owner[rb]
+        hi, lo = (ha, hb) if ha < hb else (hb, ha)   # label order is height order
+        dyn[lo] = peak[lo] - lv[i]
+        higher[lo] = hi
+        parent[rb] = ra
+        owner[ra] = hi
+    return dyn[1:], higher[1:]
+
+
+def _merge_shallow(s: np.ndarray, crowns: np.ndarray, k: int, base: float, slope: float,
+                   under: float = 0.0):
+    """Join each top of dynamic (:func:`dynamics`) below ``base + slope x its height`` to
+    the crown of the higher top it meets (or where that one went). Returns the tops kept
+    (k,) bool and the crowns relabelled ``1..kept`` in the same order."""
+    dyn, higher = dynamics(s, crowns, k)
+    peak = np.zeros(k + 1)
+    np.maximum.at(peak, crowns.ravel(), s.ravel())
+    keep = np.r_[True, (dyn >= base + slope * peak[1:])
+                 & ((peak[1:] >= under * peak[higher]) | ~np.isfinite(dyn))]
+    into = np.r_[0, higher]
+    for t in range(1, k + 1):          # higher labels come first: follow the chain down
+        c = t
+        while not keep[c]:
+            c = into[c]
+        into[t] = c
+    kept = keep[1:]
+    new = np.zeros(k + 1, np.int64)
+    new[1:][kept] = np.arange(1, int(kept.sum()) + 1)
+    return kept, new[into][crowns].astype(np.int32)
 
 
 def _highest(z: np.ndarray, crowns: np.ndarray, ti, tj) -> tuple:
