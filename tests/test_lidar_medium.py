@@ -45,7 +45,7 @@ def test_the_gap_fraction_of_a_leaf_layer_is_beer_lamberts(lai, theta):
     d = np.tile([np.sin(t), 0.0, -np.cos(t)], (n, 1)).astype(np.float32)
     o = np.column_stack([np.random.default_rng(1).uniform(-50, 50, (n, 2)), np.full(n, 100.0)])
     rays = np.hstack([o, d]).astype(np.float32)
-    (R, E), obj, _ = w.cast_energy(rays, np.ones(1), 0.0, np.random.default_rng(0))
+    (R, E), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
     assert np.all(np.isfinite(R)) and np.all(E > 0)
     through = np.mean(obj == 0)                   # the ground (object index 0)
     want = np.exp(-G_SPHERICAL * lai / np.cos(t))
@@ -74,13 +74,13 @@ def test_overlapping_media_add_and_a_solid_inside_still_returns():
     n = 20000
     o = np.column_stack([np.random.default_rng(2).uniform(-100, 100, (n, 2)), np.full(n, 50.0)])
     rays = np.hstack([o, np.tile([0, 0, -1.0], (n, 1))]).astype(np.float32)
-    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0, np.random.default_rng(0))
+    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
     off = np.hypot(*o[:, :2].T) > 10
     want = np.exp(-G_SPHERICAL * (0.25 * 8 + 0.25 * 8))
     assert np.mean(obj[off] == 0) == pytest.approx(want, abs=0.01)
     o = np.column_stack([np.random.default_rng(3).uniform(-4.5, 4.5, (n, 2)), np.full(n, 50.0)])
     rays = np.hstack([o, np.tile([0, 0, -1.0], (n, 1))]).astype(np.float32)
-    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0, np.random.default_rng(1))
+    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
     # above the branch's top (z 15.5): 6.5 m of b and 2.5 m of a
     to_branch = np.exp(-G_SPHERICAL * 0.25 * (6.5 + 2.5))
     assert np.mean(obj == 3) == pytest.approx(to_branch, abs=0.015)

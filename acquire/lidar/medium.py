@@ -1,46 +1,64 @@
-"""Leaves too small to mesh: sub-rays through turbid-medium crowns, by Beer-Lambert.
+"""Leaves too many to mesh: sub-rays through the leaves of foliage media.
 
 A broadleaf crown holds a hundred thousand leaves of a few centimetres, more than a scene
-can mesh and finer than a footprint's sub-rays. It is a closed envelope of leaf area
-density ``u`` (m² of leaf per m³: :attr:`SceneObject.leaf_area_density`), the crown of the
-geometric-optical radiative-transfer models (Li and Strahler 1992; Ni et al. 1999, GORT,
-doi:10.1109/36.752225) and of DART's turbid cells (Gastellu-Etchegorry et al. 1996). A ray
-inside it meets leaves at the rate ``G u`` per metre, ``G`` the mean projection of a unit of
-leaf area on the plane across the ray: 0.5 for leaves at random (spherical) angles, whatever
-the ray's direction (Ross 1981). So the distance to the first leaf is exponential, and the
-share of rays that cross a layer of leaf area index ``L`` at zenith angle ``theta`` without
-meeting a leaf is ``exp(-G L / cos(theta))`` (Beer-Lambert; Monsi and Saeki 1953).
+can mesh. It is a closed envelope of leaf area density ``u`` (m² of leaf per m³:
+:attr:`SceneObject.leaf_area_density`), the crown of the geometric-optical
+radiative-transfer models (Li and Strahler 1992; Ni et al. 1999, GORT,
+doi:10.1109/36.752225) and of DART's turbid cells (Gastellu-Etchegorry et al. 1996), whose
+leaves are drawn where a ray needs them rather than stored: space is a lattice of cells of
+:data:`SHOOT_CELL` (a shoot's spray of leaves), and each cell inside the media holds
+Poisson(``u cell^3 / a``) discs of a leaf's area ``a`` (:data:`LEAF_AREA`) at uniform
+places, their normals uniform on the sphere, drawn from a hash of the cell: every pulse,
+strip and scanner meets the same leaves, and the world holds none of them.
 
-Each sub-ray is one such ray: where Embree's first hit is a medium's envelope the sub-ray
-goes on through it, envelope face by envelope face (entering adds ``G u`` to its extinction,
-leaving takes it away, so overlapping crowns add), and on each stretch between faces draws
-its free path; a leaf met within the stretch returns ``w rho mu / R^2`` with ``mu`` the cosine
-between the ray and the leaf's normal, ``2 mu`` distributed for leaves at random angles (the
-area a leaf shows the ray is proportional to ``mu``); a solid face met first (a branch, the
-ground) returns as any hit does. A pulse's sub-rays draw apart, so its footprint spreads
-over the crown's depth as the waveform of real foliage does.
+Leaves at random places and angles make the medium Beer-Lambert's (Monsi and Saeki 1953):
+a ray meets them at the rate ``G u`` per metre, ``G = 0.5`` the mean projection of a unit of
+leaf area across a ray for leaves at random (spherical) angles whatever its direction (Ross
+1981), so the share of rays that cross a layer of leaf area index ``L`` at zenith angle
+``theta`` is ``exp(-G L / cos(theta))``. Unlike a turbid medium's free paths drawn ray by
+ray, the sub-rays of one footprint meet the same centimetre leaves, clustered in the same
+shoots, so a pulse's echoes come from the leaves it really meets.
+
+Where Embree's first hit is a medium's envelope the sub-ray goes on through it, envelope
+face by envelope face (entering adds ``u``, leaving takes it away, so overlapping crowns
+add), and on each stretch between faces walks the cells in order to the first leaf
+(:func:`acquire.lidar._kernels.leaf_hits`), which returns ``w rho mu / R^2``, ``mu`` the
+cosine between ray and leaf; a solid face met first (a branch, the ground) returns as any
+hit does.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["G_SPHERICAL", "through_media"]
+__all__ = ["G_SPHERICAL", "LEAF_AREA", "SHOOT_CELL", "through_media"]
 
 G_SPHERICAL = 0.5
 """Ross's G function of a spherical leaf angle distribution (any direction)."""
 
+LEAF_AREA = 0.003
+"""One leaf's area, m²: a European beech leaf is 5-10 cm long and 3-7 cm wide (an 8 x 5 cm
+ellipse: 31 cm²)."""
+
+SHOOT_CELL = 0.2
+"""Side of the lattice cells whose leaves are drawn together, metres: a shoot's spray of
+leaves (a beech's long shoots reach 10-30 cm), so a footprint of 15-30 cm meets the
+leaves of one or two shoots, at nearly one range, as a real one does."""
+
 _EPS = 1e-4           # metres: a re-cast starts this far past the face it left
 _MAX_FACES = 64       # envelope faces a sub-ray may cross before it is taken as lost
+_MAX_STRETCH = 200.0  # metres walked through leaves when no face lies ahead (a leak)
 
 
 def through_media(world, rays: np.ndarray, weights: np.ndarray, R, E, obj, face,
-                  min_range: float, rng: np.random.Generator, *, normals: np.ndarray) -> None:
+                  min_range: float, *, normals: np.ndarray) -> None:
     """Carry the sub-rays whose first hit is a medium's envelope on through the media, in
     place of their envelope hits: ``R, E, obj, face`` (:meth:`LidarWorld.cast_energy`'s
     arrays) are updated to the leaf or solid surface each one meets, or to no return.
     ``normals (n*s, 3)``: the outward normals of the faces first hit (Embree's)."""
     import open3d as o3d
+
+    from acquire.lidar import _kernels
 
     lad = world.leaf_area_density
     hit = obj >= 0
@@ -79,14 +97,16 @@ def through_media(world, rays: np.ndarray, weights: np.ndarray, R, E, obj, face,
         gid = ans["geometry_ids"].numpy()
         pid = ans["primitive_ids"].numpy().astype(np.int64)
         nrm = ans["primitive_normals"].numpy().astype(np.float64)
-        with np.errstate(divide="ignore"):
-            free = np.where(k[live] > 0, rng.standard_exponential(len(live))
-                            / np.maximum(k[live], 1e-300), np.inf)
-        leaf = free < th
+        t0 = t[live] + _EPS
+        t1 = t0 + np.minimum(th, _MAX_STRETCH)
+        hit_t, hit_mu = np.empty(len(live)), np.empty(len(live))
+        _kernels.leaf_hits(o[live], d[live], t0, t1, k[live] / G_SPHERICAL, SHOOT_CELL,
+                           LEAF_AREA, 0, hit_t, hit_mu)
+        leaf = np.isfinite(hit_t)
         # a leaf met on this stretch
         li = live[leaf]
-        rl = t[li] + _EPS + free[leaf]
-        mu = np.sqrt(rng.random(len(li)))
+        rl = hit_t[leaf]
+        mu = hit_mu[leaf]
         ok = rl >= min_range
         a = act[li[ok]]
         R[a] = rl[ok]

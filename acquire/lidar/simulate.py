@@ -147,13 +147,12 @@ class LidarWorld:
         b = render_scene.bounds()
         self.top, self.bottom = float(b[1, 2]) + 10.0, float(b[0, 2])
 
-    def cast_energy(self, rays: np.ndarray, weights: np.ndarray, min_range: float,
-                    rng: np.random.Generator | None = None):
+    def cast_energy(self, rays: np.ndarray, weights: np.ndarray, min_range: float):
         """Cast ``rays (n*s, 6) float32`` (pulse-major, ``s`` sub-rays of weights
         ``weights (s,)`` each); returns ``((R, E), obj, face)``, each ``(n*s,)``: range
         (inf: no return), energy ``w rho cos / R^2``, object index (-1), flat face.
-        Sub-rays that reach foliage media go on through them
-        (:func:`acquire.lidar.medium.through_media`, drawing from ``rng``)."""
+        Sub-rays that reach foliage media go on through them to their leaves
+        (:func:`acquire.lidar.medium.through_media`)."""
         import open3d as o3d
 
         from acquire.lidar import _kernels
@@ -168,13 +167,11 @@ class LidarWorld:
                                 rays, weights, self.lut, self.face_offset, self.reflectance,
                                 float(min_range), R, E, obj, face)
         if self.has_media:
-            if rng is None:
-                raise ValueError("rng: expected a generator for a world with foliage media")
-            through_media(self, rays, weights, R, E, obj, face, float(min_range), rng,
+            through_media(self, rays, weights, R, E, obj, face, float(min_range),
                           normals=ans["primitive_normals"].numpy())
         return (R, E), obj, face
 
-    def through_glass(self, rays, weights, R, E, obj, face, min_range, rng=None):
+    def through_glass(self, rays, weights, R, E, obj, face, min_range):
         """Sub-rays that hit glass go on through it: the glass returns its own (weak)
         echo and passes ``1 - rho`` of the light each way, so what lies behind returns
         ``(1 - rho)^2`` of its energy. Returns the hits as ``layers`` stacked copies of
@@ -185,7 +182,7 @@ class LidarWorld:
             return R, E, obj, face, 1
         sub = rays[g].copy()
         sub[:, :3] += sub[:, 3:] * (R[g, None] + 1e-4).astype(np.float32)
-        (R2, E2), obj2, face2 = self.cast_energy(sub, weights, 0.0, rng)
+        (R2, E2), obj2, face2 = self.cast_energy(sub, weights, 0.0)
         rho_g = self.reflectance[obj[g]]
         Rt = np.where(np.isfinite(R2), R[g] + 1e-4 + R2, np.inf)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -274,9 +271,9 @@ def fire(world: LidarWorld, scanner: Scanner, origins: np.ndarray, directions: n
     offsets, weights = subray_pattern(scanner.footprint_samples)
     s = len(weights)
     rays = pack_rays(pos, d, scanner.divergence_rad, offsets)
-    (R, E), obj, face = world.cast_energy(rays, weights, scanner.min_range_m, rng)
+    (R, E), obj, face = world.cast_energy(rays, weights, scanner.min_range_m)
     R, E, obj, face, layers = world.through_glass(rays, weights, R, E, obj, face,
-                                                  scanner.min_range_m, rng)
+                                                  scanner.min_range_m)
     # per pulse: its s sub-rays' first hits, then (glass) what they met behind the glass
     ech = detect_echoes(_per_pulse(R, s, layers), _per_pulse(E, s, layers), scanner.receiver)
     p = ech["pulse"]
