@@ -439,3 +439,31 @@ def test_branch_clusters_and_a_sapling_are_not_trees():
     # every cell of a pruned top's crown went to a kept crown: the crowns cover the same
     assert np.array_equal(t["crowns"] > 0, bare["crowns"] > 0)
     assert set(np.unique(t["crowns"])) == set(range(6))
+
+
+def test_smoothing_and_window_follow_the_first_returns_spacing():
+    """The spacing is sqrt(area / first returns) (later returns do not count); detection
+    given a spacing smooths and windows as the options would at those many spacings, and
+    without one keeps 0.5 m and 1 m."""
+    from reconstruct.lidar import TreeOptions
+    from reconstruct.lidar.pipeline import first_return_spacing
+    from reconstruct.lidar.trees import SMOOTH_SPACINGS, WINDOW_SPACINGS
+
+    g = np.arange(0.25, 10, 0.5)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))          # 400 first returns on 100 m²
+    pts = {"x": np.r_[x, x], "y": np.r_[y, y],
+           "return_number": np.r_[np.ones(400), np.full(400, 2)].astype(np.uint8)}
+    keep = np.ones(800, bool)
+    assert first_return_spacing(pts, (0, 0), (10, 10), keep) == pytest.approx(0.5)
+    del pts["return_number"]
+    assert first_return_spacing(pts, (0, 0), (10, 10), keep) == pytest.approx(np.sqrt(0.125))
+    chm, _ = _lumpy_stand(1.5)
+    s = 0.3
+    auto = detect_trees(chm, spacing=s)
+    given = detect_trees(chm, options=TreeOptions(smooth=SMOOTH_SPACINGS * s,
+                                                  window_base=WINDOW_SPACINGS * s))
+    assert np.array_equal(auto["crowns"], given["crowns"])
+    fixed = detect_trees(chm, options=TreeOptions(smooth=0.5, window_base=1.0))
+    assert np.array_equal(detect_trees(chm)["crowns"], fixed["crowns"])
+    with pytest.raises(ValueError, match="spacing"):
+        detect_trees(chm, spacing=0.0)

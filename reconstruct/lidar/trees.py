@@ -1,8 +1,9 @@
 """Individual trees from a canopy height model: tops by local maxima, crowns by watershed.
 
-Tops: the CHM is smoothed (Gaussian, ``smooth`` metres), and a cell is a tree top when it is
-at least ``min_height`` tall and the highest within a disc whose diameter grows with its
-height, ``window_base + window_slope * height`` (the variable window of Popescu and Wynne
+Tops: the CHM is smoothed (Gaussian, ``smooth`` metres: about one spacing of the survey's
+first returns), and a cell is a tree top when it is at least ``min_height`` tall and the
+highest within a disc whose diameter grows with its height, ``window_base + window_slope *
+height`` (the base about two point spacings) (the variable window of Popescu and Wynne
 2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
 tops (flooding from the highest level down), within the cells at least ``min_height`` tall.
 Then the tops are pruned on the crowns' adjacency graph: a top whose *dynamic* (how far the
@@ -43,7 +44,18 @@ import numpy as np
 from core.config import Config, option
 from core.io.raster import Raster
 
-__all__ = ["TreeOptions", "detect_trees", "dynamics"]
+__all__ = ["TreeOptions", "detect_trees", "dynamics", "SMOOTH_SPACINGS", "WINDOW_SPACINGS"]
+
+
+SMOOTH_SPACINGS = 1.07
+"""The CHM's smoothing, in mean spacings of the first returns: a CHM is as rough as its
+sampling (a cell between returns takes a lower one's height), so the scale that smooths its
+pits away grows with the spacing. Set on MixedConifer (0.5 m at its 0.46 m spacing: 4.6
+first returns per m²) and carried to other densities in proportion (0.33 m at 10 per m²)."""
+
+WINDOW_SPACINGS = 2.15
+"""The local-maximum window's diameter at height 0, in point spacings (1 m on
+MixedConifer, as :data:`SMOOTH_SPACINGS`)."""
 
 
 @dataclass
@@ -52,10 +64,14 @@ class TreeOptions(Config):
 
     min_height: float = option(2.0, unit="m", range="[0, 100]",
                                help="tops and crowns are at least this tall")
-    smooth: float = option(0.5, unit="m", range="[0, 10]",
-                           help="Gaussian sigma of the CHM smoothing before detection")
-    window_base: float = option(1.0, unit="m", range="[0, 50]",
-                                help="local-maximum window diameter at height 0")
+    smooth: float | None = option(None, unit="m", range="[0, 10]",
+                                  help="Gaussian sigma of the CHM smoothing before detection "
+                                       f"(default: {SMOOTH_SPACINGS} point spacings of the "
+                                       "first returns; 0.5 m when not known)")
+    window_base: float | None = option(None, unit="m", range="[0, 50]",
+                                       help="local-maximum window diameter at height 0 "
+                                            f"(default: {WINDOW_SPACINGS} point spacings; "
+                                            "1 m when not known)")
     window_slope: float = option(0.1, range="[0, 2]",
                                  help="window diameter grows by this many metres per metre "
                                       "of height")
@@ -105,7 +121,8 @@ def _flood(height: np.ndarray, labels: np.ndarray, mask: np.ndarray, *, step: fl
 
 
 def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
-                 dsm: Raster | None = None, dtm: Raster | None = None) -> dict:
+                 dsm: Raster | None = None, dtm: Raster | None = None,
+                 spacing: float | None = None) -> dict:
     """Tree tops and crowns.
 
     Parameters
@@ -116,6 +133,10 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     dsm, dtm : Raster, optional
         Highest elevation and ground elevation on the CHM's grid (both or neither): the
         tops are placed on the DSM and the heights measured from the ground at the stem.
+    spacing : float, optional
+        Mean spacing of the survey's first returns, metres (``1 / sqrt(density)``): the
+        smoothing and the window's base when the options leave them to it
+        (:data:`SMOOTH_SPACINGS`, :data:`WINDOW_SPACINGS`); without it 0.5 m and 1 m.
 
     Returns
     -------
@@ -134,13 +155,19 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     from scipy.ndimage import gaussian_filter
 
     o = options or TreeOptions()
+    if spacing is not None and not spacing > 0:
+        raise ValueError(f"spacing: expected > 0, got {spacing}")
+    smooth = o.smooth if o.smooth is not None else (
+        0.5 if spacing is None else SMOOTH_SPACINGS * spacing)
+    base = o.window_base if o.window_base is not None else (
+        1.0 if spacing is None else WINDOW_SPACINGS * spacing)
     raw = np.nan_to_num(chm.values, nan=0.0)
     res = chm.res
-    s = gaussian_filter(raw, o.smooth / res, mode="nearest") if o.smooth > 0 else raw
+    s = gaussian_filter(raw, smooth / res, mode="nearest") if smooth > 0 else raw
     tall = s >= o.min_height
     top = np.zeros(raw.shape, bool)
     # one maximum filter per window radius (in cells) actually needed
-    diam = o.window_base + o.window_slope * s
+    diam = base + o.window_slope * s
     radii = np.maximum(np.round(diam / 2 / res).astype(np.int64), 1)
     for r in np.unique(radii[tall]):
         sel = tall & (radii == r)
@@ -161,7 +188,7 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     k = len(ti)
     crowns = np.zeros(raw.shape, np.int32)
     crowns[ti, tj] = np.arange(1, k + 1)
-    crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * o.smooth + 0.05))
+    crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * smooth + 0.05))
     if o.prominence > 0 or o.prominence_slope > 0 or o.understory > 0:
         keep, crowns = _merge_shallow(s, crowns, k, o.prominence, o.prominence_slope,
                                       o.understory)
