@@ -77,15 +77,11 @@ class TreeOptions(Config):
                                       "of height")
     prominence: float = option(0.25, unit="m", range="[0, 50]",
                                help="a top is a tree of its own only when the canopy dips "
-                                    "at least this much (plus prominence_slope x its "
-                                    "height) between it and any higher top; else its "
-                                    "crown joins the higher one's")
+                                    "at least this much between it and any higher top; "
+                                    "else its crown joins the higher one's")
     understory: float = option(0.3, range="[0, 1]",
                                help="a top lower than this share of the higher top its "
                                     "crown meets is understory, not a tree")
-    prominence_slope: float = option(0.0, range="[0, 1]",
-                                     help="the dip a top needs grows by this many metres "
-                                          "per metre of its height")
 
 
 def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
@@ -189,9 +185,8 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     crowns = np.zeros(raw.shape, np.int32)
     crowns[ti, tj] = np.arange(1, k + 1)
     crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * smooth + 0.05))
-    if o.prominence > 0 or o.prominence_slope > 0 or o.understory > 0:
-        keep, crowns = _merge_shallow(s, crowns, k, o.prominence, o.prominence_slope,
-                                      o.understory)
+    if o.prominence > 0 or o.understory > 0:
+        keep, crowns = _merge_shallow(s, crowns, k, o.prominence, o.understory)
         ti, tj = ti[keep], tj[keep]
         k = len(ti)
     area = np.bincount(crowns.ravel(), minlength=k + 1)[1:] * res * res
@@ -278,15 +273,16 @@ def dynamics(s: np.ndarray, crowns: np.ndarray, k: int) -> tuple[np.ndarray, np.
     return dyn[1:], higher[1:]
 
 
-def _merge_shallow(s: np.ndarray, crowns: np.ndarray, k: int, base: float, slope: float,
-                   under: float = 0.0):
-    """Join each top of dynamic (:func:`dynamics`) below ``base + slope x its height`` to
-    the crown of the higher top it meets (or where that one went). Returns the tops kept
-    (k,) bool and the crowns relabelled ``1..kept`` in the same order."""
+def _merge_shallow(s: np.ndarray, crowns: np.ndarray, k: int, prominence: float,
+                   under: float):
+    """Join each top of dynamic (:func:`dynamics`) below ``prominence``, or lower than
+    ``under`` times the higher top it meets, to the crown of that higher top (or where that
+    one went). Returns the tops kept (k,) bool and the crowns relabelled ``1..kept`` in the
+    same order."""
     dyn, higher = dynamics(s, crowns, k)
     peak = np.zeros(k + 1)
     np.maximum.at(peak, crowns.ravel(), s.ravel())
-    keep = np.r_[True, (dyn >= base + slope * peak[1:])
+    keep = np.r_[True, (dyn >= prominence)
                  & ((peak[1:] >= under * peak[higher]) | ~np.isfinite(dyn))]
     into = np.r_[0, higher]
     for t in range(1, k + 1):          # higher labels come first: follow the chain down
