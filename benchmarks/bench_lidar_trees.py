@@ -44,8 +44,8 @@ class tilted:
         self._orig = orig = forest._terrain
         k = self.k
 
-        def terrain(cfg, lo, hi, rng):
-            r = orig(cfg, lo, hi, rng)
+        def terrain(cfg, lo, hi, rng, *rest):
+            r = orig(cfg, lo, hi, rng, *rest)
             xs, _ = r.centres()
             r.values = r.values + k * (xs[None, :] - xs[0])
             return r

@@ -56,11 +56,13 @@ from data_synth.bundle import SceneBundle
 from procgen.allometry import stand_crowns
 from procgen.terrain import fractal_terrain, heightfield_to_mesh, mountain_relief
 from procgen.trees import (
+    LEAF_AREA_INDEX,
     NEEDLE_CLUSTER,
     NEEDLE_DENSITY,
     SPECIES,
     TREE_PARTS,
     WHORL_AREA,
+    crown_envelope,
     crown_years,
     grow_tree,
     place_tree,
@@ -185,6 +187,12 @@ class ForestConfig(Config):
                                help="crown projection a conifer's whorl fills with sprays "
                                     "of its species' width; a crown with more area per "
                                     "whorl widens its sprays in proportion")
+    leaf_area_index: float = option(LEAF_AREA_INDEX, unit="m2/m2", range="[0, 20]",
+                                    help="broadleaf crowns: one-sided leaf area per m² of "
+                                         "crown projection, their leaves a turbid medium "
+                                         "in the crown's envelope (European beech 5.6-9.5, "
+                                         "Leuschner et al. 2006); 0: the L-system's leaf "
+                                         "clusters as polygons")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
     weber_penn: str = option("", help="species grown with Weber & Penn's model "
@@ -432,7 +440,7 @@ def _crs_wkt(crs: str) -> str | None:
                          field="forest.crs") from None
 
 
-def _add(objects, meshes, name, V, F, parts, material, object_id):
+def _add(objects, meshes, name, V, F, parts, material, object_id, *, leaf_area_density=None):
     # a tree's wood and foliage are two objects cut from one vertex array: each keeps only
     # the vertices its triangles use (else every tree's vertices are held twice over in the
     # mesh, its normals, and the ray caster's world arrays)
@@ -443,7 +451,8 @@ def _add(objects, meshes, name, V, F, parts, material, object_id):
         V, F = V[used], remap[F]
     mesh = make_mesh(V, F)
     so = SceneObject(name, mesh, material, np.eye(4), object_id,
-                     part_labels=np.asarray(parts, np.uint8))
+                     part_labels=np.asarray(parts, np.uint8),
+                     leaf_area_density=leaf_area_density)
     objects.append(so)
     meshes[name] = mesh
 
@@ -546,10 +555,18 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
             dbhs[k] = dbh
         wood = P != codes.index("leaf")
         foliage = MATERIALS["needle" if sp.form == "conifer" else "leaf"]
-        for suffix, sel, mat in (("wood", wood, MATERIALS["wood"]), ("leaf", ~wood, foliage)):
+        medium = sp.form == "broadleaf" and cfg.leaf_area_index > 0 and np.any(~wood)
+        parts = (("wood", wood, MATERIALS["wood"]),) if medium else \
+            (("wood", wood, MATERIALS["wood"]), ("leaf", ~wood, foliage))
+        for suffix, sel, mat in parts:
             if np.any(sel):
                 _add(objects, meshes, f"tree{k + first_id:05d}.{suffix}", V, F[sel],
                      lut[P[sel]], mat, k + first_id)
+        if medium:  # leaves of centimetres, too many to mesh: the crown as a medium
+            ev, ef, lad = crown_envelope(V[np.unique(F[~wood])], cfg.leaf_area_index)
+            _add(objects, meshes, f"tree{k + first_id:05d}.leaf", ev, ef,
+                 np.full(len(ef), part_code("leaf"), np.uint8), foliage, k + first_id,
+                 leaf_area_density=lad)
     return crowns, dbhs
 
 

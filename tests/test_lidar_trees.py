@@ -369,3 +369,101 @@ def test_the_understory_is_every_stands_and_zero_turns_it_off():
     assert np.asarray(s.mesh.vertices)[:, 2].max() <= 2.5 + 1e-6
     # the trees listed are the same with or without it
     np.testing.assert_array_equal(on.trees["x"], off.trees["x"])
+
+
+def test_dynamic_of_a_top_is_its_drop_to_the_pass_towards_a_higher_one():
+    """Two cones 10 m and 8 m tall, 5 m apart, flanks falling 2 m per m: they meet 3 m from
+    the taller at 4 m, so the lower top's dynamic is 8 - 4 = 4 m; the taller has none
+    higher (infinite). A third cone alone has an infinite dynamic too."""
+    from core.io.raster import Raster
+    from reconstruct.lidar import TreeOptions
+    from reconstruct.lidar.trees import dynamics
+
+    res = 0.5
+    xs = np.arange(0, 30, res)
+    X, Y = np.meshgrid(xs, xs)
+    z = np.zeros_like(X)
+    for x, y, h in ((6.0, 10.0, 10.0), (11.0, 10.0, 8.0), (24.0, 24.0, 9.0)):
+        z = np.maximum(z, h - 2 * np.hypot(X - x, Y - y))
+    o = TreeOptions(smooth=0.0, prominence=0.0, understory=0.0)
+    t = detect_trees(Raster(z, x0=0.0, y0=0.0, res=res), options=o)
+    assert np.round(t["height"], 6).tolist() == [10.0, 9.0, 8.0]
+    dyn, higher = dynamics(z, t["crowns"], 3)
+    assert np.isinf(dyn[0]) and np.isinf(dyn[1])
+    assert dyn[2] == pytest.approx(4.0, abs=1e-9) and higher[2] == 1
+
+
+def _lumpy_stand(lump: float):
+    """Closed conifer cones (two 2.5 m apart) and broadleaf domes whose five branch
+    clusters stand out ``lump`` metres, and a 5 m sapling whose crown meets a 22 m tree's:
+    the CHM (0.5 m cells) and the trees ``x, y, height``."""
+    from core.io.raster import Raster
+
+    res = 0.5
+    xs = np.arange(0, 40, res)
+    X, Y = np.meshgrid(xs, xs)
+    z = np.zeros_like(X)
+    trees = [(8, 8, 25, 2.6, 18, "cone"), (10.5, 8, 23, 2.4, 16, "cone"),
+             (28, 10, 24, 5.0, 6, "dome"), (10, 30, 26, 5.5, 6, "dome"),
+             (27, 28, 22, 2.5, 15, "cone")]
+    for x, y, h, r, length, kind in trees:
+        d = np.hypot(X - x, Y - y)
+        if kind == "cone":
+            zz = h - length * d / r
+        else:
+            zz = h - length + length * np.sqrt(np.clip(1 - (d / r) ** 2, 0, 1))
+            for a in np.arange(5) * 2 * np.pi / 5 + 0.3:
+                cx, cy = x + 0.5 * r * np.cos(a), y + 0.5 * r * np.sin(a)
+                zz = zz + lump * np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / 0.72)
+        z = np.maximum(z, np.where(d < r, zz, 0.0))
+    z = np.maximum(z, 5.0 - 4.0 * np.hypot(X - 27, Y - 32) / 1.4)   # the sapling
+    ref = np.array([[x, y, h] for x, y, h, *_ in trees], float)
+    return Raster(z, x0=0.0, y0=0.0, res=res), ref
+
+
+def test_branch_clusters_and_a_sapling_are_not_trees():
+    """A broadleaf's branch clusters are tops of the window (a window wide enough to hold
+    the dome to one top would merge the conifers 2.5 m apart): the crowns' dynamics join
+    them to the dome's, and the sapling under its neighbour's crown is understory. Every
+    tree is found once, the two close conifers apart; without the pruning the clusters
+    and the sapling are trees."""
+    from reconstruct.lidar import TreeOptions
+
+    chm, ref = _lumpy_stand(1.5)
+    t = detect_trees(chm)
+    s = tree_scores(ref, np.column_stack([t["x"], t["y"], t["height"]]))
+    assert s["detected"] == 5 and s["matched"] == 5
+    bare = detect_trees(chm, options=TreeOptions(prominence=0.0, understory=0.0))
+    assert len(bare["x"]) >= 10
+    assert np.any(np.isclose(bare["height"], 5.0))
+    # every cell of a pruned top's crown went to a kept crown: the crowns cover the same
+    assert np.array_equal(t["crowns"] > 0, bare["crowns"] > 0)
+    assert set(np.unique(t["crowns"])) == set(range(6))
+
+
+def test_smoothing_and_window_follow_the_first_returns_spacing():
+    """The spacing is sqrt(area / first returns) (later returns do not count); detection
+    given a spacing smooths and windows as the options would at those many spacings, and
+    without one keeps 0.5 m and 1 m."""
+    from reconstruct.lidar import TreeOptions
+    from reconstruct.lidar.pipeline import first_return_spacing
+    from reconstruct.lidar.trees import SMOOTH_SPACINGS, WINDOW_SPACINGS
+
+    g = np.arange(0.25, 10, 0.5)
+    x, y = (a.ravel() for a in np.meshgrid(g, g))          # 400 first returns on 100 m²
+    pts = {"x": np.r_[x, x], "y": np.r_[y, y],
+           "return_number": np.r_[np.ones(400), np.full(400, 2)].astype(np.uint8)}
+    keep = np.ones(800, bool)
+    assert first_return_spacing(pts, (0, 0), (10, 10), keep) == pytest.approx(0.5)
+    del pts["return_number"]
+    assert first_return_spacing(pts, (0, 0), (10, 10), keep) == pytest.approx(np.sqrt(0.125))
+    chm, _ = _lumpy_stand(1.5)
+    s = 0.3
+    auto = detect_trees(chm, spacing=s)
+    given = detect_trees(chm, options=TreeOptions(smooth=SMOOTH_SPACINGS * s,
+                                                  window_base=WINDOW_SPACINGS * s))
+    assert np.array_equal(auto["crowns"], given["crowns"])
+    fixed = detect_trees(chm, options=TreeOptions(smooth=0.5, window_base=1.0))
+    assert np.array_equal(detect_trees(chm)["crowns"], fixed["crowns"])
+    with pytest.raises(ValueError, match="spacing"):
+        detect_trees(chm, spacing=0.0)

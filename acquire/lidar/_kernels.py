@@ -62,3 +62,142 @@ def hits_to_energy(t_hit, gid, pid, normals, rays, weights, lut, face_offset, re
         E[q] = weights[q % s] * refl[o] * c / (float(t) * float(t))
         obj[q] = o
         face[q] = face_offset[o] + pid[q]
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+
+
+@nb.njit(cache=True, inline="always")
+def _mix(x):
+    """splitmix64's finaliser: a well-mixed 64-bit word of ``x``."""
+    x = (x ^ (x >> np.uint64(30))) * _M1
+    x = (x ^ (x >> np.uint64(27))) * _M2
+    return x ^ (x >> np.uint64(31))
+
+
+@nb.njit(cache=True, inline="always")
+def _uniform(h, k):
+    """The ``k``-th uniform [0, 1) of the stream of cell hash ``h``."""
+    return float(_mix(h + np.uint64(k + 1) * _GOLDEN) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@nb.njit(cache=True, inline="always")
+def _cell_hash(i, j, k, seed):
+    h = _mix(np.uint64(seed) ^ np.uint64(0x632BE59BD9B4E019))
+    h = _mix(h ^ np.uint64(i & 0xFFFFFFFFFFFF))
+    h = _mix(h ^ np.uint64(j & 0xFFFFFFFFFFFF) * _GOLDEN)
+    return _mix(h ^ np.uint64(k & 0xFFFFFFFFFFFF) * _M1)
+
+
+@nb.njit(cache=True)
+def _cell_leaves(o, d, t0, t1, ci, cj, ck, cell, lam, radius, seed):
+    """The nearest hit within ``[t0, t1]`` of the ray ``o + t d`` on the leaves of lattice
+    cell ``(ci, cj, ck)``: ``(t, |cos|)``, ``t = inf`` for none. The cell holds
+    Poisson(``lam``) discs of ``radius`` centred at uniform points of it (at least
+    ``radius`` inside its floor and ceiling: a leaf stays in its layer of cells), their
+    normals uniform on the sphere; its hash draws them, so every ray meets the same
+    leaves. A larger ``lam`` keeps the leaves of a smaller one and adds."""
+    h = _cell_hash(ci, cj, ck, seed)
+    u = _uniform(h, 0)
+    p = np.exp(-lam)
+    acc = p
+    n = 0
+    while u > acc and n < 256:
+        n += 1
+        p *= lam / n
+        acc += p
+    best, mu = np.inf, 0.0
+    span = cell - 2.0 * radius
+    for q in range(n):
+        b = 1 + 5 * q
+        cx = (ci + _uniform(h, b)) * cell
+        cy = (cj + _uniform(h, b + 1)) * cell
+        cz = ck * cell + radius + span * _uniform(h, b + 2)
+        z = 2.0 * _uniform(h, b + 3) - 1.0
+        phi = 2.0 * np.pi * _uniform(h, b + 4)
+        s = np.sqrt(max(0.0, 1.0 - z * z))
+        nx, ny, nz = s * np.cos(phi), s * np.sin(phi), z
+        den = d[0] * nx + d[1] * ny + d[2] * nz
+        if abs(den) < 1e-12:
+            continue
+        t = ((cx - o[0]) * nx + (cy - o[1]) * ny + (cz - o[2]) * nz) / den
+        if t < t0 or t > t1 or t >= best:
+            continue
+        hx, hy, hz = o[0] + t * d[0] - cx, o[1] + t * d[1] - cy, o[2] + t * d[2] - cz
+        if hx * hx + hy * hy + hz * hz <= radius * radius:
+            best, mu = t, abs(den)
+    return best, mu
+
+
+@nb.njit(cache=True)
+def _layer_leaves(o, d, ta, tb, kz, cell, lam, radius, seed):
+    """The nearest leaf hit of the ray for ``t`` in ``[ta, tb]``, the stretch within the
+    layer of cells ``kz``: the leaves of every cell it crosses there (Amanatides and Woo
+    1987, in x and y) and of their eight neighbours (a leaf reaches over its cell's
+    sides)."""
+    best, mu = np.inf, 0.0
+    px, py = o[0] + ta * d[0], o[1] + ta * d[1]
+    ix, iy = int(np.floor(px / cell)), int(np.floor(py / cell))
+    sx, sy = 0, 0
+    tx, ty, dx, dy = np.inf, np.inf, np.inf, np.inf
+    if d[0] > 0:
+        sx, tx, dx = 1, ta + ((ix + 1) * cell - px) / d[0], cell / d[0]
+    elif d[0] < 0:
+        sx, tx, dx = -1, ta + (ix * cell - px) / d[0], -cell / d[0]
+    if d[1] > 0:
+        sy, ty, dy = 1, ta + ((iy + 1) * cell - py) / d[1], cell / d[1]
+    elif d[1] < 0:
+        sy, ty, dy = -1, ta + (iy * cell - py) / d[1], -cell / d[1]
+    while True:
+        for ni in range(-1, 2):
+            for nj in range(-1, 2):
+                t, m = _cell_leaves(o, d, ta, tb, ix + ni, iy + nj, kz, cell, lam, radius,
+                                    seed)
+                if t < best:
+                    best, mu = t, m
+        if tx < ty:
+            if tx > tb:
+                break
+            ix += sx
+            tx += dx
+        else:
+            if ty > tb:
+                break
+            iy += sy
+            ty += dy
+    return best, mu
+
+
+@nb.njit(cache=True, parallel=True)
+def leaf_hits(o, d, t0, t1, lad, cell, leaf_area, seed, t_out, mu_out):
+    """Per ray ``o + t d`` (unit ``d``): the first leaf met for ``t`` in ``[t0, t1]`` where
+    the leaf area density is ``lad`` (m²/m³; discs of area ``leaf_area`` in the cells of
+    a lattice of side ``cell`` anchored at the origin, :func:`_cell_leaves`), layer of
+    cells by layer of cells in the ray's order (:func:`_layer_leaves`). ``t_out`` (inf:
+    none) and ``mu_out``, the cosine between the ray and the leaf's normal."""
+    radius = np.sqrt(leaf_area / np.pi)
+    for r in nb.prange(o.shape[0]):
+        t_out[r], mu_out[r] = np.inf, 0.0
+        if lad[r] <= 0.0 or not t1[r] > t0[r]:
+            continue
+        lam = lad[r] * cell ** 3 / leaf_area
+        ta, b = t0[r], t1[r]
+        kz = int(np.floor((o[r, 2] + ta * d[r, 2]) / cell))
+        while ta <= b:
+            if d[r, 2] > 0:
+                te = ((kz + 1) * cell - o[r, 2]) / d[r, 2]
+            elif d[r, 2] < 0:
+                te = (kz * cell - o[r, 2]) / d[r, 2]
+            else:
+                te = np.inf
+            te = min(te, b)
+            t, mu = _layer_leaves(o[r], d[r], ta, te, kz, cell, lam, radius, seed)
+            if t < np.inf:
+                t_out[r], mu_out[r] = t, mu
+                break
+            if te >= b:
+                break
+            ta = te
+            kz += 1 if d[r, 2] > 0 else -1

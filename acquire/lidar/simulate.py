@@ -122,6 +122,8 @@ class LidarWorld:
         objs = render_scene.objects
         self.object_ids = np.array([o.object_id for o in objs], np.int32)
         self.reflectance = np.array([reflectance_at(o.material, wavelength_nm) for o in objs])
+        self.leaf_area_density = np.array([o.leaf_area_density or 0.0 for o in objs])
+        self.has_media = bool(np.any(self.leaf_area_density > 0))
         counts = [len(p[1]) for p in parts]
         self.face_offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.face_part = np.concatenate([
@@ -148,10 +150,13 @@ class LidarWorld:
     def cast_energy(self, rays: np.ndarray, weights: np.ndarray, min_range: float):
         """Cast ``rays (n*s, 6) float32`` (pulse-major, ``s`` sub-rays of weights
         ``weights (s,)`` each); returns ``((R, E), obj, face)``, each ``(n*s,)``: range
-        (inf: no return), energy ``w rho cos / R^2``, object index (-1), flat face."""
+        (inf: no return), energy ``w rho cos / R^2``, object index (-1), flat face.
+        Sub-rays that reach foliage media go on through them to their leaves
+        (:func:`acquire.lidar.medium.through_media`)."""
         import open3d as o3d
 
         from acquire.lidar import _kernels
+        from acquire.lidar.medium import through_media
 
         ans = self.rs.cast_rays(o3d.core.Tensor.from_numpy(rays))
         m = len(rays)
@@ -161,6 +166,9 @@ class LidarWorld:
                                 ans["primitive_ids"].numpy(), ans["primitive_normals"].numpy(),
                                 rays, weights, self.lut, self.face_offset, self.reflectance,
                                 float(min_range), R, E, obj, face)
+        if self.has_media:
+            through_media(self, rays, weights, R, E, obj, face, float(min_range),
+                          normals=ans["primitive_normals"].numpy())
         return (R, E), obj, face
 
     def through_glass(self, rays, weights, R, E, obj, face, min_range):

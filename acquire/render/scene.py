@@ -43,6 +43,10 @@ class SceneObject:
         Per-triangle part codes into :data:`acquire.lidar.labels.PARTS` (ground, trunk,
         leaf, building...), the truth a LiDAR survey's points inherit. The camera
         renderer ignores them.
+    leaf_area_density : float, optional
+        m² of leaves per m³: the closed mesh is the envelope of foliage too fine to mesh (a
+        turbid medium), which the LiDAR simulator traces by Beer-Lambert
+        (:mod:`acquire.lidar.medium`); the camera renderer sees the envelope.
     """
 
     name: str
@@ -53,6 +57,7 @@ class SceneObject:
     vertex_uvs: np.ndarray | None = None
     analytic: dict | None = None
     part_labels: np.ndarray | None = None
+    leaf_area_density: float | None = None
 
     def __post_init__(self):
         self.world_from_object = check_array(self.world_from_object, "world_from_object",
@@ -65,6 +70,8 @@ class SceneObject:
         if self.part_labels is not None:
             self.part_labels = check_array(self.part_labels, "part_labels", shape=(len(f),),
                                            dtype=np.uint8)
+        if self.leaf_area_density is not None and not self.leaf_area_density > 0:
+            raise ValueError(f"leaf_area_density: expected > 0, got {self.leaf_area_density}")
         if not self.mesh.has_vertex_normals():
             self.mesh.compute_vertex_normals()
 

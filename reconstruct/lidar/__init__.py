@@ -28,6 +28,7 @@ _EXPORTS = {
     "polygon_area": "crowns",
     "TreeOptions": "trees",
     "detect_trees": "trees",
+    "dynamics": "trees",
     "DELTA_GROUND": "evaluation",
     "H_PREC": "evaluation",
     "dtm_errors": "evaluation",

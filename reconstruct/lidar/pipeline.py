@@ -38,7 +38,8 @@ from reconstruct.lidar.rasters import canopy_height, dtm_from_ground, surface_mo
 from reconstruct.lidar.trees import TreeOptions, detect_trees
 from reconstruct.result import ReconstructionResult
 
-__all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run"]
+__all__ = ["LidarReconConfig", "LidarResult", "reconstruct_points", "run",
+           "first_return_spacing"]
 
 log = logging.getLogger(__name__)
 
@@ -127,9 +128,20 @@ def reconstruct_points(points: dict, *, config: LidarReconConfig | None = None,
     dsm = surface_model(xyz[~noise], dtm)
     t["rasters_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    trees = detect_trees(chm, options=c.trees, dsm=dsm, dtm=dtm)
+    trees = detect_trees(chm, options=c.trees, dsm=dsm, dtm=dtm,
+                         spacing=first_return_spacing(points, lo, hi, ~noise))
     t["trees_s"] = time.perf_counter() - t0
     return LidarResult(ground, reclassified, water, dtm, chm, trees, t)
+
+
+def first_return_spacing(points: dict, lo, hi, keep: np.ndarray) -> float | None:
+    """Mean spacing of a survey's first returns (``1 / sqrt(density)``, m) over its extent
+    ``lo``-``hi``: every kept point when the file has no return numbers; None for an
+    extent of no area."""
+    area = float(np.prod(np.asarray(hi, float) - np.asarray(lo, float)))
+    first = keep if "return_number" not in points else keep & (points["return_number"] <= 1)
+    n = int(first.sum())
+    return float(np.sqrt(area / n)) if area > 0 and n > 0 else None
 
 
 def _classified(points: dict, ground: np.ndarray, water: np.ndarray | None = None) -> np.ndarray:

@@ -1,10 +1,18 @@
 """Individual trees from a canopy height model: tops by local maxima, crowns by watershed.
 
-Tops: the CHM is smoothed (Gaussian, ``smooth`` metres), and a cell is a tree top when it is
-at least ``min_height`` tall and the highest within a disc whose diameter grows with its
-height, ``window_base + window_slope * height`` (the variable window of Popescu and Wynne
+Tops: the CHM is smoothed (Gaussian, ``smooth`` metres: about one spacing of the survey's
+first returns), and a cell is a tree top when it is at least ``min_height`` tall and the
+highest within a disc whose diameter grows with its height, ``window_base + window_slope *
+height`` (the base about two point spacings) (the variable window of Popescu and Wynne
 2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
 tops (flooding from the highest level down), within the cells at least ``min_height`` tall.
+Then the tops are pruned on the crowns' adjacency graph: a top whose *dynamic* (how far the
+smoothed canopy falls from it before a path reaches a higher top) is below ``prominence``
+is a bump of the higher crown (a broadleaf's branch clusters, a conifer's side shoot), and a
+top lower than ``understory`` times the higher top its crown meets is regeneration under or
+beside that tree, not a tree of the stand; either way its crown joins the higher one's. The
+window alone cannot do this: a window wide enough to hold one broadleaf crown to one top
+merges conifers two metres apart, and one narrow enough to part them splits the broadleaf.
 
 A tree's top and height: given the surface (DSM) and terrain (DTM) on the CHM's grid, the top
 is the highest *elevation* of its crown, and its height that elevation less the ground under
@@ -36,7 +44,18 @@ import numpy as np
 from core.config import Config, option
 from core.io.raster import Raster
 
-__all__ = ["TreeOptions", "detect_trees"]
+__all__ = ["TreeOptions", "detect_trees", "dynamics", "SMOOTH_SPACINGS", "WINDOW_SPACINGS"]
+
+
+SMOOTH_SPACINGS = 1.07
+"""The CHM's smoothing, in mean spacings of the first returns: a CHM is as rough as its
+sampling (a cell between returns takes a lower one's height), so the scale that smooths its
+pits away grows with the spacing. Set on MixedConifer (0.5 m at its 0.46 m spacing: 4.6
+first returns per m²) and carried to other densities in proportion (0.33 m at 10 per m²)."""
+
+WINDOW_SPACINGS = 2.15
+"""The local-maximum window's diameter at height 0, in point spacings (1 m on
+MixedConifer, as :data:`SMOOTH_SPACINGS`)."""
 
 
 @dataclass
@@ -45,13 +64,24 @@ class TreeOptions(Config):
 
     min_height: float = option(2.0, unit="m", range="[0, 100]",
                                help="tops and crowns are at least this tall")
-    smooth: float = option(0.5, unit="m", range="[0, 10]",
-                           help="Gaussian sigma of the CHM smoothing before detection")
-    window_base: float = option(1.0, unit="m", range="[0, 50]",
-                                help="local-maximum window diameter at height 0")
+    smooth: float | None = option(None, unit="m", range="[0, 10]",
+                                  help="Gaussian sigma of the CHM smoothing before detection "
+                                       f"(default: {SMOOTH_SPACINGS} point spacings of the "
+                                       "first returns; 0.5 m when not known)")
+    window_base: float | None = option(None, unit="m", range="[0, 50]",
+                                       help="local-maximum window diameter at height 0 "
+                                            f"(default: {WINDOW_SPACINGS} point spacings; "
+                                            "1 m when not known)")
     window_slope: float = option(0.1, range="[0, 2]",
                                  help="window diameter grows by this many metres per metre "
                                       "of height")
+    prominence: float = option(0.25, unit="m", range="[0, 50]",
+                               help="a top is a tree of its own only when the canopy dips "
+                                    "at least this much between it and any higher top; "
+                                    "else its crown joins the higher one's")
+    understory: float = option(0.3, range="[0, 1]",
+                               help="a top lower than this share of the higher top its "
+                                    "crown meets is understory, not a tree")
 
 
 def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
@@ -87,7 +117,8 @@ def _flood(height: np.ndarray, labels: np.ndarray, mask: np.ndarray, *, step: fl
 
 
 def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
-                 dsm: Raster | None = None, dtm: Raster | None = None) -> dict:
+                 dsm: Raster | None = None, dtm: Raster | None = None,
+                 spacing: float | None = None) -> dict:
     """Tree tops and crowns.
 
     Parameters
@@ -98,6 +129,10 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     dsm, dtm : Raster, optional
         Highest elevation and ground elevation on the CHM's grid (both or neither): the
         tops are placed on the DSM and the heights measured from the ground at the stem.
+    spacing : float, optional
+        Mean spacing of the survey's first returns, metres (``1 / sqrt(density)``): the
+        smoothing and the window's base when the options leave them to it
+        (:data:`SMOOTH_SPACINGS`, :data:`WINDOW_SPACINGS`); without it 0.5 m and 1 m.
 
     Returns
     -------
@@ -116,13 +151,19 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     from scipy.ndimage import gaussian_filter
 
     o = options or TreeOptions()
+    if spacing is not None and not spacing > 0:
+        raise ValueError(f"spacing: expected > 0, got {spacing}")
+    smooth = o.smooth if o.smooth is not None else (
+        0.5 if spacing is None else SMOOTH_SPACINGS * spacing)
+    base = o.window_base if o.window_base is not None else (
+        1.0 if spacing is None else WINDOW_SPACINGS * spacing)
     raw = np.nan_to_num(chm.values, nan=0.0)
     res = chm.res
-    s = gaussian_filter(raw, o.smooth / res, mode="nearest") if o.smooth > 0 else raw
+    s = gaussian_filter(raw, smooth / res, mode="nearest") if smooth > 0 else raw
     tall = s >= o.min_height
     top = np.zeros(raw.shape, bool)
     # one maximum filter per window radius (in cells) actually needed
-    diam = o.window_base + o.window_slope * s
+    diam = base + o.window_slope * s
     radii = np.maximum(np.round(diam / 2 / res).astype(np.int64), 1)
     for r in np.unique(radii[tall]):
         sel = tall & (radii == r)
@@ -143,7 +184,11 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     k = len(ti)
     crowns = np.zeros(raw.shape, np.int32)
     crowns[ti, tj] = np.arange(1, k + 1)
-    crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * o.smooth + 0.05))
+    crowns = _flood(s, crowns, tall, step=max(0.05, 0.1 * smooth + 0.05))
+    if o.prominence > 0 or o.understory > 0:
+        keep, crowns = _merge_shallow(s, crowns, k, o.prominence, o.understory)
+        ti, tj = ti[keep], tj[keep]
+        k = len(ti)
     area = np.bincount(crowns.ravel(), minlength=k + 1)[1:] * res * res
     if dsm is not None:
         ai, aj = _highest(dsm.values, crowns, ti, tj)
@@ -158,6 +203,97 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     return {"x": chm.x0 + tj * res, "y": chm.y0 + ti * res, "height": height,
             "crown_area": area.astype(np.float64), "stem_z": stem_z,
             "crowns": crowns.astype(np.int32)}
+
+
+def _saddles(s: np.ndarray, crowns: np.ndarray):
+    """The pass between every two touching crowns (8-neighbours): ``(a, b, level)``, the
+    highest of ``min(s)`` over the cell pairs where crown ``a`` meets crown ``b`` (a < b,
+    1-based)."""
+    a_all, b_all, lv_all = [], [], []
+    r, c = s.shape
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        i0, i1 = 0, r - di
+        j0, j1 = max(0, -dj), c - max(0, dj)
+        la = crowns[i0:i1, j0:j1]
+        lb = crowns[i0 + di:i1 + di, j0 + dj:j1 + dj]
+        sel = (la > 0) & (lb > 0) & (la != lb)
+        if not np.any(sel):
+            continue
+        lv = np.minimum(s[i0:i1, j0:j1][sel], s[i0 + di:i1 + di, j0 + dj:j1 + dj][sel])
+        a, b = la[sel], lb[sel]
+        a_all.append(np.minimum(a, b))
+        b_all.append(np.maximum(a, b))
+        lv_all.append(lv)
+    if not a_all:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
+    a, b, lv = np.concatenate(a_all), np.concatenate(b_all), np.concatenate(lv_all)
+    key = a.astype(np.int64) * (int(crowns.max()) + 1) + b
+    order = np.lexsort((lv, key))          # by pair, then level: the last of each is highest
+    last = np.r_[key[order][1:] != key[order][:-1], True]
+    o = order[last]
+    return a[o].astype(np.int64), b[o].astype(np.int64), lv[o]
+
+
+def dynamics(s: np.ndarray, crowns: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each top's dynamic: how far the canopy must fall from it before a path reaches a
+    higher top (its peak less the highest pass to a higher crown; Grimaud 1992; the
+    h-maxima of Soille 2003 keep the maxima of dynamic at least h), and the crown of that
+    higher top. Crowns ``1..k`` sorted by top height, tallest first; the tallest of each
+    group of touching crowns has an infinite dynamic and itself as its higher crown.
+
+    The passes are taken highest first (Kruskal's order on the crowns' adjacency graph):
+    when a pass joins two groups, the lower group's top has met a higher one at that level.
+    Returns ``(dynamic (k,), higher (k,) 1-based)``."""
+    peak = np.zeros(k + 1)
+    np.maximum.at(peak, crowns.ravel(), s.ravel())
+    a, b, lv = _saddles(s, crowns)
+    parent = np.arange(k + 1)
+
+    def find(x):
+        root = x
+        while parent[root] != root:
+            root = parent[root]
+        while parent[x] != root:
+            parent[x], x = root, parent[x]
+        return root
+
+    owner = np.arange(k + 1)   # each group's highest top (its lowest label)
+    dyn = np.full(k + 1, np.inf)
+    higher = np.arange(k + 1)
+    for i in np.argsort(-lv, kind="stable"):
+        ra, rb = find(a[i]), find(b[i])
+        if ra == rb:
+            continue
+        ha, hb = owner[ra], owner[rb]
+        hi, lo = (ha, hb) if ha < hb else (hb, ha)   # label order is height order
+        dyn[lo] = peak[lo] - lv[i]
+        higher[lo] = hi
+        parent[rb] = ra
+        owner[ra] = hi
+    return dyn[1:], higher[1:]
+
+
+def _merge_shallow(s: np.ndarray, crowns: np.ndarray, k: int, prominence: float,
+                   under: float):
+    """Join each top of dynamic (:func:`dynamics`) below ``prominence``, or lower than
+    ``under`` times the higher top it meets, to the crown of that higher top (or where that
+    one went). Returns the tops kept (k,) bool and the crowns relabelled ``1..kept`` in the
+    same order."""
+    dyn, higher = dynamics(s, crowns, k)
+    peak = np.zeros(k + 1)
+    np.maximum.at(peak, crowns.ravel(), s.ravel())
+    keep = np.r_[True, (dyn >= prominence)
+                 & ((peak[1:] >= under * peak[higher]) | ~np.isfinite(dyn))]
+    into = np.r_[0, higher]
+    for t in range(1, k + 1):          # higher labels come first: follow the chain down
+        c = t
+        while not keep[c]:
+            c = into[c]
+        into[t] = c
+    kept = keep[1:]
+    new = np.zeros(k + 1, np.int64)
+    new[1:][kept] = np.arange(1, int(kept.sum()) + 1)
+    return kept, new[into][crowns].astype(np.int32)
 
 
 def _highest(z: np.ndarray, crowns: np.ndarray, ti, tj) -> tuple:

@@ -1,0 +1,140 @@
+"""Foliage as a turbid medium: sub-rays through a layer of leaves of known leaf area index
+cross it as Beer-Lambert says, and a pulse's echoes spread over the layer's depth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from acquire.lidar.labels import PARTS
+from acquire.lidar.medium import G_SPHERICAL
+from acquire.lidar.presets import get_preset
+from acquire.lidar.simulate import LidarWorld, Scanner, fire
+from acquire.render import Material, RenderScene, SceneObject
+from core.meshes import make_mesh
+
+MAT = Material(albedo=(0.5, 0.5, 0.5), lidar_reflectance=(0.4, 0.4, 0.4))
+
+
+def _box(name, lo, hi, oid, part, lad=None):
+    """A closed box, its faces outward."""
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_box(*(np.subtract(hi, lo)))
+    V = np.asarray(m.vertices) + np.asarray(lo, float)
+    F = np.asarray(m.triangles)
+    return SceneObject(name, make_mesh(V, F), MAT, object_id=oid,
+                       part_labels=np.full(len(F), PARTS.index(part), np.uint8),
+                       leaf_area_density=lad)
+
+
+def _slab_world(lai, top=20.0, depth=8.0, half=400.0):
+    ground = _box("ground", (-half, -half, -1.0), (half, half, 0.0), 1, "ground")
+    layer = _box("layer", (-half, -half, top - depth), (half, half, top), 2, "leaf",
+                 lad=lai / depth)
+    return LidarWorld(RenderScene([ground, layer]), 1550.0)
+
+
+@pytest.mark.parametrize("lai, theta", [(1.0, 0.0), (3.0, 0.0), (2.0, 40.0)])
+def test_the_gap_fraction_of_a_leaf_layer_is_beer_lamberts(lai, theta):
+    """Rays through a layer of leaf area index L at zenith angle theta reach the ground
+    with probability exp(-G L / cos(theta)), G = 0.5 (leaves at random angles)."""
+    w = _slab_world(lai)
+    n = 20000
+    t = np.radians(theta)
+    d = np.tile([np.sin(t), 0.0, -np.cos(t)], (n, 1)).astype(np.float32)
+    o = np.column_stack([np.random.default_rng(1).uniform(-50, 50, (n, 2)), np.full(n, 100.0)])
+    rays = np.hstack([o, d]).astype(np.float32)
+    (R, E), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
+    assert np.all(np.isfinite(R)) and np.all(E > 0)
+    through = np.mean(obj == 0)                   # the ground (object index 0)
+    want = np.exp(-G_SPHERICAL * lai / np.cos(t))
+    assert through == pytest.approx(want, abs=3 * np.sqrt(want * (1 - want) / n) + 0.002)
+    # the leaves met lie in the layer, their depths exponential: mean path 1 / (G u)
+    z = o[:, 2] + d[:, 2] * R
+    leaf = obj == 1
+    assert np.all((z[leaf] <= 20.0 + 1e-3) & (z[leaf] >= 12.0 - 1e-3))
+    u = lai / 8.0
+    path = (20.0 - z[leaf]) / np.cos(t)
+    trunc = 8.0 / np.cos(t)                        # the exponential cut at the layer's end
+    k = G_SPHERICAL * u
+    mean = 1 / k - trunc * np.exp(-k * trunc) / (1 - np.exp(-k * trunc))
+    assert path.mean() == pytest.approx(mean, rel=0.03)
+
+
+def test_overlapping_media_add_and_a_solid_inside_still_returns():
+    """Two layers overlapping over half their depth: the gap fraction is that of the sum
+    of their leaf areas; a branch inside a layer is hit when the leaves leave it a ray."""
+    half = 300.0
+    ground = _box("ground", (-half, -half, -1.0), (half, half, 0.0), 1, "ground")
+    a = _box("a", (-half, -half, 10.0), (half, half, 18.0), 2, "leaf", lad=0.25)
+    b = _box("b", (-half, -half, 14.0), (half, half, 22.0), 3, "leaf", lad=0.25)
+    branch = _box("branch", (-5, -5, 15.0), (5, 5, 15.5), 4, "branch")
+    w = LidarWorld(RenderScene([ground, a, b, branch]), 1550.0)
+    n = 20000
+    o = np.column_stack([np.random.default_rng(2).uniform(-100, 100, (n, 2)), np.full(n, 50.0)])
+    rays = np.hstack([o, np.tile([0, 0, -1.0], (n, 1))]).astype(np.float32)
+    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
+    off = np.hypot(*o[:, :2].T) > 10
+    want = np.exp(-G_SPHERICAL * (0.25 * 8 + 0.25 * 8))
+    assert np.mean(obj[off] == 0) == pytest.approx(want, abs=0.01)
+    o = np.column_stack([np.random.default_rng(3).uniform(-4.5, 4.5, (n, 2)), np.full(n, 50.0)])
+    rays = np.hstack([o, np.tile([0, 0, -1.0], (n, 1))]).astype(np.float32)
+    (R, _), obj, _ = w.cast_energy(rays, np.ones(1), 0.0)
+    # above the branch's top (z 15.5): 6.5 m of b and 2.5 m of a
+    to_branch = np.exp(-G_SPHERICAL * 0.25 * (6.5 + 2.5))
+    assert np.mean(obj == 3) == pytest.approx(to_branch, abs=0.015)
+    assert np.allclose(R[obj == 3], 50.0 - 15.5, atol=1e-3)
+    assert not np.any(obj == 0)
+
+
+def test_a_pulse_into_deep_foliage_gives_several_returns():
+    """A 0.5 mrad pulse from 300 m (an airplane's default) into a 6 m layer of leaf area
+    index 6 (a closed beech canopy): its sub-rays meet leaves at depths spread over metres,
+    so most pulses give more than one echo, and a few reach the ground below."""
+    w = _slab_world(6.0, top=25.0, depth=6.0)
+    sc = Scanner.from_preset(get_preset("riegl-lms-q560"))
+    n = 2000
+    o = np.column_stack([np.random.default_rng(3).uniform(-50, 50, (n, 2)), np.full(n, 300.0)])
+    e = fire(w, sc, o, np.tile([0, 0, -1.0], (n, 1)), rng=np.random.default_rng(4))
+    first = e["return_number"] == 1
+    several = np.mean(e["number_of_returns"][first] > 1)
+    assert several > 0.5
+    assert 0.0 < np.mean(e["part"] == PARTS.index("ground")) < 0.2
+    # the same seed, the same echoes
+    e2 = fire(w, sc, o, np.tile([0, 0, -1.0], (n, 1)), rng=np.random.default_rng(4))
+    assert np.array_equal(e["z"], e2["z"])
+
+
+def test_broadleaf_crowns_are_media_holding_their_leaf_area_and_conifers_keep_needles():
+    """A stand's beeches carry their leaves as a medium in the crown's envelope, closed
+    and outward, with leaf area ``LAI x`` its projection; spruces keep their needle
+    clusters; ``leaf_area_index = 0`` gives the L-system's leaf polygons back."""
+    from scipy.spatial import ConvexHull
+
+    from data_synth.forest import ForestConfig, build_forest
+
+    kw = {"size": 20.0, "margin": 0.0, "density": 300.0, "species": "PIAB:0.5,FASY:0.5",
+          "understory": 0.0, "relief": 0.0}
+    b = build_forest(ForestConfig(leaf_area_index=6.0, **kw), seed=1)
+    sp = dict(zip(b.trees["tree_id"].tolist(), b.trees["species"].tolist(), strict=True))
+    leaves = [o for o in b.render_scene.objects if o.name.endswith(".leaf")]
+    media = [o for o in leaves if o.leaf_area_density]
+    assert media and len(media) < len(leaves)
+    for o in leaves:
+        assert (sp[o.object_id] == "FASY") == (o.leaf_area_density is not None)
+    for o in media:
+        m = o.mesh
+        assert m.is_watertight()
+        V = np.asarray(m.vertices)
+        F = np.asarray(m.triangles)
+        hull = ConvexHull(V)
+        assert o.leaf_area_density * hull.volume == pytest.approx(
+            6.0 * ConvexHull(V[:, :2]).volume, rel=1e-9)
+        # outward: the signed volume of the faces is positive
+        a, bb, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+        assert np.einsum("ij,ij->i", a, np.cross(bb, c)).sum() / 6 == pytest.approx(
+            hull.volume, rel=1e-9)
+    poly = build_forest(ForestConfig(leaf_area_index=0.0, **kw), seed=1)
+    assert not any(o.leaf_area_density for o in poly.render_scene.objects)
+    np.testing.assert_array_equal(poly.trees["x"], b.trees["x"])
