@@ -77,6 +77,15 @@ class FusionOptions(Config):
                                  help="vertices farther than this many Poisson cells (the "
                                       "octree's finest, or the points' median spacing if "
                                       "larger) from a fused point are trimmed")
+    unseen_views: int = option(0, range="[0, 64]",
+                               help="a Poisson vertex that falls, in at least this many views, "
+                                    "on pixels where no fused point of any view fell (the "
+                                    "views looked through it at nothing they could match) is "
+                                    "trimmed (0: off)")
+    seen_grow: int = option(2, unit="px", range="[0, 20]",
+                            help="what a view saw: the pixels its fused points fall on, "
+                                 "grown by this many pixels (closes the gaps between "
+                                 "splatted points)")
 
 
 @dataclass
@@ -347,6 +356,11 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     if confirmed is not None and opt.free_space == "confirmed":
         depths = [np.where(m, d, 0.0) for m, d in zip(confirmed, depths, strict=True)]
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
+    if opt.unseen_views > 0:
+        from reconstruct.mvs.precision import seen_masks, unseen_votes
+
+        seen = seen_masks(fused.points, cameras, grow=opt.seen_grow, seed=seed)
+        drop |= unseen_votes(V, cameras, seen) >= opt.unseen_views
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()
     return mesh

@@ -740,7 +740,11 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
             if len(mesh.triangles):
                 write_mesh(tmp / "mesh.ply", mesh)
         n = 0 if mesh is None else len(mesh.triangles)
-        return {"surface": surface, "triangles": n, "seconds": time.perf_counter() - tm}
+        out = {"surface": surface, "triangles": n}
+        if n and (tmp / "fused.ply").is_file():
+            out["seen_precision"] = _seen_precision(mesh, depth, tmp / "fused.ply",
+                                                    mvs.fusion.seen_grow)
+        return {**out, "seconds": time.perf_counter() - tm}
 
     meshed = st.run("mesh", mesh_fn, files=["mesh.ply"],
                     depends={"surface": mvs.surface, "fusion": asdict(mvs.fusion),
@@ -748,6 +752,8 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
     report["dense"] = dense_report(depth, fused, meshed["surface"], None)
     report["dense"]["triangles"] = meshed["triangles"]
     report["dense"]["timings"]["mesh"] = meshed["seconds"]
+    if "seen_precision" in meshed:
+        report["dense"]["seen_precision"] = meshed["seen_precision"]
     report["timings"]["dense"] = time.perf_counter() - t
     if any(n in st.skipped for n in ("dense", "fuse", "mesh")):
         report["timings"]["dense"] = sum(report["dense"]["timings"].values())
@@ -762,6 +768,23 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
         report["metrics"]["mesh"] = scored["value"]
         report["timings"]["evaluate_mesh"] = scored["seconds"]
     return True, "ok"
+
+
+def _seen_precision(mesh, depth: dict, fused_ply: Path, grow: int) -> dict:
+    """The truth-free precision of the mesh (:func:`reconstruct.mvs.precision.seen_precision`):
+    per view and on average, the share of its drawn pixels on what the views saw."""
+    import open3d as o3d
+
+    from reconstruct.mvs.precision import seen_masks, seen_precision
+
+    pts = np.asarray(o3d.io.read_point_cloud(str(fused_ply)).points)
+    cams = depth["cameras"]
+    sc = seen_precision(mesh, cams, seen_masks(pts, cams, grow=grow))
+    return {"mean": sc.mean_inside, "seen_covered": sc.mean_covers,
+            "views": dict(zip(depth["names"], sc.inside, strict=True)),
+            "definition": "share of the mesh's pixels, drawn into each working view, that "
+                          "fall where some fused point falls (grown by the fusion's "
+                          "seen_grow, 2 px of tolerance): what the views saw"}
 
 
 def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) -> dict:
