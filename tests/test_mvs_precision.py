@@ -38,14 +38,6 @@ def _fin():
     return b
 
 
-def _surface_points(mesh, n=60000):
-    from core.sampling import sample_surface
-
-    pts = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.triangles), n,
-                         rng=np.random.default_rng(0))
-    return pts[0] if isinstance(pts, tuple) else pts
-
-
 def test_mask_scores_of_a_mesh_against_its_own_silhouettes_and_half_of_them():
     from reconstruct.evaluation.masks import mask_scores, mesh_hits
 
@@ -71,8 +63,9 @@ def test_mask_scores_of_a_mesh_against_its_own_silhouettes_and_half_of_them():
 
 
 def test_truth_free_precision_drops_when_a_fin_is_added():
-    """What the views saw: the two columns' surface points splatted into every view. The
-    columns' own mesh lies on it; the same mesh with a fin between the columns does not,
+    """What the views saw: each view's pixels of the two columns (as if every one of them
+    had a fused depth). The columns' own mesh lies on them; with a fin between the
+    columns it does not,
     and the truth-free precision says so: it falls by at least half the fin's drawn share
     (the rest lies within the 3 px the seen pixels are grown by, or over a column)."""
     from reconstruct.evaluation.masks import mesh_hits
@@ -80,7 +73,7 @@ def test_truth_free_precision_drops_when_a_fin_is_added():
 
     cams = _ring(8, size=(320, 240))
     truth = _columns()
-    seen = seen_masks(_surface_points(truth, 200000), cams, grow=1)
+    seen = seen_masks(mesh_hits(truth, cams), grow=1)
     good = seen_precision(truth, cams, seen)
     assert good.mean_inside > 0.99
     finned = truth + _fin()
@@ -92,11 +85,12 @@ def test_truth_free_precision_drops_when_a_fin_is_added():
 
 
 def test_unseen_votes_count_the_views_that_saw_nothing_at_a_vertex():
+    from reconstruct.evaluation.masks import mesh_hits
     from reconstruct.mvs.precision import seen_masks, unseen_votes
 
     cams = _ring(8)
     truth = _columns()
-    seen = seen_masks(_surface_points(truth), cams, grow=1)
+    seen = seen_masks(mesh_hits(truth, cams), grow=1)
     on = np.array([[-0.03 + 0.006, 0.0, 0.06], [0.03, 0.006, 0.06]])  # column faces
     gap = np.array([[0.0, 0.0, 0.06]])  # between the columns: background in most views
     assert unseen_votes(on, cams, seen).max() == 0
@@ -104,3 +98,5 @@ def test_unseen_votes_count_the_views_that_saw_nothing_at_a_vertex():
     assert unseen_votes(gap, cams, seen)[0] >= 6
     with pytest.raises(ValueError, match="vertices"):
         unseen_votes(np.zeros((3, 2)), cams, seen)
+    with pytest.raises(ValueError, match=r"confirmed\[0\]"):
+        seen_masks([np.zeros(5, bool)])

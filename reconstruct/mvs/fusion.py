@@ -78,14 +78,13 @@ class FusionOptions(Config):
                                       "octree's finest, or the points' median spacing if "
                                       "larger) from a fused point are trimmed")
     unseen_views: int = option(0, range="[0, 64]",
-                               help="a Poisson vertex that falls, in at least this many views, "
-                                    "on pixels where no fused point of any view fell (the "
-                                    "views looked through it at nothing they could match) is "
-                                    "trimmed (0: off)")
-    seen_grow: int = option(2, unit="px", range="[0, 20]",
-                            help="what a view saw: the pixels its fused points fall on, "
-                                 "grown by this many pixels (closes the gaps between "
-                                 "splatted points)")
+                               help="a fused point or Poisson vertex that falls, in at least "
+                                    "this many views, on pixels where the view has no fused "
+                                    "depth (it looked through it at nothing it could match) "
+                                    "is dropped (0: off)")
+    seen_grow: int = option(3, unit="px", range="[0, 20]",
+                            help="what a view saw: its fused pixels grown by this many "
+                                 "pixels (fusion erodes its masks at depth edges)")
 
 
 @dataclass
@@ -313,6 +312,15 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
 
     opt = options or FusionOptions()
     pts, nrm, col = fused.points, fused.normals, fused.colors
+    seen = None
+    if opt.unseen_views > 0 and confirmed is not None:
+        from reconstruct.mvs.precision import seen_masks, unseen_votes
+
+        seen = seen_masks(confirmed, grow=opt.seen_grow)
+        keep = unseen_votes(pts, cameras, seen) < opt.unseen_views
+        log.info("fused points that %d views or more saw nothing at: %d of %d, dropped",
+                 opt.unseen_views, int((~keep).sum()), len(pts))
+        pts, nrm, col = pts[keep], nrm[keep], col[keep]
     if len(pts) > max_points:  # seeded subsample keeps Poisson's memory bounded
         keep = np.sort(np.random.default_rng(seed).choice(len(pts), max_points,
                                                           replace=False))
@@ -356,10 +364,7 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     if confirmed is not None and opt.free_space == "confirmed":
         depths = [np.where(m, d, 0.0) for m, d in zip(confirmed, depths, strict=True)]
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
-    if opt.unseen_views > 0:
-        from reconstruct.mvs.precision import seen_masks, unseen_votes
-
-        seen = seen_masks(fused.points, cameras, grow=opt.seen_grow, seed=seed)
+    if seen is not None:
         drop |= unseen_votes(V, cameras, seen) >= opt.unseen_views
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()

@@ -1,12 +1,14 @@
 """What the views saw, and a precision that needs no truth.
 
-A view saw a surface at the pixels where some fused point falls (:func:`seen_masks`: the
-fused points of every view splatted into it, grown by a few pixels to close the gaps
-between splats). A mesh vertex that falls on pixels where nothing was seen, in several
-views, lies where those views looked through empty space (or through a surface no view
-could match): the free-space trim of :func:`reconstruct.mvs.fusion.poisson_surface` only
-sees surfaces *behind* a vertex, so it keeps a membrane that Poisson stretches across a
-gap against a plain backdrop (fins between columns, skirts below an object).
+A view saw a surface at the pixels where it has a depth that another view confirmed and
+fusion kept (:func:`seen_masks`). A point or mesh vertex that falls, in several views, on
+pixels where they saw nothing lies where those views looked through empty space (or
+through a surface none of them could match). The free-space trim of
+:func:`reconstruct.mvs.fusion.poisson_surface` only counts surfaces seen *behind* a
+vertex, so it keeps what hangs in front of a plain backdrop: depths that a matching
+window carried off an object's edge onto the backdrop beside it (and another view's
+window carried there too), and the membrane Poisson stretches across a gap (fins between
+columns, skirts below an object).
 
 :func:`seen_precision` draws a mesh into every view and reports the share of its pixels
 on what the view saw: the mesh's precision judged by the views alone, to set beside the
@@ -25,46 +27,24 @@ from core.validate import check_array
 __all__ = ["seen_masks", "unseen_votes", "seen_precision"]
 
 
-def seen_masks(points: np.ndarray, cameras: Sequence[Camera], *, grow: int = 2,
-               max_points: int = 1_000_000, seed: int = 0) -> list[np.ndarray]:
-    """(H, W) bool per camera: the pixels onto which some point projects (in front of the
-    camera, nearest pixel), grown by ``grow`` pixels.
+def seen_masks(confirmed: Sequence[np.ndarray], *, grow: int = 2) -> list[np.ndarray]:
+    """(H, W) bool per view: the pixels where the view itself has a depth that fusion kept
+    (``confirmed``, :attr:`reconstruct.mvs.fusion.FusedPoints.masks`), grown by ``grow``
+    pixels (fusion erodes its masks at depth edges, and a surface seen at grazing angle
+    falls a pixel or two off).
 
-    Parameters
-    ----------
-    points : (n, 3) float
-        Fused points, world frame.
-    cameras : sequence of Camera
-        Pinhole cameras (distortion is ignored: the working cameras of the depth maps).
-    grow : int
-        Dilation radius in pixels: fused points of a view seen from another view at a
-        similar distance land about a pixel apart.
-    max_points : int
-        Above this many points a seeded subsample is splatted (bounds the cost on large
-        sets; the grown mask closes the gaps it leaves).
-    """
+    Only a view's own depths say what it saw: the fused points of all views splatted into
+    it would let every fused point vouch for itself."""
     import cv2
 
-    points = check_array(points, "points", shape=(None, 3))
-    if len(points) > max_points:
-        keep = np.sort(np.random.default_rng(seed).choice(len(points), max_points,
-                                                          replace=False))
-        points = points[keep]
-    k = np.ones((2 * grow + 1, 2 * grow + 1), np.uint8) if grow > 0 else None
     out = []
-    for cam in cameras:
-        Y = points @ cam.cam_from_world[:3, :3].T + cam.cam_from_world[:3, 3]
-        z = Y[:, 2]
-        ok = z > 1e-12
-        zs = np.where(ok, z, 1.0)
-        u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
-        v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
-        ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
-        m = np.zeros((cam.height, cam.width), np.uint8)
-        m[v[ok], u[ok]] = 1
-        if k is not None:
-            m = cv2.dilate(m, k)
-        out.append(m > 0)
+    k = np.ones((2 * grow + 1, 2 * grow + 1), np.uint8) if grow > 0 else None
+    for i, m in enumerate(confirmed):
+        m = np.asarray(m)
+        if m.ndim != 2:
+            raise ValueError(f"confirmed[{i}]: expected an (H, W) mask, got shape {m.shape}")
+        m = m.astype(np.uint8)
+        out.append((cv2.dilate(m, k) if k is not None else m) > 0)
     return out
 
 

@@ -741,8 +741,8 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
                 write_mesh(tmp / "mesh.ply", mesh)
         n = 0 if mesh is None else len(mesh.triangles)
         out = {"surface": surface, "triangles": n}
-        if n and (tmp / "fused.ply").is_file():
-            out["seen_precision"] = _seen_precision(mesh, depth, tmp / "fused.ply",
+        if n and fused.get("fused_points") is not None:
+            out["seen_precision"] = _seen_precision(mesh, depth, fused["masks"],
                                                     mvs.fusion.seen_grow)
         return {**out, "seconds": time.perf_counter() - tm}
 
@@ -770,21 +770,21 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
     return True, "ok"
 
 
-def _seen_precision(mesh, depth: dict, fused_ply: Path, grow: int) -> dict:
+def _seen_precision(mesh, depth: dict, packed_masks: list, grow: int) -> dict:
     """The truth-free precision of the mesh (:func:`reconstruct.mvs.precision.seen_precision`):
-    per view and on average, the share of its drawn pixels on what the views saw."""
-    import open3d as o3d
-
+    per view and on average, the share of its drawn pixels on what the view saw (its fused
+    pixels, grown by ``grow``)."""
     from reconstruct.mvs.precision import seen_masks, seen_precision
 
-    pts = np.asarray(o3d.io.read_point_cloud(str(fused_ply)).points)
     cams = depth["cameras"]
-    sc = seen_precision(mesh, cams, seen_masks(pts, cams, grow=grow))
+    masks = [np.unpackbits(m, count=c.width * c.height).reshape(c.height, c.width)
+             .astype(bool) for m, c in zip(packed_masks, cams, strict=True)]
+    sc = seen_precision(mesh, cams, seen_masks(masks, grow=grow))
     return {"mean": sc.mean_inside, "seen_covered": sc.mean_covers,
             "views": dict(zip(depth["names"], sc.inside, strict=True)),
             "definition": "share of the mesh's pixels, drawn into each working view, that "
-                          "fall where some fused point falls (grown by the fusion's "
-                          "seen_grow, 2 px of tolerance): what the views saw"}
+                          "fall on the view's own fused pixels (grown by the fusion's "
+                          "seen_grow, with 2 px of tolerance): what the view saw"}
 
 
 def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) -> dict:
