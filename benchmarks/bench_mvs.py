@@ -252,18 +252,17 @@ def temple(root: Path):
         inside, covers = temple_scores(cap, res.out_dir / "mesh.ply")
         m = rep.get("metrics", {}).get("mesh")
         if m is None:  # from known cameras the folder holds no truth: score it here
+            from acquire.camera import Camera
+            from core.io.mesh import read_mesh
             from reconstruct.sfm.pipeline import _score_mesh
 
-            from core.io.mesh import read_mesh
-
             names = sorted(gt["cameras"])
-            from acquire.camera import Camera
-
             m = _score_mesh(read_mesh(res.out_dir / "mesh.ply"), cap / gt["mesh"],
                             [Camera.from_dict(gt["cameras"][n]) for n in names],
                             gt.get("scene_size"))
-        print(f"   temple {mode:>8}: inside {inside:.4f}, covers {covers:.4f}, P {m['precision']:.3f}"
-              f" R {m['recall']:.3f} at 1 %, {_seen(rep)}, dense {rep['timings']['dense']:.1f} s",
+        print(f"   temple {mode:>8}: inside {inside:.4f}, covers {covers:.4f}, P "
+              f"{m['precision']:.3f} R {m['recall']:.3f} at 1 %, {_seen(rep)}, dense "
+              f"{rep['timings']['dense']:.1f} s",
               flush=True)
         ok &= _check(f"temple {mode}: mesh pixels inside the silhouette", inside, 0.97)
         ok &= _check(f"temple {mode}: silhouette pixels covered by the mesh", covers, 0.85)

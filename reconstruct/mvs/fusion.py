@@ -79,12 +79,13 @@ class FusionOptions(Config):
                                       "larger) from a fused point are trimmed")
     unseen_views: int = option(0, range="[0, 64]",
                                help="a fused point or Poisson vertex that falls, in at least "
-                                    "this many views, on pixels where the view has no fused "
-                                    "depth (it looked through it at nothing it could match) "
-                                    "is dropped (0: off)")
+                                    "this many views, on pixels where PatchMatch found no "
+                                    "plane at all (the view looked through it at nothing it "
+                                    "could match) is dropped (0: off)")
     seen_grow: int = option(3, unit="px", range="[0, 20]",
-                            help="what a view saw: its fused pixels grown by this many "
-                                 "pixels (fusion erodes its masks at depth edges)")
+                            help="what a view saw: its pixels with a depth (for the "
+                                 "truth-free precision: with a fused depth) grown by this "
+                                 "many pixels")
 
 
 @dataclass
@@ -313,10 +314,11 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     opt = options or FusionOptions()
     pts, nrm, col = fused.points, fused.normals, fused.colors
     seen = None
-    if opt.unseen_views > 0 and confirmed is not None:
+    if opt.unseen_views > 0:  # where PatchMatch found no plane at all (not even one
+        # that no other view confirms: a faint surface still gets a depth, a backdrop not)
         from reconstruct.mvs.precision import seen_masks, unseen_votes
 
-        seen = seen_masks(confirmed, grow=opt.seen_grow)
+        seen = seen_masks([d > 0 for d in depths], grow=opt.seen_grow)
         keep = unseen_votes(pts, cameras, seen) < opt.unseen_views
         log.info("fused points that %d views or more saw nothing at: %d of %d, dropped",
                  opt.unseen_views, int((~keep).sum()), len(pts))
