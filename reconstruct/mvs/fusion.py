@@ -13,7 +13,9 @@ colour and the number of views that saw it (its visibility).
 :func:`poisson_surface` meshes the fused points (screened Poisson, open3d) and trims it
 three ways: by Poisson density (where the points were sparse), by distance to the
 nearest fused point, and by visibility: a vertex that lies in front of a surface that
-views saw through it (free space) is removed.
+views saw through it (free space) is removed. With ``unseen_views`` a fourth: a fused
+point or vertex that falls, in that many views, where PatchMatch found no plane at all
+(:mod:`reconstruct.mvs.precision`) is removed too.
 """
 
 from __future__ import annotations

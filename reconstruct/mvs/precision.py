@@ -1,9 +1,11 @@
 """What the views saw, and a precision that needs no truth.
 
-A view saw a surface at the pixels where it has a depth that another view confirmed and
-fusion kept (:func:`seen_masks`). A point or mesh vertex that falls, in several views, on
-pixels where they saw nothing lies where those views looked through empty space (or
-through a surface none of them could match). The free-space trim of
+What a view saw is a mask of its pixels (:func:`seen_masks`): for the truth-free
+precision, where it has a depth that another view confirmed and fusion kept; for the
+unseen trim, where PatchMatch found a plane at all (a faint surface that no second view
+confirms still gets one; a plain backdrop does not). A point or mesh vertex that falls,
+in several views, on pixels where they saw nothing lies where those views looked through
+empty space (or through a surface none of them could match). The free-space trim of
 :func:`reconstruct.mvs.fusion.poisson_surface` only counts surfaces seen *behind* a
 vertex, so it keeps what hangs in front of a plain backdrop: depths that a matching
 window carried off an object's edge onto the backdrop beside it (and another view's
@@ -28,10 +30,10 @@ __all__ = ["seen_masks", "unseen_votes", "seen_precision"]
 
 
 def seen_masks(confirmed: Sequence[np.ndarray], *, grow: int = 2) -> list[np.ndarray]:
-    """(H, W) bool per view: the pixels where the view itself has a depth that fusion kept
-    (``confirmed``, :attr:`reconstruct.mvs.fusion.FusedPoints.masks`), grown by ``grow``
-    pixels (fusion erodes its masks at depth edges, and a surface seen at grazing angle
-    falls a pixel or two off).
+    """(H, W) bool per view: the pixels where the view itself has a depth (``confirmed``:
+    fusion's kept pixels, :attr:`reconstruct.mvs.fusion.FusedPoints.masks`, or every
+    pixel with a depth), grown by ``grow`` pixels (fusion erodes its masks at depth
+    edges, and a surface seen at grazing angle falls a pixel or two off).
 
     Only a view's own depths say what it saw: the fused points of all views splatted into
     it would let every fused point vouch for itself."""
