@@ -51,23 +51,16 @@ def seen_masks(confirmed: Sequence[np.ndarray], *, grow: int = 2) -> list[np.nda
 
 
 def unseen_votes(vertices: np.ndarray, cameras: Sequence[Camera],
-                 seen: Sequence[np.ndarray], *, margin: int = 0) -> np.ndarray:
-    """(n,) int32: in how many views each vertex falls inside the image (at least
-    ``margin`` pixels from its border), in front of the camera, on a pixel where the view
-    saw nothing (``seen`` False)."""
+                 seen: Sequence[np.ndarray]) -> np.ndarray:
+    """(n,) int32: in how many views each vertex falls inside the image, in front of the
+    camera, on a pixel (nearest) where the view saw nothing (``seen`` False)."""
+    from reconstruct.mvs.fusion import _pixels
+
     V = check_array(vertices, "vertices", shape=(None, 3))
     votes = np.zeros(len(V), np.int32)
     for cam, mask in zip(cameras, seen, strict=True):
-        Y = V @ cam.cam_from_world[:3, :3].T + cam.cam_from_world[:3, 3]
-        z = Y[:, 2]
-        ok = z > 1e-12
-        zs = np.where(ok, z, 1.0)
-        u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
-        v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
-        ok &= (u >= margin) & (v >= margin) & (u < cam.width - margin) & \
-            (v < cam.height - margin)
-        idx = np.nonzero(ok)[0]
-        votes[idx[~mask[v[idx], u[idx]]]] += 1
+        idx, u, v, _ = _pixels(cam, V)
+        votes[idx[~mask[v, u]]] += 1
     return votes
 
 
