@@ -30,6 +30,7 @@ from acquire.camera import Camera
 from core.config import Config, option
 from core.frames import transform_points
 from core.progress import track
+from reconstruct.mvs.precision import pixel_lookup, seen_masks, unseen_votes
 
 __all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface", "depth_edges",
            "depth_per_pixel", "confirmed_depths"]
@@ -259,24 +260,10 @@ def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray
     return count
 
 
-def _pixels(cam: Camera, X: np.ndarray):
-    """The pinhole pixel (nearest) each point falls on: indices of the points in front of
-    the camera and inside its image, their pixel columns and rows, and every point's z."""
-    Y = cam.to_camera(X)
-    z = Y[:, 2]
-    ok = z > 1e-12
-    zs = np.where(ok, z, 1.0)
-    u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
-    v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
-    ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
-    idx = np.nonzero(ok)[0]
-    return idx, u[idx], v[idx], z
-
-
 def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
     """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
     out = np.zeros(len(X), np.int32)
-    idx, uo, vo, z = _pixels(other, X)
+    idx, uo, vo, z = pixel_lookup(other, X)
     d = depth[vo, uo].astype(np.float64)
     has = d > 0
     idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
@@ -318,8 +305,6 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     seen = None
     if opt.unseen_views > 0:  # where PatchMatch found no plane at all (not even one
         # that no other view confirms: a faint surface still gets a depth, a backdrop not)
-        from reconstruct.mvs.precision import seen_masks, unseen_votes
-
         seen = seen_masks([d > 0 for d in depths], grow=opt.seen_grow)
         keep = unseen_votes(pts, cameras, seen) < opt.unseen_views
         log.info("fused points that %d views or more saw nothing at: %d of %d, dropped",
@@ -380,7 +365,7 @@ def _free_space(V: np.ndarray, cameras: Sequence[Camera], depths: Sequence[np.nd
     """How many views saw a surface behind each vertex (the vertex is in free space)."""
     votes = np.zeros(len(V), np.int32)
     for cam, depth in zip(cameras, depths, strict=True):
-        idx, u, v, z = _pixels(cam, V)
+        idx, u, v, z = pixel_lookup(cam, V)
         d = depth[v, u]
         votes[idx[(d > 0) & (z[idx] < d * (1.0 - 5.0 * tol))]] += 1
     return votes

@@ -26,7 +26,21 @@ import numpy as np
 from acquire.camera import Camera
 from core.validate import check_array
 
-__all__ = ["seen_masks", "unseen_votes", "seen_precision"]
+__all__ = ["seen_masks", "unseen_votes", "seen_precision", "pixel_lookup"]
+
+
+def pixel_lookup(cam: Camera, X: np.ndarray):
+    """The pinhole pixel (nearest) each point falls on: indices of the points in front of
+    the camera and inside its image, their pixel columns and rows, and every point's z."""
+    Y = cam.to_camera(X)
+    z = Y[:, 2]
+    ok = z > 1e-12
+    zs = np.where(ok, z, 1.0)
+    u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
+    v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
+    ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
+    idx = np.nonzero(ok)[0]
+    return idx, u[idx], v[idx], z
 
 
 def seen_masks(confirmed: Sequence[np.ndarray], *, grow: int = 2) -> list[np.ndarray]:
@@ -54,12 +68,10 @@ def unseen_votes(vertices: np.ndarray, cameras: Sequence[Camera],
                  seen: Sequence[np.ndarray]) -> np.ndarray:
     """(n,) int32: in how many views each vertex falls inside the image, in front of the
     camera, on a pixel (nearest) where the view saw nothing (``seen`` False)."""
-    from reconstruct.mvs.fusion import _pixels
-
     V = check_array(vertices, "vertices", shape=(None, 3))
     votes = np.zeros(len(V), np.int32)
     for cam, mask in zip(cameras, seen, strict=True):
-        idx, u, v, _ = _pixels(cam, V)
+        idx, u, v, _ = pixel_lookup(cam, V)
         votes[idx[~mask[v, u]]] += 1
     return votes
 
