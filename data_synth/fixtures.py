@@ -38,7 +38,8 @@ __all__ = ["sfm_capture", "seen_triangles", "SlopedTile", "sloped_tile"]
 def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: int = 12,
                 width: int = 320, height: int = 240, kind: str = "orbit",
                 elevations_deg: tuple = (35.0,), distance_factor: float = 0.6,
-                seed: int = 0) -> Path:
+                seed: int = 0, texture_boost: float = 4.0, read_noise: float | None = None,
+                blur_sigma: float = 0.0) -> Path:
     """A small SfM capture (default: one ring of 12 orbit views of 'primitives' at 320x240).
 
     The defaults are chosen for a well-conditioned small problem: 30 degrees between
@@ -47,18 +48,28 @@ def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: in
     (Two rings of 6 views at 60 degrees with the scene in a quarter of the frame gave
     ~350 features, 15-30 inliers between the rings and none within the low ring: the
     rotations came out 0.3-0.7 degrees off whatever the thread count.)
+
+    ``texture_boost`` 1 keeps the scene's own texture (the capture's default makes it 4
+    times finer at full contrast); ``read_noise`` (electrons) and ``blur_sigma`` (px) set
+    the sensor's (a noisy black backdrop, soft optics, as real rings have).
     """
+    from acquire.sensor import Sensor
     from acquire.sfm.capture import PathConfig, capture
     from data_synth.scenes import build_scene
 
     elev = "-".join(f"{e:g}" for e in elevations_deg)
+    extra = (f"_t{texture_boost:g}_n{read_noise:g}_b{blur_sigma:g}"
+             if (texture_boost, read_noise, blur_sigma) != (4.0, None, 0.0) else "")
     out = Path(root) / (f"sfm_{scene}_{kind}_{views}_{width}x{height}_e{elev}"
-                        f"_d{distance_factor:g}_s{seed}")
+                        f"_d{distance_factor:g}_s{seed}{extra}")
     if (out / "capture.json").is_file():
         return out
     bundle = build_scene(scene)
+    sensor = Sensor(blur_sigma=blur_sigma, **({} if read_noise is None else
+                                              {"read_noise": read_noise}))
     cfg = PathConfig(kind=kind, views=views, width=width, height=height,
-                     elevations_deg=list(elevations_deg), distance_factor=distance_factor)
+                     elevations_deg=list(elevations_deg), distance_factor=distance_factor,
+                     texture_boost=texture_boost, sensor=sensor)
     return capture(bundle.render_scene, cfg, out, rng=np.random.default_rng(seed),
                    scene_ref={"name": bundle.name, "seed": bundle.seed, "path": None},
                    gt_mesh=bundle.gt_mesh(), seed=seed)

@@ -1,9 +1,10 @@
 """reconstruct.evaluation: measures against ground truth: F-score, accuracy and completeness
 of a surface; disparity metrics (Middlebury); the similarity alignment and pose errors of
 cameras; the errors of registered scan poses after a robust gauge fit; per-view camera errors
-against reference cameras after a robust Sim(3) fit.
+against reference cameras after a robust Sim(3) fit; a mesh drawn into views against a mask
+per view (inside the silhouettes, silhouettes covered).
 
-Modules: ``disparity``, ``evaluate``, ``sim3``, ``scan_poses``, ``camera_poses``.
+Modules: ``disparity``, ``evaluate``, ``sim3``, ``scan_poses``, ``camera_poses``, ``masks``.
 
 Every name below is importable from the room (``from reconstruct.evaluation import NAME``),
 loaded on first use.
@@ -21,6 +22,9 @@ _EXPORTS = {
     "TAU_FRACTION": "evaluate",
     "default_tau": "evaluate",
     "fscore_at": "evaluate",
+    "MaskScores": "masks",
+    "mask_scores": "masks",
+    "mesh_hits": "masks",
     "PoseErrors": "sim3",
     "Sim3": "sim3",
     "align_cameras": "sim3",

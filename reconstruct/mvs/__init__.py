@@ -1,7 +1,8 @@
 """reconstruct.mvs: multi-view stereo on the CPU: PatchMatch depth maps (numba kernels),
-SGBM pair depth, fusion of depth maps, and the dense stage that chains them.
+SGBM pair depth, fusion of depth maps, what the views saw (the unseen trim and the
+truth-free precision), and the dense stage that chains them.
 
-Modules: ``dense``, ``fusion``, ``patchmatch``, ``pipeline``.
+Modules: ``dense``, ``fusion``, ``patchmatch``, ``pipeline``, ``precision``.
 
 Every name below is importable from the room (``from reconstruct.mvs import NAME``), loaded
 on first use.
@@ -24,6 +25,9 @@ _EXPORTS = {
     "View": "patchmatch",
     "depth_range": "patchmatch",
     "prepare_views": "patchmatch",
+    "seen_masks": "precision",
+    "seen_precision": "precision",
+    "unseen_votes": "precision",
     "DENSE_METHODS": "pipeline",
     "MvsOptions": "pipeline",
     "SURFACES": "pipeline",

@@ -13,7 +13,9 @@ colour and the number of views that saw it (its visibility).
 :func:`poisson_surface` meshes the fused points (screened Poisson, open3d) and trims it
 three ways: by Poisson density (where the points were sparse), by distance to the
 nearest fused point, and by visibility: a vertex that lies in front of a surface that
-views saw through it (free space) is removed.
+views saw through it (free space) is removed. With ``unseen_views`` a fourth: a fused
+point or vertex that falls, in that many views, where PatchMatch found no plane at all
+(:mod:`reconstruct.mvs.precision`) is removed too.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from acquire.camera import Camera
 from core.config import Config, option
 from core.frames import transform_points
 from core.progress import track
+from reconstruct.mvs.precision import pixel_lookup, seen_masks, unseen_votes
 
 __all__ = ["FusionOptions", "FusedPoints", "fuse_points", "poisson_surface", "depth_edges",
            "depth_per_pixel", "confirmed_depths"]
@@ -77,6 +80,15 @@ class FusionOptions(Config):
                                  help="vertices farther than this many Poisson cells (the "
                                       "octree's finest, or the points' median spacing if "
                                       "larger) from a fused point are trimmed")
+    unseen_views: int = option(0, range="[0, 64]",
+                               help="a fused point or Poisson vertex that falls, in at least "
+                                    "this many views, on pixels where PatchMatch found no "
+                                    "plane at all (the view looked through it at nothing it "
+                                    "could match) is dropped (0: off)")
+    seen_grow: int = option(3, unit="px", range="[0, 20]",
+                            help="what a view saw: its pixels with a depth (for the "
+                                 "truth-free precision: with a fused depth) grown by this "
+                                 "many pixels")
 
 
 @dataclass
@@ -248,24 +260,10 @@ def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray
     return count
 
 
-def _pixels(cam: Camera, X: np.ndarray):
-    """The pinhole pixel (nearest) each point falls on: indices of the points in front of
-    the camera and inside its image, their pixel columns and rows, and every point's z."""
-    Y = cam.to_camera(X)
-    z = Y[:, 2]
-    ok = z > 1e-12
-    zs = np.where(ok, z, 1.0)
-    u = np.rint(cam.fx * Y[:, 0] / zs + cam.cx).astype(np.int64)
-    v = np.rint(cam.fy * Y[:, 1] / zs + cam.cy).astype(np.int64)
-    ok &= (u >= 0) & (v >= 0) & (u < cam.width) & (v < cam.height)
-    idx = np.nonzero(ok)[0]
-    return idx, u[idx], v[idx], z
-
-
 def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
     """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
     out = np.zeros(len(X), np.int32)
-    idx, uo, vo, z = _pixels(other, X)
+    idx, uo, vo, z = pixel_lookup(other, X)
     d = depth[vo, uo].astype(np.float64)
     has = d > 0
     idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
@@ -304,6 +302,14 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
 
     opt = options or FusionOptions()
     pts, nrm, col = fused.points, fused.normals, fused.colors
+    seen = None
+    if opt.unseen_views > 0:  # where PatchMatch found no plane at all (not even one
+        # that no other view confirms: a faint surface still gets a depth, a backdrop not)
+        seen = seen_masks([d > 0 for d in depths], grow=opt.seen_grow)
+        keep = unseen_votes(pts, cameras, seen) < opt.unseen_views
+        log.info("fused points that %d views or more saw nothing at: %d of %d, dropped",
+                 opt.unseen_views, int((~keep).sum()), len(pts))
+        pts, nrm, col = pts[keep], nrm[keep], col[keep]
     if len(pts) > max_points:  # seeded subsample keeps Poisson's memory bounded
         keep = np.sort(np.random.default_rng(seed).choice(len(pts), max_points,
                                                           replace=False))
@@ -347,6 +353,8 @@ def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
     if confirmed is not None and opt.free_space == "confirmed":
         depths = [np.where(m, d, 0.0) for m, d in zip(confirmed, depths, strict=True)]
     drop |= _free_space(V, cameras, depths, opt.depth_tol) >= 2
+    if seen is not None:
+        drop |= unseen_votes(V, cameras, seen) >= opt.unseen_views
     mesh.remove_vertices_by_mask(drop)
     mesh.remove_unreferenced_vertices()
     return mesh
@@ -357,7 +365,7 @@ def _free_space(V: np.ndarray, cameras: Sequence[Camera], depths: Sequence[np.nd
     """How many views saw a surface behind each vertex (the vertex is in free space)."""
     votes = np.zeros(len(V), np.int32)
     for cam, depth in zip(cameras, depths, strict=True):
-        idx, u, v, z = _pixels(cam, V)
+        idx, u, v, z = pixel_lookup(cam, V)
         d = depth[v, u]
         votes[idx[(d > 0) & (z[idx] < d * (1.0 - 5.0 * tol))]] += 1
     return votes

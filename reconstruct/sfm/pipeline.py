@@ -740,7 +740,11 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
             if len(mesh.triangles):
                 write_mesh(tmp / "mesh.ply", mesh)
         n = 0 if mesh is None else len(mesh.triangles)
-        return {"surface": surface, "triangles": n, "seconds": time.perf_counter() - tm}
+        out = {"surface": surface, "triangles": n}
+        if n and fused.get("fused_points") is not None:
+            out["seen_precision"] = _seen_precision(mesh, depth, fused["masks"],
+                                                    mvs.fusion.seen_grow)
+        return {**out, "seconds": time.perf_counter() - tm}
 
     meshed = st.run("mesh", mesh_fn, files=["mesh.ply"],
                     depends={"surface": mvs.surface, "fusion": asdict(mvs.fusion),
@@ -748,6 +752,8 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
     report["dense"] = dense_report(depth, fused, meshed["surface"], None)
     report["dense"]["triangles"] = meshed["triangles"]
     report["dense"]["timings"]["mesh"] = meshed["seconds"]
+    if "seen_precision" in meshed:
+        report["dense"]["seen_precision"] = meshed["seen_precision"]
     report["timings"]["dense"] = time.perf_counter() - t
     if any(n in st.skipped for n in ("dense", "fuse", "mesh")):
         report["timings"]["dense"] = sum(report["dense"]["timings"].values())
@@ -762,6 +768,23 @@ def _dense_stages(st, config, inp, tmp: Path, report: dict, v: dict) -> tuple[bo
         report["metrics"]["mesh"] = scored["value"]
         report["timings"]["evaluate_mesh"] = scored["seconds"]
     return True, "ok"
+
+
+def _seen_precision(mesh, depth: dict, packed_masks: list, grow: int) -> dict:
+    """The truth-free precision of the mesh (:func:`reconstruct.mvs.precision.seen_precision`):
+    per view and on average, the share of its drawn pixels on what the view saw (its fused
+    pixels, grown by ``grow``)."""
+    from reconstruct.mvs.precision import seen_masks, seen_precision
+
+    cams = depth["cameras"]
+    masks = [np.unpackbits(m, count=c.width * c.height).reshape(c.height, c.width)
+             .astype(bool) for m, c in zip(packed_masks, cams, strict=True)]
+    sc = seen_precision(mesh, cams, seen_masks(masks, grow=grow))
+    return {"mean": sc.mean_inside, "seen_covered": sc.mean_covers,
+            "views": dict(zip(depth["names"], sc.inside, strict=True)),
+            "definition": "share of the mesh's pixels, drawn into each working view, that "
+                          "fall on the view's own fused pixels (grown by the fusion's "
+                          "seen_grow, with 2 px of tolerance): what the view saw"}
 
 
 def _score_mesh(mesh, gt_path: Path, true_cams: list, scene_size: float | None) -> dict:
