@@ -49,10 +49,15 @@ def test_decoded_projector_coordinates_match_truth(sl_capture):
     assert np.percentile(err, 95) < 0.5
 
 
-def test_structured_light_reconstruction(sl_capture, tmp_path):
+@pytest.fixture(scope="session")
+def sl_recon(sl_capture, tmp_path_factory):
     from reconstruct.stereo.sl_pipeline import run_capture
 
-    res = run_capture(sl_capture, tmp_path / "rec")
+    return run_capture(sl_capture, tmp_path_factory.mktemp("sl_recon") / "rec")
+
+
+def test_structured_light_reconstruction(sl_recon):
+    res = sl_recon
     r = res.report
     assert json.dumps(r) == json.dumps(json.loads((res.out_dir / "report.json").read_text()))
     assert r["calibration"]["truth_errors"]["baseline_rel_err"] < 0.02
@@ -72,8 +77,9 @@ def test_cli_rejects_a_stereo_capture_as_structured_light(sl_capture, tmp_path, 
     assert code == 2 and len(err) == 1 and "expected a stereo capture" in err[0]
 
 
-def test_same_seed_same_bytes_for_every_output(sl_capture, tmp_path, output_differences):
+def test_same_seed_same_bytes_for_every_output(sl_capture, sl_recon, tmp_path,
+                                               output_differences):
     from reconstruct.stereo.sl_pipeline import run_capture
 
-    a, b = run_capture(sl_capture, tmp_path / "a"), run_capture(sl_capture, tmp_path / "b")
-    assert output_differences(a, b) == []
+    again = run_capture(sl_capture, tmp_path / "again")
+    assert output_differences(sl_recon.out_dir, again.out_dir) == []
