@@ -295,7 +295,30 @@ def dino(root: Path):
         if m == "patchmatch":
             ok &= _check("dino: mesh pixels inside the silhouette", inside, 0.97)
             ok &= _check("dino: silhouette pixels covered by the mesh", covers, 0.945)
+            _keep_for_up(res.out_dir / "mesh.ply", "dino, our dense mesh from its cameras",
+                         cams)
     return ok
+
+
+def _keep_for_up(mesh_path: Path, label: str, cams: dict):
+    """Keep a mesh of a real photo set for bench_up (``.cache/bench/up/``), with its true
+    up: the axis of the ring of cameras (a turntable's), on the side the cameras stand
+    above the object."""
+    import json
+    import shutil
+
+    from core.io.mesh import read_mesh
+
+    centres = np.array([-c.cam_from_world[:3, :3].T @ c.cam_from_world[:3, 3]
+                        for c in cams.values()])
+    axis = np.linalg.svd(centres - centres.mean(0))[2][2]
+    centroid = np.asarray(read_mesh(mesh_path).vertices).mean(0)
+    axis = axis if axis @ (centres.mean(0) - centroid) > 0 else -axis
+    keep = ROOT / ".cache" / "bench" / "up"
+    keep.mkdir(parents=True, exist_ok=True)
+    name = label.split(",")[0].replace(" ", "_")
+    shutil.copyfile(mesh_path, keep / f"{name}.ply")
+    (keep / f"{name}.json").write_text(json.dumps({"label": label, "up": axis.tolist()}))
 
 
 def main():

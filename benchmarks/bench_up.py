@@ -77,6 +77,25 @@ def _cases(only=None):
         yield "Stanford dragon, 15 real scans", *_dragon()
     else:
         print(f"   {DRAGON} not present: the real dragon is skipped")
+    yield from _own_meshes()
+
+
+def _own_meshes():
+    """This project's meshes of real photo sets, kept by bench_mvs (``.cache/bench/up``)
+    with their true up; none until bench_mvs has run on the real sets."""
+    import json
+
+    from core.io.mesh import read_mesh
+
+    keep = Path(__file__).resolve().parents[1] / ".cache" / "bench" / "up"
+    found = sorted(keep.glob("*.json")) if keep.is_dir() else []
+    if not found:
+        print(f"   no mesh of a real photo set in {keep} (bench_mvs keeps them): skipped")
+    for meta in found:
+        m = read_mesh(meta.with_suffix(".ply"))
+        info = json.loads(meta.read_text())
+        yield (info["label"], np.asarray(m.vertices, np.float64),
+               np.asarray(m.triangles, np.int64), np.asarray(info["up"], np.float64))
 
 
 def main():
