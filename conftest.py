@@ -7,7 +7,8 @@ The check: the session (the xdist controller, before it starts its workers) poin
 ``TMPDIR`` at a private folder inside the system temporary directory, so everything the
 tests, the library and their subprocesses put "in the temporary directory" lands there and
 nothing of anyone else's does; at the end a non-empty folder fails the session, naming what
-was left, and is removed. pytest's own ``tmp_path`` folders (it keeps the last three runs
+was left, and is removed; a folder a killed session left behind (its process gone) is
+removed when the next session starts. pytest's own ``tmp_path`` folders (it keeps the last three runs
 on purpose) live under the repository's ``.cache/pytest-tmp`` instead.
 """
 
@@ -40,9 +41,25 @@ def pytest_configure(config):
     base = Path(os.environ.get("PYTEST_DEBUG_TEMPROOT") or _ROOT / ".cache" / "pytest-tmp")
     base.mkdir(parents=True, exist_ok=True)
     os.environ["PYTEST_DEBUG_TEMPROOT"] = str(base)
-    private = tempfile.mkdtemp(prefix="scanamp-tests-")
+    _remove_dead_sessions(Path(tempfile.gettempdir()))
+    private = tempfile.mkdtemp(prefix=f"scanamp-tests-{os.getpid()}-")
     os.environ[_PRIVATE] = os.environ["TMPDIR"] = tempfile.tempdir = private
     config._scanamp_tmp = Path(private)
+
+
+def _remove_dead_sessions(tmp: Path) -> None:
+    """Remove the private folders of test sessions whose process is gone (a run killed
+    before its end cannot remove its own): ``scanamp-tests-PID-*``, PID no longer alive."""
+    for folder in tmp.glob("scanamp-tests-*-*"):
+        pid = folder.name.split("-")[2]
+        if not pid.isdigit():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except PermissionError:
+            pass  # alive, someone else's
 
 
 def pytest_sessionfinish(session, exitstatus):
