@@ -309,8 +309,7 @@ def _keep_for_up(mesh_path: Path, label: str, cams: dict):
 
     from core.io.mesh import read_mesh
 
-    centres = np.array([-c.cam_from_world[:3, :3].T @ c.cam_from_world[:3, 3]
-                        for c in cams.values()])
+    centres = np.array([c.center for c in cams.values()])
     axis = np.linalg.svd(centres - centres.mean(0))[2][2]
     centroid = np.asarray(read_mesh(mesh_path).vertices).mean(0)
     axis = axis if axis @ (centres.mean(0) - centroid) > 0 else -axis
