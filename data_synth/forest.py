@@ -53,16 +53,17 @@ from core.io.trees import read_tree_table, write_tree_table
 from core.meshes import make_mesh
 from core.validate import InputError
 from data_synth.bundle import SceneBundle
-from procgen.allometry import stand_crowns
+from procgen.allometry import crown_displacement, stand_crowns
 from procgen.terrain import fractal_terrain, heightfield_to_mesh, mountain_relief
 from procgen.trees import (
     LEAF_AREA_INDEX,
     NEEDLE_CLUSTER,
     NEEDLE_DENSITY,
     SPECIES,
+    SUN_CROWN_RATIO,
     TREE_PARTS,
     WHORL_AREA,
-    crown_envelope,
+    crown_media,
     crown_years,
     grow_tree,
     place_tree,
@@ -193,6 +194,16 @@ class ForestConfig(Config):
                                          "in the crown's envelope (European beech 5.6-9.5, "
                                          "Leuschner et al. 2006); 0: the L-system's leaf "
                                          "clusters as polygons")
+    sun_crown: float = option(SUN_CROWN_RATIO, range="[1, 20]",
+                              help="broadleaf crowns: leaf area density of the sun crown "
+                                   "(the crown's upper third) over the shade crown's below "
+                                   "(leaves peak in the outer, lit layer: Hagemeier and "
+                                   "Leuschner 2019); 1: uniform through the envelope")
+    plastic_crowns: bool = option(True, help="crowns whose offsets the inventory does "
+                                  "not give move from their stems towards their growing "
+                                  "space (their cell of the stand's power diagram of crown "
+                                  "radii: procgen.allometry.crown_displacement), as crowns "
+                                  "grow into gaps; off: centred on their stems")
     crs: str = option("", help="coordinate system of the inventory (EPSG:CODE or WKT; "
                                "empty: none)")
     weber_penn: str = option("", help="species grown with Weber & Penn's model "
@@ -360,6 +371,23 @@ def _allometric_crowns(t, dtm_local, xl, yl, zg, origin, area_ha) -> dict:
                         slope=np.hypot(gx, gy), aspect_deg=aspect)
 
 
+def _crown_offsets(t: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Each crown's displacement towards its growing space
+    (:func:`procgen.allometry.crown_displacement`), from the crown radii the trees will be
+    grown with (the inventory's, else the allometric, else the species' proportion)."""
+    h = np.asarray(t["height"], np.float64)
+    r = np.full(len(h), np.nan)
+    for key in ("crown_radius", "allometric_radius"):
+        v = t.get(key)
+        if v is not None:
+            v = np.asarray(v, np.float64)
+            r = np.where(np.isfinite(r) | ~(v > 0), r, v)
+    width = np.array([species_for(str(s)).crown_width for s in t["species"]], np.float64)
+    r = np.where(np.isfinite(r), r, width * h)
+    d = crown_displacement(np.column_stack([t["x"], t["y"]]), np.maximum(r, 0.1))
+    return d[:, 0], d[:, 1]
+
+
 def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str = "forest",
                  spec: dict | None = None, path=None) -> ForestBundle:
     """Grow a stand (from ``inventory``, a CSV path, or procedurally) and its truth.
@@ -392,6 +420,8 @@ def build_forest(cfg: ForestConfig, *, inventory=None, seed: int = 0, name: str 
     t["allometric_radius"] = allo["crown_radius"]
     t["allometric_dbh"] = np.where(np.isfinite(allo["crown_ratio"]), allo["dbh_cm"] / 100.0,
                                    np.nan)
+    if cfg.plastic_crowns and (t.get("crown_dx") is None or t.get("crown_dy") is None):
+        t["crown_dx"], t["crown_dy"] = _crown_offsets(t)
     objects, meshes = [], {}
     ground_parts = _ground(cfg, dtm_local, rng, objects, meshes)
     crowns, dbhs = _trees(cfg, t, xl, yl, zg, rng, objects, meshes)
@@ -563,10 +593,12 @@ def _trees(cfg, t, xl, yl, zg, rng, objects, meshes, *, first_id=1):
                 _add(objects, meshes, f"tree{k + first_id:05d}.{suffix}", V, F[sel],
                      lut[P[sel]], mat, k + first_id)
         if medium:  # leaves of centimetres, too many to mesh: the crown as a medium
-            ev, ef, lad = crown_envelope(V[np.unique(F[~wood])], cfg.leaf_area_index)
-            _add(objects, meshes, f"tree{k + first_id:05d}.leaf", ev, ef,
-                 np.full(len(ef), part_code("leaf"), np.uint8), foliage, k + first_id,
-                 leaf_area_density=lad)
+            layers = crown_media(V[np.unique(F[~wood])], cfg.leaf_area_index,
+                                 sun_ratio=cfg.sun_crown)
+            for suffix, (ev, ef, lad) in zip(("leaf", "sun"), layers, strict=False):
+                _add(objects, meshes, f"tree{k + first_id:05d}.{suffix}", ev, ef,
+                     np.full(len(ef), part_code("leaf"), np.uint8), foliage, k + first_id,
+                     leaf_area_density=lad)
     return crowns, dbhs
 
 

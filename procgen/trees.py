@@ -42,7 +42,8 @@ __all__ = ["TREE_PARTS", "SPECIES", "Species", "TreeModel", "species_for", "spec
            "grow_tree",
            "place_tree", "needle_clusters", "crown_years", "LEADER_GROWTH", "NEEDLE_CLUSTER",
            "NEEDLE_DENSITY", "FAN", "WHORL_AREA", "spray_scale", "hull_radius",
-           "LEAF_AREA_INDEX", "crown_envelope"]
+           "LEAF_AREA_INDEX", "crown_envelope", "SUN_CROWN_DEPTH", "SUN_CROWN_RATIO",
+           "crown_media"]
 
 TREE_PARTS = ("trunk", "branch", "leaf")
 """Part of each tree triangle: the stem, a branch, a leaf or needle cluster."""
@@ -376,6 +377,23 @@ doi:10.1007/s11258-005-9030-9), managed ones 4.5-5.1 (Cerny et al. 2020, J. For.
 31: 827-836, doi:10.1007/s11676-018-0850-z); sycamore maple 4.0 (the same)."""
 
 
+def _outward_hull(p: np.ndarray):
+    """The convex hull of ``p (n, 3)`` as ``(vertices (k, 3), triangles (m, 3) int64 with
+    outward faces, volume)``."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(p)
+    used = np.unique(hull.simplices)
+    remap = np.zeros(len(p), np.int64)
+    remap[used] = np.arange(len(used))
+    V = p[used]
+    F = remap[hull.simplices]
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    flip = np.einsum("ij,ij->i", n, hull.equations[:, :3]) < 0
+    F[flip] = F[flip][:, ::-1]
+    return V, F, float(hull.volume)
+
+
 def crown_envelope(points: np.ndarray, leaf_area_index: float = LEAF_AREA_INDEX):
     """A broadleaf crown as a turbid medium: the convex hull of its foliage ``points
     (n, 3)`` (its leaf clusters' corners), faces outward, and the leaf area density that
@@ -392,17 +410,82 @@ def crown_envelope(points: np.ndarray, leaf_area_index: float = LEAF_AREA_INDEX)
 
     p = check_array(points, "points", shape=(None, 3))
     lai = check_positive(leaf_area_index, "leaf_area_index")
-    hull = ConvexHull(p)
-    used = np.unique(hull.simplices)
-    remap = np.zeros(len(p), np.int64)
-    remap[used] = np.arange(len(used))
-    V = p[used]
-    F = remap[hull.simplices]
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    flip = np.einsum("ij,ij->i", n, hull.equations[:, :3]) < 0
-    F[flip] = F[flip][:, ::-1]
-    area = ConvexHull(p[:, :2]).volume
-    return V, F, float(lai * area / hull.volume)
+    V, F, volume = _outward_hull(p)
+    return V, F, float(lai * ConvexHull(p[:, :2]).volume / volume)
+
+
+SUN_CROWN_DEPTH = 1.0 / 3.0
+"""The sun crown's share of a broadleaf crown's length, from its top: the upper third,
+where a closed beech canopy's sun leaves are (the crown's outer, lit layer)."""
+
+SUN_CROWN_RATIO = 3.0
+"""Leaf area density of a broadleaf's sun crown over that of its shade crown below. In
+adult European beech the leaf area density peaks in the uppermost, peripheral sun-leaf
+layer (Hagemeier and Leuschner 2019, *Functional crown architecture of five temperate
+broadleaf tree species*, Forests 10: 265, doi:10.3390/f10030265), as Horn's monolayer
+crowns of shade-tolerant trees put their leaves in the crown's outer shell (Horn 1971,
+*The Adaptive Geometry of Trees*, Princeton). A crown uniform in leaf area density puts a
+quarter of its leaves in its upper third (a sphere's cap of two thirds of its radius);
+three times the density there puts half of them: the order of the sun/shade contrast
+those harvests report (an assumption of this model, not a fitted figure)."""
+
+_CAP_INSET = 0.01  # metres: the sun crown is shrunk this far inside the crown's envelope
+
+
+def _cap(V: np.ndarray, F: np.ndarray, zc: float) -> np.ndarray:
+    """The corners of the convex polyhedron ``(V, F)`` cut at height ``zc``, its part
+    above: the vertices above and the points where its edges cross ``zc``."""
+    e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    a, b = V[e[:, 0]], V[e[:, 1]]
+    cross = (a[:, 2] - zc) * (b[:, 2] - zc) < 0
+    t = (zc - a[cross, 2]) / (b[cross, 2] - a[cross, 2])
+    cut = a[cross] + t[:, None] * (b[cross] - a[cross])
+    return np.vstack([V[V[:, 2] >= zc], cut])
+
+
+def crown_media(points: np.ndarray, leaf_area_index: float = LEAF_AREA_INDEX, *,
+                sun_ratio: float = SUN_CROWN_RATIO, sun_depth: float = SUN_CROWN_DEPTH):
+    """A broadleaf crown as nested turbid media whose leaf area densities add: the convex
+    hull of its foliage ``points (n, 3)`` and, inside it, its sun crown (the hull's part
+    above ``1 - sun_depth`` of its height, shrunk :data:`_CAP_INSET` inside), so that the
+    density there is ``sun_ratio`` times the density below, and the crown holds
+    ``leaf_area_index`` m² of leaves over each m² of its projection in all.
+
+    Returns a list of ``(vertices (k, 3), triangles (m, 3) int64 outward, leaf area
+    density m²/m³)``: the hull first, then the sun crown's extra density (absent when
+    ``sun_ratio`` is 1). With ``sun_ratio = 1`` this is :func:`crown_envelope`.
+
+    >>> g = np.array([[x, y, z] for x in (0, 2) for y in (0, 3) for z in (0, 3)], float)
+    >>> [(len(f), round(lad, 4)) for _, f, lad in crown_media(g, 6.0, sun_ratio=1.0)]
+    [(12, 2.0)]
+    >>> (_, _, shade), (v, _, extra) = crown_media(g, 6.0, sun_ratio=3.0)
+    >>> float(v[:, 2].min().round(3)), round(shade + extra, 4) == round(3 * shade, 4)
+    (2.01, True)
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    p = check_array(points, "points", shape=(None, 3))
+    lai = check_positive(leaf_area_index, "leaf_area_index")
+    ratio = check_positive(sun_ratio, "sun_ratio")
+    if not 0 < sun_depth < 1:
+        raise ValueError(f"sun_depth: expected in (0, 1), got {sun_depth}")
+    V, F, volume = _outward_hull(p)
+    leaf_area = lai * ConvexHull(p[:, :2]).volume
+    lo, hi = float(V[:, 2].min()), float(V[:, 2].max())
+    cap = _cap(V, F, hi - sun_depth * (hi - lo))
+    if ratio == 1.0 or len(cap) < 4:
+        return [(V, F, float(leaf_area / volume))]
+    try:
+        cv, cf, _ = _outward_hull(cap)
+    except QhullError:                     # a flat cap (coplanar corners): no sun crown
+        return [(V, F, float(leaf_area / volume))]
+    c = cv.mean(axis=0)                    # inside the cap: a mean of its corners
+    shrink = max(0.0, 1.0 - 2.0 * _CAP_INSET / max(float(np.ptp(cv, axis=0).min()), 1e-9))
+    cv = c + (cv - c) * shrink
+    cvol = float(ConvexHull(cv).volume)
+    shade = leaf_area / (volume + (ratio - 1.0) * cvol)
+    return [(V, F, float(shade)), (cv, cf, float((ratio - 1.0) * shade))]
 
 
 LEADER_GROWTH = 0.45

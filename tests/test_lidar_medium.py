@@ -107,34 +107,100 @@ def test_a_pulse_into_deep_foliage_gives_several_returns():
 
 
 def test_broadleaf_crowns_are_media_holding_their_leaf_area_and_conifers_keep_needles():
-    """A stand's beeches carry their leaves as a medium in the crown's envelope, closed
-    and outward, with leaf area ``LAI x`` its projection; spruces keep their needle
-    clusters; ``leaf_area_index = 0`` gives the L-system's leaf polygons back."""
+    """A stand's beeches carry their leaves as media in the crown's envelope, closed and
+    outward: the envelope and, inside it, the sun crown (its upper third), whose densities
+    add to ``sun_crown`` times the shade crown's and hold ``LAI x`` the projection in all;
+    spruces keep their needle clusters; ``leaf_area_index = 0`` gives the L-system's leaf
+    polygons back."""
     from scipy.spatial import ConvexHull
 
     from data_synth.forest import ForestConfig, build_forest
 
     kw = {"size": 20.0, "margin": 0.0, "density": 300.0, "species": "PIAB:0.5,FASY:0.5",
           "understory": 0.0, "relief": 0.0}
-    b = build_forest(ForestConfig(leaf_area_index=6.0, **kw), seed=1)
+    b = build_forest(ForestConfig(leaf_area_index=6.0, sun_crown=3.0, **kw), seed=1)
     sp = dict(zip(b.trees["tree_id"].tolist(), b.trees["species"].tolist(), strict=True))
     leaves = [o for o in b.render_scene.objects if o.name.endswith(".leaf")]
     media = [o for o in leaves if o.leaf_area_density]
+    sun = {o.object_id: o for o in b.render_scene.objects if o.name.endswith(".sun")}
     assert media and len(media) < len(leaves)
+    assert set(sun) == {o.object_id for o in media}
     for o in leaves:
         assert (sp[o.object_id] == "FASY") == (o.leaf_area_density is not None)
     for o in media:
-        m = o.mesh
-        assert m.is_watertight()
-        V = np.asarray(m.vertices)
-        F = np.asarray(m.triangles)
-        hull = ConvexHull(V)
-        assert o.leaf_area_density * hull.volume == pytest.approx(
-            6.0 * ConvexHull(V[:, :2]).volume, rel=1e-9)
-        # outward: the signed volume of the faces is positive
-        a, bb, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-        assert np.einsum("ij,ij->i", a, np.cross(bb, c)).sum() / 6 == pytest.approx(
-            hull.volume, rel=1e-9)
+        V = np.asarray(o.mesh.vertices)
+        s = sun[o.object_id]
+        Vs = np.asarray(s.mesh.vertices)
+        hull, cap = ConvexHull(V), ConvexHull(Vs)
+        for m, h in ((o.mesh, hull), (s.mesh, cap)):
+            assert m.is_watertight()
+            P, F = np.asarray(m.vertices), np.asarray(m.triangles)
+            # outward: the signed volume of the faces is positive
+            a, bb, c = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+            assert np.einsum("ij,ij->i", a, np.cross(bb, c)).sum() / 6 == pytest.approx(
+                h.volume, rel=1e-9)
+        # the sun crown lies strictly inside the envelope, in its upper third
+        assert np.all(hull.equations[:, :3] @ Vs.T + hull.equations[:, 3:] < 0)
+        top, low = V[:, 2].max(), V[:, 2].min()
+        assert Vs[:, 2].min() >= top - (top - low) / 3
+        # densities: three times as dense above, LAI x projection in all
+        assert (o.leaf_area_density + s.leaf_area_density) / o.leaf_area_density == \
+            pytest.approx(3.0)
+        total = o.leaf_area_density * hull.volume + s.leaf_area_density * cap.volume
+        assert total == pytest.approx(6.0 * ConvexHull(V[:, :2]).volume, rel=1e-9)
+    uniform = build_forest(ForestConfig(leaf_area_index=6.0, sun_crown=1.0, **kw), seed=1)
+    assert not any(o.name.endswith(".sun") for o in uniform.render_scene.objects)
     poly = build_forest(ForestConfig(leaf_area_index=0.0, **kw), seed=1)
     assert not any(o.leaf_area_density for o in poly.render_scene.objects)
     np.testing.assert_array_equal(poly.trees["x"], b.trees["x"])
+
+
+def _chord(V, F, o, d):
+    """Length of each ray's chord through the convex mesh ``(V, F)``."""
+    import open3d as o3d
+
+    rs = o3d.t.geometry.RaycastingScene()
+    rs.add_triangles(o3d.core.Tensor(V.astype(np.float32)), o3d.core.Tensor(F.astype(np.uint32)))
+    down = rs.cast_rays(o3d.core.Tensor(np.hstack([o, d]).astype(np.float32)))["t_hit"].numpy()
+    far = o + 200.0 * d
+    up = rs.cast_rays(o3d.core.Tensor(np.hstack([far, -d]).astype(np.float32)))["t_hit"].numpy()
+    return np.where(np.isfinite(down), 200.0 - up - down, 0.0)
+
+
+def test_a_sun_crown_passes_beer_lambert_on_its_columns_and_stops_rays_higher():
+    """A crown as nested media (envelope + sun crown, :func:`procgen.trees.crown_media`):
+    a nadir ray reaches the ground with probability ``exp(-G (u_shade L + u_sun l))``, ``L``
+    and ``l`` its chords through the envelope and the sun crown; with the same leaf area
+    three times as dense in the upper third, the first leaves met lie higher."""
+    from procgen.trees import crown_media
+
+    rng = np.random.default_rng(5)
+    # a dome of foliage corners: an ellipsoid 8 m across and 6 m deep over z 10-16
+    u = rng.normal(size=(400, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    pts = np.column_stack([4 * u[:, 0], 4 * u[:, 1], 13 + 3 * u[:, 2]])
+    half = 60.0
+    ground = _box("ground", (-half, -half, -1.0), (half, half, 0.0), 1, "ground")
+    n = 20000
+    xy = np.random.default_rng(6).uniform(-3.0, 3.0, (n, 2))
+    o = np.column_stack([xy, np.full(n, 50.0)])
+    d = np.tile([0, 0, -1.0], (n, 1))
+    rays = np.hstack([o, d]).astype(np.float32)
+    high = {}
+    for ratio in (1.0, 3.0):
+        layers = crown_media(pts, 3.0, sun_ratio=ratio)
+        assert len(layers) == (1 if ratio == 1.0 else 2)
+        objs = [ground] + [
+            SceneObject(f"c{i}", make_mesh(V, F), MAT, object_id=2,
+                        part_labels=np.full(len(F), PARTS.index("leaf"), np.uint8),
+                        leaf_area_density=lad) for i, (V, F, lad) in enumerate(layers)]
+        (R, _), obj, _ = LidarWorld(RenderScene(objs), 1550.0).cast_energy(
+            rays, np.ones(1), 0.0)
+        depth = sum(lad * _chord(V, F, o, d) for V, F, lad in layers)
+        want = np.exp(-G_SPHERICAL * depth)
+        through = np.mean(obj == 0)
+        sd = float(np.sqrt(np.sum(want * (1 - want)))) / n
+        assert through == pytest.approx(float(want.mean()), abs=4 * sd + 0.003)
+        z = 50.0 - R[obj > 0]
+        high[ratio] = np.mean(z >= 14.0)
+    assert high[3.0] > high[1.0] + 0.1

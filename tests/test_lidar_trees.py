@@ -467,3 +467,90 @@ def test_smoothing_and_window_follow_the_first_returns_spacing():
     assert np.array_equal(detect_trees(chm)["crowns"], fixed["crowns"])
     with pytest.raises(ValueError, match="spacing"):
         detect_trees(chm, spacing=0.0)
+
+
+def test_a_lower_top_beside_a_taller_cone_is_a_tree_of_its_own():
+    """A dome 21 m tall 2.2 m from a 26 m cone (slopes 4 and 7 m per m): with the whole
+    window (diameter 1 m + 0.1 h: 1.55 m at the dome) the cone's flank, 21.45 m there, is
+    higher than the dome's top, which a cell window loses; candidates from 0.8 of the slope
+    (1.34 m: the flank there is 20.0 m) and the whole window held against higher tops only
+    keep it (its pass to the cone lies at 17.2 m, 3.8 m under it)."""
+    from core.io.raster import Raster
+
+    res = 0.1
+    g = np.arange(0, 14, res)
+    X, Y = np.meshgrid(g, g)
+    cone = 26.0 - 7.0 * np.hypot(X - 5.0, Y - 7.0)
+    dome = 21.0 - 4.0 * np.hypot(X - 7.2, Y - 7.0)
+    chm = Raster(np.maximum(np.maximum(cone, dome), 0.0), x0=0.0, y0=0.0, res=res)
+    from reconstruct.lidar.trees import TreeOptions
+
+    found = {}
+    for cw in (1.0, 0.8):
+        t = detect_trees(chm, options=TreeOptions(smooth=0.0, window_base=1.0, cell_window=cw))
+        found[cw] = np.column_stack([t["x"], t["y"], t["height"]])
+    assert found[1.0].round(6).tolist() == [[5.0, 7.0, 26.0]]
+    np.testing.assert_allclose(found[0.8], [[5.0, 7.0, 26.0], [7.2, 7.0, 21.0]], atol=1e-9)
+
+
+def test_crowns_move_from_their_stems_towards_their_growing_space():
+    """crown_displacement: two equal crowns part along the line of their stems by the same
+    amount; a crown with no neighbour in reach, and one amid a square lattice, stays on its
+    stem; a crown crowded on one side moves to the other, less than its reach; and stems
+    at random covered by crowns of their allometric share cover more ground moved so."""
+    from procgen.allometry import CROWN_REACH, crown_displacement
+
+    d = crown_displacement(np.array([[0.0, 0.0], [3.0, 0.0], [50.0, 50.0]]),
+                           np.array([2.0, 2.0, 2.0]))
+    assert d[0, 0] < -0.1 and np.allclose(d[0], -d[1]) and np.allclose(d[:, 1], 0, atol=1e-9)
+    np.testing.assert_array_equal(d[2], [0.0, 0.0])
+    g = np.arange(7) * 3.0
+    lattice = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    d = crown_displacement(lattice, np.full(len(lattice), 1.8))
+    middle = np.all((lattice > 3.0) & (lattice < 15.0), axis=1)
+    np.testing.assert_allclose(d[middle], 0.0, atol=1e-9)
+    edge = np.all(lattice == [0.0, 9.0], axis=1)
+    assert d[edge][0, 0] < -0.1 and abs(d[edge][0, 1]) < 1e-9    # away from the stand
+    assert np.all(np.hypot(*d.T) < CROWN_REACH * 1.8)
+    # stems thrown at random, no two closer than half their mean spacing, crowns covering
+    # the ground once: the union of the crowns, on a grid, grows when they move
+    rng = np.random.default_rng(3)
+    xy = []
+    while len(xy) < 160:
+        p = rng.uniform(0, 40, 2)
+        if all(np.hypot(*(p - q)) >= 1.6 for q in xy):
+            xy.append(p)
+    xy = np.array(xy)
+    r = np.full(len(xy), np.sqrt(1600 / np.pi / len(xy))) * rng.uniform(0.8, 1.2, len(xy))
+    r *= np.sqrt(1600 / np.sum(np.pi * r ** 2))
+    c = np.stack(np.meshgrid(np.arange(8, 32, 0.2), np.arange(8, 32, 0.2)), -1).reshape(-1, 2)
+
+    def cover(centres):
+        return np.mean(np.any(np.sum((c[:, None] - centres[None]) ** 2, -1) <= r ** 2, 1))
+
+    assert cover(xy + crown_displacement(xy, r)) > cover(xy) + 0.04
+
+
+def test_measured_crown_offsets_are_kept_and_only_the_others_move(tmp_path):
+    """An inventory that gives its crowns' offsets is grown as it says, plastic crowns or
+    not (the same triangles); without offsets, crowns close together move apart."""
+    from data_synth.forest import ForestConfig, build_forest
+
+    rows = [(E0 + 5, N0 + 5, 18.0), (E0 + 7, N0 + 5, 16.0), (E0 + 6, N0 + 12, 20.0)]
+    kw = {"understory": 0.0, "margin": 2.0, "variants": 1, "relief": 0.0}
+
+    def grow(offsets, plastic):
+        inv = tmp_path / f"inv_{offsets}_{plastic}.csv"
+        head = "x,y,height,species" + (",crown_dx,crown_dy" if offsets else "")
+        inv.write_text(head + "\n" + "".join(
+            f"{x},{y},{h},PIAB" + (",0.3,-0.2" if offsets else "") + "\n" for x, y, h in rows))
+        b = build_forest(ForestConfig(plastic_crowns=plastic, **kw), inventory=inv, seed=2)
+        return {o.name: np.asarray(o.mesh.vertices) for o in b.render_scene.objects}
+
+    a, b = grow(True, True), grow(True, False)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    moved, still = grow(False, True), grow(False, False)
+    # the first two stand 2 m apart: their needles' centres part along x
+    def cx(m, k):
+        return float(m[f"tree{k:05d}.leaf"][:, 0].mean())
+    assert cx(moved, 1) < cx(still, 1) and cx(moved, 2) > cx(still, 2)

@@ -1,11 +1,15 @@
 """Individual trees from a canopy height model: tops by local maxima, crowns by watershed.
 
 Tops: the CHM is smoothed (Gaussian, ``smooth`` metres: about one spacing of the survey's
-first returns), and a cell is a tree top when it is at least ``min_height`` tall and the
-highest within a disc whose diameter grows with its height, ``window_base + window_slope *
-height`` (the base about two point spacings) (the variable window of Popescu and Wynne
-2004, doi:10.14358/PERS.70.5.589). Crowns: a watershed of the inverted smoothed CHM from the
-tops (flooding from the highest level down), within the cells at least ``min_height`` tall.
+first returns), and a cell is a tree top when it is at least ``min_height`` tall and no
+higher top lies within a disc whose diameter grows with its height, ``window_base +
+window_slope * height`` (the base about two point spacings) (the variable window of Popescu
+and Wynne 2004, doi:10.14358/PERS.70.5.589). The window is held against tops, not cells: a
+candidate need only be the highest cell within a window grown by ``cell_window`` of the
+slope, since within its whole window may rise the flank of a taller neighbour's crown
+(in a dense stand a top two metres from a taller cone's apex), which is not a top.
+Crowns: a watershed of the inverted smoothed CHM from the tops (flooding from the highest
+level down), within the cells at least ``min_height`` tall.
 Then the tops are pruned on the crowns' adjacency graph: a top whose *dynamic* (how far the
 smoothed canopy falls from it before a path reaches a higher top) is below ``prominence``
 is a bump of the higher crown (a broadleaf's branch clusters, a conifer's side shoot), and a
@@ -79,6 +83,11 @@ class TreeOptions(Config):
                                help="a top is a tree of its own only when the canopy dips "
                                     "at least this much between it and any higher top; "
                                     "else its crown joins the higher one's")
+    cell_window: float = option(0.8, range="(0, 1]",
+                                help="a cell is a candidate top when it is the highest within "
+                                     "a window grown by this share of window_slope, and a top "
+                                     "when no higher top lies within its whole window (1: "
+                                     "the highest cell within the whole window)")
     understory: float = option(0.3, range="[0, 1]",
                                help="a top lower than this share of the higher top its "
                                     "crown meets is understory, not a tree")
@@ -90,6 +99,26 @@ def _disc_max(z: np.ndarray, radius_cells: int) -> np.ndarray:
     r = int(radius_cells)
     yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
     return maximum_filter(z, footprint=(xx ** 2 + yy ** 2) <= r * r + 1e-9, mode="nearest")
+
+
+def _suppress_near_tops(s: np.ndarray, top: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Of the candidate tops, keep each one that no higher kept top lies within its
+    window radius (cells, ``radii`` at the top), highest first."""
+    from scipy.spatial import cKDTree
+
+    ti, tj = np.nonzero(top)
+    order = np.argsort(-s[ti, tj], kind="stable")
+    ti, tj = ti[order], tj[order]
+    pts = np.column_stack([ti, tj]).astype(np.float64)
+    keep = np.zeros(len(ti), bool)
+    tree = cKDTree(pts)
+    for a in range(len(ti)):
+        near = tree.query_ball_point(pts[a], float(radii[ti[a], tj[a]]) + 1e-9)
+        if not any(keep[b] and b < a for b in near):
+            keep[a] = True
+    out = np.zeros_like(top)
+    out[ti[keep], tj[keep]] = True
+    return out
 
 
 def _flood(height: np.ndarray, labels: np.ndarray, mask: np.ndarray, *, step: float):
@@ -165,9 +194,15 @@ def detect_trees(chm: Raster, *, options: TreeOptions | None = None,
     # one maximum filter per window radius (in cells) actually needed
     diam = base + o.window_slope * s
     radii = np.maximum(np.round(diam / 2 / res).astype(np.int64), 1)
-    for r in np.unique(radii[tall]):
-        sel = tall & (radii == r)
+    # candidates: the highest cell within the window grown by a share of its slope; then
+    # no higher top may lie within a candidate's whole window (a higher crown's flank may)
+    near = np.maximum(np.round((base + o.cell_window * o.window_slope * s) / 2 / res)
+                      .astype(np.int64), 1)
+    for r in np.unique(near[tall]):
+        sel = tall & (near == r)
         top |= sel & (s >= _disc_max(s, int(r)))
+    if o.cell_window < 1.0:
+        top = _suppress_near_tops(s, top, radii)
     # a flat plateau gives several equal maxima: keep one per connected plateau
     from scipy.ndimage import label
 
