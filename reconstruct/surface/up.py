@@ -441,6 +441,20 @@ def _head_ground(up, pts, normals, cos_g) -> float:
     return max(high - low, 0.0)
 
 
+def _rest_weight(scored, rest, n, a, tri, cos_g) -> tuple[float, list[RestPose]]:
+    """The resting cue's weight and the poses with their shares as they count. The
+    resting pose counts where the mesh has no ground (a level share at one end of a
+    candidate axis in ``scored``), and not for a pose that stands the scene on its head:
+    a ground seen spanning the footprint at the pose's top end (plants, furniture and
+    walls can outweigh its area, not its cover)."""
+    ground = max(st["low"] - st["high"] for _, st in scored)
+    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    pick, w = _area_draw(a)
+    pts, pts_n = (tri[pick] * w[:, :, None]).sum(axis=1), n[pick]
+    return rest_w, [RestPose(r.up, r.probability, r.contact, r.share * max(
+        1.0 - _head_ground(r.up, pts, pts_n, cos_g) / GROUND_COVER, 0.0)) for r in rest]
+
+
 def _cameras_above(up, tri, a, centres) -> float:
     """Share of the camera centres above the ground (the lowest 5 % of the area)."""
     h = _area_samples(tri @ up, a)
@@ -471,17 +485,7 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
             for sign in (1.0, -1.0)]
     resting = [r.up for r in rest[:3] if r.share >= 0.05]
     scored = [(u, _structure(u, n, a, tri, cos_g, sin_w)) for u in axes + resting]
-    # the resting pose counts where the mesh has no ground: a level share at one end
-    ground = max(st["low"] - st["high"] for _, st in scored)
-    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
-    # and not for a pose that stands the scene on its head: a ground seen spanning the
-    # footprint at the pose's top end (plants, furniture and walls can outweigh its area,
-    # not its cover)
-    pick, w = _area_draw(a)
-    pts, pts_n = (tri[pick] * w[:, :, None]).sum(axis=1), n[pick]
-    rest = [RestPose(r.up, r.probability, r.contact,
-                     r.share * max(1.0 - _head_ground(r.up, pts, pts_n, cos_g) / GROUND_COVER,
-                                   0.0)) for r in rest]
+    rest_w, rest = _rest_weight(scored, rest, n, a, tri, cos_g)
     # each candidate once (two axes may refine to one, a resting pose may lie near an
     # axis): on an object the resting pose's own face normal is kept, on a scene the axis
     # refined by its ground
