@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from core.meshes import mesh_arrays
 from data_synth.facades import facade_mesh
-from data_synth.fixtures import seen_triangles
+from data_synth.fixtures import ring_of_eyes, seen_triangles
 from data_synth.scenes import build_scene, scene_names
 from reconstruct.surface.up import up_from_mesh
 
@@ -25,14 +25,6 @@ REAL = Path(os.environ.get("SCANAMP_REAL_DATA",
                            Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
 DRAGON = REAL / "dragon_stand" / "dragonStandRight.conf"
 Z = np.array([0.0, 0.0, 1.0])
-
-
-def _ring(v, n=16, seed=0):
-    lo, hi = v.min(0), v.max(0)
-    c, r = 0.5 * (lo + hi), np.linalg.norm(hi - lo)
-    el = np.radians(np.random.default_rng(seed).uniform(15.0, 50.0, n))
-    az = 2 * np.pi * np.arange(n) / n
-    return c + r * np.stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)], 1)
 
 
 def _dragon():
@@ -59,7 +51,8 @@ def _cases(only=None):
         v, f = mesh_arrays(build_scene(name).gt_mesh())
         if len(f) < 1_000_000:
             yield name, v, f, Z
-        yield f"{name} (seen from above)", v, seen_triangles(v, f, _ring(v)), Z
+        eyes = ring_of_eyes(v, 16, (15.0, 50.0))
+        yield f"{name} (seen from above)", v, seen_triangles(v, f, eyes), Z
     for seed in range(6):
         rng = np.random.default_rng(seed)
         v, f, up = facade_mesh(rng, width=rng.uniform(12, 30), height=rng.uniform(9, 15),

@@ -75,6 +75,18 @@ def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: in
                    gt_mesh=bundle.gt_mesh(), seed=seed)
 
 
+def ring_of_eyes(vertices, n: int = 12, elevations_deg=(15.0, 45.0), seed: int = 0) -> np.ndarray:
+    """``n`` camera centres ``(n, 3)`` evenly around a mesh's bounding box centre, at its
+    diagonal's distance and elevations drawn uniformly in ``elevations_deg``: a capture
+    walked around a scene and above it, for :func:`seen_triangles`."""
+    v = np.asarray(vertices, np.float64)
+    lo, hi = v.min(0), v.max(0)
+    c, r = 0.5 * (lo + hi), np.linalg.norm(hi - lo)
+    el = np.radians(np.random.default_rng(seed).uniform(*elevations_deg, n))
+    az = 2 * np.pi * np.arange(n) / n
+    return c + r * np.stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)], 1)
+
+
 def seen_triangles(vertices, triangles, eyes, *, target=None, fov_deg: float = 60.0,
                    rays: int = 120) -> np.ndarray:
     """The triangles a capture from ``eyes (k, 3)`` sees (a ``rays x rays`` grid of rays

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from core.meshes import mesh_arrays
 from data_synth.facades import facade_mesh
-from data_synth.fixtures import seen_triangles
+from data_synth.fixtures import ring_of_eyes, seen_triangles
 from data_synth.scenes import build_scene
 from reconstruct.surface.up import orient_winding, up_from_mesh
 
@@ -21,15 +21,6 @@ Z = np.array([0.0, 0.0, 1.0])
 
 def _angle(a, b) -> float:
     return float(np.degrees(np.arccos(np.clip(np.dot(a, b), -1.0, 1.0))))
-
-
-def _ring(v, n=12, elevations=(15.0, 45.0), seed=0):
-    """Camera centres on a ring around and above the scene."""
-    lo, hi = v.min(0), v.max(0)
-    c, r = 0.5 * (lo + hi), np.linalg.norm(hi - lo)
-    el = np.radians(np.random.default_rng(seed).uniform(*elevations, n))
-    az = 2 * np.pi * np.arange(n) / n
-    return c + r * np.stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)], 1)
 
 
 def _facade(seed):
@@ -44,7 +35,7 @@ def _cases():
     for name in ("columns", "demo", "object", "primitives"):
         v, f = mesh_arrays(build_scene(name).gt_mesh())
         out[name] = (v, f, Z)
-        out[f"{name}, seen from above"] = (v, seen_triangles(v, f, _ring(v), rays=90), Z)
+        out[f"{name}, seen from above"] = (v, seen_triangles(v, f, ring_of_eyes(v), rays=90), Z)
     for seed in range(3):
         v, f, up = _facade(seed)
         out[f"facade {seed}"] = (v, f, up)

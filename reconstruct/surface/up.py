@@ -32,7 +32,14 @@ is built on it (plants, snow, a city) needs gravity. Two sources, in order of tr
    over the share of the surface hugging the floor in that pose (an object stands on
    its base or its feet; the side it stood on was not seen when it was captured). It
    adds to the structural score with a weight that vanishes as the level
-   share at one end grows, so a scene with a ground is decided by its ground.
+   share at one end grows, so a scene with a ground is decided by its ground. A scene
+   can bury its ground's area under plants (a canopy seen from above, a stand's leaves)
+   but not its cover: seen along up, a ground spans the footprint under what stands on
+   it. A pose whose top end has level surface spanning the footprint (more than its
+   bottom end) stands a scene on its head and does not count: a canopy of crowns
+   touches a floor at a few tops only, which the resting cue alone would favour. The
+   centre of mass of an open capture whose signed volume is spurious (outside its hull)
+   is the surface's centroid.
 
 :func:`orient_winding` then turns the triangles so what is seen from the sky faces up, so
 steps that read normals (plants on gentle slopes, snow) work on a mesh written with the
@@ -240,6 +247,12 @@ REST_WEIGHT = 1.0
 #: a level share this large at one end of a candidate axis (``low - high``) is a ground:
 #: the resting pose then does not count (a terrain does not rest like an object)
 GROUND_SHARE = 0.3
+#: a resting pose whose top end has level surface covering this much more of the
+#: footprint than its bottom end (``cover_high - cover_low``) stands a scene on its head:
+#: its ground, spanning the scene under what stands on it, is up; the pose does not count
+GROUND_COVER = 0.5
+#: the cells across the footprint's longer side where the ground's cover is counted
+FOOTPRINT_CELLS = 48
 #: a mesh whose convex hull is thinner than this share of its extent is a sheet, not an
 #: object that rests
 SHEET = 0.05
@@ -266,7 +279,7 @@ def _centre_of_mass(tri: np.ndarray, a: np.ndarray) -> np.ndarray:
     """The centre of mass of the solid when the mesh closes one (the signed tetrahedra
     about the area centroid give a volume of either sign, whatever the winding, and the
     centroid is their ratio), else the area centroid of the surface (a merged scan)."""
-    c0 = (tri.mean(axis=1) * a[:, None]).sum(axis=0) / a.sum()
+    c0 = _area_centroid(tri, a)
     t = tri - c0
     vol = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])) / 6.0
     total = float(vol.sum())
@@ -274,6 +287,11 @@ def _centre_of_mass(tri: np.ndarray, a: np.ndarray) -> np.ndarray:
     if abs(total) > 0.05 * float(np.abs(vol).sum()):
         return c0 + ((t.sum(axis=1) / 4.0) * vol[:, None]).sum(axis=0) / total
     return c0
+
+
+def _area_centroid(tri: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """The centroid of the surface, by area."""
+    return (tri.mean(axis=1) * a[:, None]).sum(axis=0) / a.sum()
 
 
 def rest_poses(vertices: np.ndarray, triangles: np.ndarray, *,
@@ -312,6 +330,12 @@ def _rest_poses(v, n, a, tri, directions: int = 4000) -> list[RestPose]:
     hv = v[hull.vertices] - com
     nrm, off = hull.equations[:, :3], hull.equations[:, 3]
     depth = -(nrm @ com + off)  # the centre of mass's height above each face's plane
+    if depth.min() <= 0:
+        # an open mesh (a capture without its undersides) can pass for a closed one with
+        # a spurious volume whose centroid lies outside it: the surface's own centroid
+        com = _area_centroid(tri, a)
+        hv = v[hull.vertices] - com
+        depth = -(nrm @ com + off)
     if depth.min() <= 0:  # the centre of mass on or outside the hull: a sheet
         return []
     # the faces the centre of mass projects into: each a stable pose
@@ -385,6 +409,52 @@ CUES = {"area": "ground and wall area (the largest level part is the ground)",
                 "probability), touching the floor little"}
 
 
+def _footprint_ground(up, pts, normals, cos_g) -> tuple[float, float]:
+    """The shares of the scene's footprint (its points seen along ``up``, in
+    :data:`FOOTPRINT_CELLS` cells across) covered by level surface in the lowest and in the
+    highest :data:`BAND` of its height. A ground spans the scene under what stands on it:
+    seen along up it covers most of the footprint at the bottom, however much area trees
+    or furniture add above it. An object's flat side covers part of it, and the tops of
+    things at the other end leave the gaps between them."""
+    h = pts @ up
+    lo_h, span = float(h.min()), float(np.ptp(h))
+    e1 = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    xy = np.stack([pts @ e1, pts @ np.cross(up, e1)], axis=1)
+    lo, size = xy.min(axis=0), float(np.ptp(xy, axis=0).max())
+    if size <= 0 or span <= 0:
+        return 0.0, 0.0
+    cell = np.minimum((xy - lo) / size * FOOTPRINT_CELLS, FOOTPRINT_CELLS - 1).astype(np.int64)
+    key = cell[:, 0] * FOOTPRINT_CELLS + cell[:, 1]
+    level = np.abs(normals @ up) > cos_g
+    cells = len(np.unique(key))
+    low = len(np.unique(key[level & (h <= lo_h + BAND * span)])) / cells
+    high = len(np.unique(key[level & (h >= lo_h + (1 - BAND) * span)])) / cells
+    return float(low), float(high)
+
+
+def _head_ground(up, pts, normals, cos_g) -> float:
+    """How much more of the footprint the level surface at the top end of ``up`` covers
+    than that at its bottom end (:func:`_footprint_ground`), 0 when less: a ground seen
+    overhead, the scene upside down."""
+    low, high = _footprint_ground(up, pts, normals, cos_g)
+    return max(high - low, 0.0)
+
+
+def _rest_weight(scored, rest, n, a, tri, cos_g) -> tuple[float, list[RestPose]]:
+    """The resting cue's weight and the poses with their shares as they count. The
+    resting pose counts where the mesh has no ground (a level share at one end of a
+    candidate axis in ``scored``), and not for a pose that stands the scene on its head:
+    a ground seen spanning the footprint at the pose's top end (plants, furniture and
+    walls can outweigh its area, not its cover)."""
+    ground = max(st["low"] - st["high"] for _, st in scored)
+    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    pick, w = _area_draw(a)
+    pts, pts_n = (tri[pick] * w[:, :, None]).sum(axis=1), n[pick]
+    return rest_w, [RestPose(r.up, r.probability, r.contact, r.share * max(
+        1.0 - _head_ground(r.up, pts, pts_n, cos_g) / GROUND_COVER, 0.0)) for r in rest]
+
+
 def _cameras_above(up, tri, a, centres) -> float:
     """Share of the camera centres above the ground (the lowest 5 % of the area)."""
     h = _area_samples(tri @ up, a)
@@ -399,7 +469,9 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
     (:func:`rest_poses`), scored by structure (:func:`_structure`) plus the resting
     pose's share times :data:`REST_WEIGHT` ``(1 - ground / GROUND_SHARE)`` (``ground`` the
     largest level share at one end less that at the other, over the candidates: the pose
-    counts on an object, not on a scene with a ground), times ``0.1 + `` the share of
+    counts on an object, not on a scene with a ground; each pose's share is scaled by
+    ``1 - head / GROUND_COVER``, ``head`` the footprint its top end's level surface covers
+    beyond its bottom end's: a ground overhead), times ``0.1 + `` the share of
     the cameras above the ground when given; ``decision`` names the
     cue that separated the winner from the runner-up, the confidence (the margin) and the
     runner-up. A close call is logged as a warning naming ``--up``."""
@@ -413,9 +485,7 @@ def up_from_mesh(vertices: np.ndarray, triangles: np.ndarray, *, ground_deg: flo
             for sign in (1.0, -1.0)]
     resting = [r.up for r in rest[:3] if r.share >= 0.05]
     scored = [(u, _structure(u, n, a, tri, cos_g, sin_w)) for u in axes + resting]
-    # the resting pose counts where the mesh has no ground: a level share at one end
-    ground = max(st["low"] - st["high"] for _, st in scored)
-    rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    rest_w, rest = _rest_weight(scored, rest, n, a, tri, cos_g)
     # each candidate once (two axes may refine to one, a resting pose may lie near an
     # axis): on an object the resting pose's own face normal is kept, on a scene the axis
     # refined by its ground
