@@ -101,7 +101,8 @@ def mountains():
     cache = Path(os.environ.get("SCANAMP_BENCH_CACHE") or tempfile.mkdtemp())
     cache.mkdir(parents=True, exist_ok=True)
     variants = {"before": GroundOptions(densify_slope_rise=90.0, lower_radius=0.0,
-                                        lower_passes=1, cloth_detrend=False),
+                                        lower_passes=1, cloth_detrend=False,
+                                        densify_below=6.0, lower_spread=0.0),
                 "defaults": GroundOptions()}
     print(f"   {'stand':40s} {'options':9s} {'type I %':>8s} {'type II %':>9s} "
           f"{'total %':>7s} {'DTM RMSE m':>10s} {'true-ground DTM m':>17s} {'CPU s':>6s}")

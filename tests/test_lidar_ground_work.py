@@ -163,7 +163,7 @@ def test_lower_surface_fit_is_the_batched_least_squares():
         assert 0 < ground.sum() - ours.sum() < 0.5 * ground.sum()
 
 
-def test_lower_surface_spread_is_the_weighted_rms_of_the_residuals():
+def test_lower_surface_spread_is_the_weighted_rms_below_the_fit():
     from reconstruct.lidar._kernels import lower_surface
 
     rng = np.random.default_rng(4)
@@ -187,7 +187,8 @@ def test_lower_surface_spread_is_the_weighted_rms_of_the_residuals():
                                np.einsum("nki,nk->ni", aw, z[nb])[..., None])[..., 0]
         e = z[nb] - np.einsum("nki,ni->nk", a, coef)
         w = np.clip((LOWER_CERTAIN - e) / 0.25, 0, 1)
-    want = np.sqrt(np.sum(w * e ** 2, axis=1) / np.sum(w, axis=1))
+    wb = np.where(e < 0, w, 0.0)  # the neighbours below the fit
+    want = np.sqrt(np.sum(wb * e ** 2, axis=1) / np.sum(wb, axis=1))
     assert np.allclose(fit, coef[:, 0], atol=1e-9)
     assert np.allclose(spread, want, atol=1e-9)
     assert 0.02 < np.median(spread) < 0.1  # the noise (0.05 m), not the 0.4 m outliers

@@ -435,8 +435,9 @@ def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out, sp
     ``z(dx, dy)`` about the point is fitted by least squares ``iterations`` times, the
     weights after each fit ``clip((certain - e) / ramp, 0, 1)`` of its residuals ``e``
     (Kraus and Pfeifer's asymmetric weights); ``out[i]`` its value at the point and
-    ``spread[i]`` the weighted RMS of the neighbours' residuals to it (the weights of the
-    last fit): how far the ground itself strays from the quadratic there.
+    ``spread[i]`` the weighted RMS of the residuals of the neighbours below it (the
+    weights of the last fit): how far the ground itself strays from the quadratic there.
+    Below only: vegetation over the ground lies above the fit, and would widen it.
     """
     k = nb_idx.shape[1]
     a = np.empty((k, 6))
@@ -460,8 +461,9 @@ def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out, sp
             e = zz[j]
             for r in range(6):
                 e -= a[j, r] * v[r]
-            sw += w[j]
-            se += w[j] * e * e
+            if e < 0.0:
+                sw += w[j]
+                se += w[j] * e * e
         spread[i] = np.sqrt(se / sw) if sw > 0.0 else 0.0
 
 

@@ -52,11 +52,13 @@ Four steps, each after a published method:
    held to ``densify_below`` (20 deg) instead: vegetation is never below the ground, while
    the seeds' TIN spans the hollows (a ravine, a dip) that crowns hide from most pulses,
    and the few pulses that reach their floor arrive far below that TIN and far from its
-   corners -- at 6 degrees they stayed out and the DTM bridged the hollow (a simulated
-   stand's DTM 0.256 m, 0.179 m with them; 0.176 m from the true ground).
+   corners: at 6 degrees they stayed out and the DTM bridged the hollow.
 4. **Lower surface.** Those terms take in low vegetation too, so a ground point more than
    ``lower_offset`` (0.1 m) above a robust quadratic through its 30 nearest ground
-   neighbours (Kraus and Pfeifer's asymmetric weights) is not ground
+   neighbours (Kraus and Pfeifer's asymmetric weights) -- or, where the ground itself
+   strays from a quadratic, more than ``lower_spread`` (3) times the weighted RMS of
+   those neighbours' residuals -- is not ground (a fixed 0.1 m took the ground's own
+   microrelief, and both sides of a step, where the quadratic cannot follow it)
    (:func:`trim_above_lower_surface`), repeated on what is kept until nothing more goes
    (``lower_passes``, 3 at most): on a steep slope under shrubs the ground is seen in
    patches, and a shrub taken in whole holds itself up -- its points are each other's
@@ -98,6 +100,7 @@ EDGE_DIRECTIONS = 8  # the half-discs a point's sides are fitted on
 # the ground behind it -- a step, not the 0.3-1.1 m that vegetation stands over a bank
 # (on lidR's Topography.laz, a 1-1.5 m drop kept such vegetation: its DTM 0.125 -> 0.133 m)
 EDGE_DROP = 2.0
+EDGE_SHARE = 0.5  # of the other side's points that must lie EDGE_DROP below the plane
 
 
 @dataclass
@@ -155,11 +158,12 @@ class GroundOptions(Config):
                                  help="after densification, a ground point more than this above "
                                       "the robust lower surface of its ground neighbours is "
                                       "not ground (low vegetation; 0: off)")
-    lower_spread: float = option(0.0, range="[0, 10]",
+    lower_spread: float = option(3.0, range="[0, 10]",
                                  help="the lower-surface trim's offset is at least this "
                                       "many times the weighted RMS of the neighbours' "
-                                      "residuals to the surface (how far the ground itself "
-                                      "strays from a quadratic there; 0: lower_offset alone)")
+                                      "residuals to the surface: how far the ground itself "
+                                      "strays from a quadratic there -- microrelief, a "
+                                      "step's edges (0: lower_offset alone)")
     lower_neighbours: int = option(15, range="[6, 100]",
                                    help="the ground neighbours that surface (a quadratic) is "
                                         "fitted to")
@@ -558,7 +562,7 @@ def _lower_fit(p, ground, k, *, iterations=4, prev=None, edges=0.0):
             local[gi] = np.arange(len(gi))
             out = np.full(len(gi), np.inf)
             edge_surface(xy, p[gi, 2], local[nb[gi]], todo, EDGE_DIRECTIONS,
-                         max(6, k // 4), EDGE_DROP, 0.5, int(iterations),
+                         max(6, k // 4), EDGE_DROP, EDGE_SHARE, int(iterations),
                          LOWER_CERTAIN, 0.25, 1e-6, out)
             edge[gi[todo]] = out[todo]
         height = np.minimum(height, np.nan_to_num(edge, nan=np.inf))
