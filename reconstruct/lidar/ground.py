@@ -160,10 +160,10 @@ class GroundOptions(Config):
                                       "not ground (low vegetation; 0: off)")
     lower_spread: float = option(3.0, range="[0, 10]",
                                  help="the lower-surface trim's offset is at least this "
-                                      "many times the weighted RMS of the neighbours' "
-                                      "residuals to the surface: how far the ground itself "
-                                      "strays from a quadratic there -- microrelief, a "
-                                      "step's edges (0: lower_offset alone)")
+                                      "many times the weighted RMS of the residuals of the "
+                                      "neighbours below the surface: how far the ground "
+                                      "itself strays from a quadratic there -- microrelief, "
+                                      "a step's edges (0: lower_offset alone)")
     lower_neighbours: int = option(15, range="[6, 100]",
                                    help="the ground neighbours that surface (a quadratic) is "
                                         "fitted to")
