@@ -43,6 +43,31 @@ def test_densification_joins_by_distance_angle_and_offset():
     assert list(g2[4:]) == [False, True]
 
 
+def test_points_below_the_tin_join_at_their_own_angle():
+    # a hollow under a canopy gap: the seeds' TIN spans 20 m, and a pulse that reached the
+    # hollow's floor lies 1 m below its plane 7.07 m from the nearest corner (0.98 m from
+    # the plane: 7.9 deg); the same offset above the plane is a shrub's. Below the plane
+    # the angle is angle_below, above it angle. At the centre, 14.1 m from the corners,
+    # 1.3 m either way (1.28 m from the plane) is 5.2 deg: in with either angle
+    corners = np.array([[0.0, 0], [20, 0], [0, 20], [20, 20]])
+    seeds = np.column_stack([corners, _plane(*corners.T)])
+    cases = [(5.0, 5.0, -1.0), (5.0, 5.0, 1.0), (10.0, 10.0, -1.3), (10.0, 10.0, 1.3)]
+    pts = np.array([[x, y, _plane(x, y) + h] for x, y, h in cases])
+    p = np.vstack([seeds, pts])
+    seed = np.r_[np.ones(4, bool), np.zeros(len(cases), bool)]
+    ones = np.ones(len(p), bool)
+    old = densify_tin(p, seed, ones, angle=6.0, passes=1)
+    new = densify_tin(p, seed, ones, angle=6.0, angle_below=20.0, passes=1)
+    assert list(old[4:]) == [False, False, True, True]
+    assert list(new[4:]) == [True, False, True, True]
+    # the distance bound holds below too: 1.45 m under the plane stays out
+    far = np.vstack([seeds, [[10.0, 10.0, _plane(10, 10) - 1.5]]])
+    assert not densify_tin(far, np.r_[np.ones(4, bool), False], np.ones(5, bool),
+                           angle_below=89.0, passes=1)[4]
+    # the default classify_ground holds points below to GroundOptions().densify_below
+    assert GroundOptions().densify_below > GroundOptions().densify_angle
+
+
 def test_densification_measures_angles_from_the_slope():
     # a 25-degree ramp sampled every 0.5 m, seeded on its border: every point joins (the
     # angle is measured from the triangles' planes, not from the horizontal), and shrubs

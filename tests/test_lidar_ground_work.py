@@ -17,7 +17,7 @@ from reconstruct.lidar.ground import (
 
 
 def _reference_densify(p, seeds, eligible, *, angle, distance, offset, passes, slope_gain,
-                       slope_rise, local):
+                       slope_rise, local, angle_below=None):
     """Axelsson's densification the plain way: every pass triangulates all the ground
     again and tests every candidate in it."""
     g = seeds.copy()
@@ -38,7 +38,9 @@ def _reference_densify(p, seeds, eligible, *, angle, distance, offset, passes, s
         corners = p[k]
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         normal /= np.linalg.norm(normal, axis=1)[:, None]
-        d = np.abs(np.einsum("ij,ij->i", p[cand] - corners[:, 0], normal))
+        normal *= np.sign(normal[:, 2])[:, None]  # upwards: + above the plane
+        sd = np.einsum("ij,ij->i", p[cand] - corners[:, 0], normal)
+        d = np.abs(sd)
         rc = np.linalg.norm(q[cand][:, None] - q[k], axis=2)
         r = rc.min(axis=1)
         d_angle = d
@@ -57,7 +59,8 @@ def _reference_densify(p, seeds, eligible, *, angle, distance, offset, passes, s
         slope = np.degrees(np.arccos(np.minimum(np.abs(normal[:, 2]), 1.0)))
         if slope_rise < 90:
             slope = np.minimum(slope, seed_slope[cand] + slope_rise)
-        tan_a = np.tan(np.radians(np.minimum(angle + slope_gain * slope, 89.0)))
+        base = np.where(sd >= 0, angle, angle if angle_below is None else angle_below)
+        tan_a = np.tan(np.radians(np.minimum(base + slope_gain * slope, 89.0)))
         join = (d < distance) & ((d_angle < tan_a * r) | (d < offset))
         if not np.any(join):
             break
@@ -109,16 +112,17 @@ def _seeded(slope, size, seed, grid=None):
     return p, seeds, last
 
 
-@pytest.mark.parametrize("slope, local, gain, rise, grid", [
-    (5.0, False, 0.0, 90.0, None),     # Axelsson's fixed angle
-    (30.0, True, 0.5, 5.0, None),      # the defaults: corner planes, the bounded slope term
-    (40.0, True, 0.5, 90.0, None),     # the slope term unbounded
-    (30.0, True, 0.5, 5.0, 0.01),      # on a centimetre grid, as a LAS file stores them
+@pytest.mark.parametrize("slope, local, gain, rise, grid, below", [
+    (5.0, False, 0.0, 90.0, None, None),   # Axelsson's fixed angle
+    (30.0, True, 0.5, 5.0, None, 20.0),    # the defaults: corner planes, the bounded slope
+                                           # term, points below at their own angle
+    (40.0, True, 0.5, 90.0, None, None),   # the slope term unbounded
+    (30.0, True, 0.5, 5.0, 0.01, 20.0),    # on a centimetre grid, as a LAS file stores them
 ])
-def test_densification_by_insertion_is_the_rebuilt_one(slope, local, gain, rise, grid):
+def test_densification_by_insertion_is_the_rebuilt_one(slope, local, gain, rise, grid, below):
     p, seeds, last = _seeded(slope, 30.0, int(slope), grid)
     kw = dict(angle=6.0, distance=1.4, offset=0.1, passes=50, slope_gain=gain,
-              slope_rise=rise, local=local)
+              slope_rise=rise, local=local, angle_below=below)
     stats = {}
     ours = densify_tin(p, seeds, last, stats=stats, **kw)
     ref = _reference_densify(p, seeds, last, **kw)
@@ -157,6 +161,37 @@ def test_lower_surface_fit_is_the_batched_least_squares():
         ref = _reference_trim(p, ground, offset=0.1, neighbours=k)
         assert np.array_equal(ours, ref)
         assert 0 < ground.sum() - ours.sum() < 0.5 * ground.sum()
+
+
+def test_lower_surface_spread_is_the_weighted_rms_below_the_fit():
+    from reconstruct.lidar._kernels import lower_surface
+
+    rng = np.random.default_rng(4)
+    n, k = 60, 12
+    xy = rng.uniform(0, 5, (n, 2))
+    z = 0.3 * xy[:, 0] + 0.05 * xy[:, 1] ** 2 + rng.normal(0, 0.05, n)
+    z[::9] += 0.4  # some above the certain band: weight 0
+    from scipy.spatial import cKDTree
+
+    nb = cKDTree(xy).query(xy, k + 1)[1][:, 1:]
+    rows = np.arange(n)
+    fit, spread = np.empty(n), np.empty(n)
+    lower_surface(xy, z, nb, rows, 4, LOWER_CERTAIN, 0.25, 1e-6, fit, spread)
+    dx = xy[nb] - xy[:, None]
+    a = np.stack([np.ones_like(dx[..., 0]), dx[..., 0], dx[..., 1], dx[..., 0] ** 2,
+                  dx[..., 0] * dx[..., 1], dx[..., 1] ** 2], axis=-1)
+    w = np.ones((n, k))
+    for _ in range(4):
+        aw = a * w[..., None]
+        coef = np.linalg.solve(np.einsum("nki,nkj->nij", aw, a) + 1e-6 * np.eye(6),
+                               np.einsum("nki,nk->ni", aw, z[nb])[..., None])[..., 0]
+        e = z[nb] - np.einsum("nki,ni->nk", a, coef)
+        w = np.clip((LOWER_CERTAIN - e) / 0.25, 0, 1)
+    wb = np.where(e < 0, w, 0.0)  # the neighbours below the fit
+    want = np.sqrt(np.sum(wb * e ** 2, axis=1) / np.sum(wb, axis=1))
+    assert np.allclose(fit, coef[:, 0], atol=1e-9)
+    assert np.allclose(spread, want, atol=1e-9)
+    assert 0.02 < np.median(spread) < 0.1  # the noise (0.05 m), not the 0.4 m outliers
 
 
 def test_disc_sums_are_the_direct_convolution():

@@ -212,7 +212,7 @@ def _vertex_normals(p, tv, alive, nt, vn):
 
 @nb.njit(cache=True)
 def densify(p, tv0, tn0, ground, cand, loc, angle, distance, offset, passes, slope_gain,
-            slope_rise, local, work):
+            slope_rise, local, angle_below, work):
     """Axelsson's densification on the triangulation ``tv0``/``tn0`` (counter-clockwise
     corners, neighbours opposite each corner, -1 on the hull) of the seeds.
 
@@ -220,7 +220,8 @@ def densify(p, tv0, tn0, ground, cand, loc, angle, distance, offset, passes, slo
     ``cand`` are the candidates in a space-filling order, ``loc`` their triangles in the
     seeds' triangulation (-1 outside it). ``slope_rise`` >= 90 leaves the slope term's
     slope the triangle's. ``work`` (4,) counts the passes, the walks, the triangles they
-    stepped through, and the points inserted.
+    stepped through, and the points inserted. A candidate below its triangle's plane is
+    held to ``angle_below`` instead of ``angle`` (degrees; the slope term added to both).
     """
     nt = tv0.shape[0]
     cap = nt + 8 * len(cand) + 64
@@ -244,7 +245,7 @@ def densify(p, tv0, tn0, ground, cand, loc, angle, distance, offset, passes, slo
         if local:
             _vertex_normals(p, tv, alive, nt, vn)
         nj = _pass(p, tv, tn, alive, repl, vn, cand, loc, todo, seed_slope, joins, angle,
-                   distance, offset, slope_gain, slope_rise, local, work)
+                   distance, offset, slope_gain, slope_rise, local, angle_below, work)
         if nj == 0:
             break
         tv, tn, alive, repl, nt = _insert_all(p, tv, tn, alive, repl, nt, ground, cand, loc,
@@ -253,7 +254,7 @@ def densify(p, tv0, tn0, ground, cand, loc, angle, distance, offset, passes, slo
 
 @nb.njit(cache=True)
 def _pass(p, tv, tn, alive, repl, vn, cand, loc, todo, seed_slope, joins, angle, distance,
-          offset, slope_gain, slope_rise, local, work):
+          offset, slope_gain, slope_rise, local, angle_below, work):
     """One densification pass: the candidates that join (their positions in ``cand``
     written to ``joins``, their count returned), each tested against the triangle
     holding it."""
@@ -284,8 +285,9 @@ def _pass(p, tv, tn, alive, repl, vn, cand, loc, todo, seed_slope, joins, angle,
         if m == 0.0:
             continue
         nx, ny, nz = nx / m, ny / m, nz / m
-        d = abs((p[c, 0] - p[a, 0]) * nx + (p[c, 1] - p[a, 1]) * ny
-                + (p[c, 2] - p[a, 2]) * nz)
+        sd = ((p[c, 0] - p[a, 0]) * nx + (p[c, 1] - p[a, 1]) * ny
+              + (p[c, 2] - p[a, 2]) * nz) * (1.0 if nz > 0 else -1.0)  # + above
+        d = abs(sd)
         if not d < distance:
             continue
         if d < offset:
@@ -305,12 +307,13 @@ def _pass(p, tv, tn, alive, repl, vn, cand, loc, todo, seed_slope, joins, angle,
                      + (p[c, 1] - p[near, 1]) * vn[near, 1]
                      + (p[c, 2] - p[near, 2]) * vn[near, 2])
             d_angle = min(d, dl)
-        tan_a = tan_max
+        base = angle if sd >= 0.0 else angle_below
+        tan_a = tan_max if sd >= 0.0 else np.tan(np.radians(min(angle_below, 89.0)))
         if slope_gain > 0:
             s = np.degrees(np.arccos(min(abs(nz), 1.0)))
             if slope_rise < 90.0:
                 s = min(s, seed_slope[i] + slope_rise)
-            tan_a = np.tan(np.radians(min(angle + slope_gain * s, 89.0)))
+            tan_a = np.tan(np.radians(min(base + slope_gain * s, 89.0)))
         if d_angle < tan_a * r:
             joins[nj] = i
             nj += 1
@@ -425,13 +428,16 @@ def _robust_fit(a, zz, w, ns, iterations, certain, ramp, ridge, m, v):
 
 
 @nb.njit(cache=True)
-def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out):
+def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out, spread):
     """Height at each point of ``rows`` of the robust quadratic through its neighbours.
 
     ``nb_idx (n, k)`` are each point's neighbours (itself left out); the quadratic
     ``z(dx, dy)`` about the point is fitted by least squares ``iterations`` times, the
     weights after each fit ``clip((certain - e) / ramp, 0, 1)`` of its residuals ``e``
-    (Kraus and Pfeifer's asymmetric weights); ``out[i]`` its value at the point.
+    (Kraus and Pfeifer's asymmetric weights); ``out[i]`` its value at the point and
+    ``spread[i]`` the weighted RMS of the residuals of the neighbours below it (the
+    weights of the last fit): how far the ground itself strays from the quadratic there.
+    Below only: vegetation over the ground lies above the fit, and would widen it.
     """
     k = nb_idx.shape[1]
     a = np.empty((k, 6))
@@ -449,6 +455,16 @@ def lower_surface(xy, z, nb_idx, rows, iterations, certain, ramp, ridge, out):
             zz[j] = z[q]
         _robust_fit(a, zz, w, k, iterations, certain, ramp, ridge, m, v)
         out[i] = v[0]
+        sw = 0.0
+        se = 0.0
+        for j in range(k):
+            e = zz[j]
+            for r in range(6):
+                e -= a[j, r] * v[r]
+            if e < 0.0:
+                sw += w[j]
+                se += w[j] * e * e
+        spread[i] = np.sqrt(se / sw) if sw > 0.0 else 0.0
 
 
 @nb.njit(cache=True)

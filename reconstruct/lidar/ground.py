@@ -48,10 +48,17 @@ Four steps, each after a published method:
    a 45-degree mountainside it let the ground climb a cliff's edge into the canopy;
    ``densify_local``: the
    angle may also be measured from the nearest corner's own plane, which follows a crest
-   where the triangle's plane cuts below it).
+   where the triangle's plane cuts below it). A point *below* its triangle's plane is
+   held to ``densify_below`` (20 deg) instead: vegetation is never below the ground, while
+   the seeds' TIN spans the hollows (a ravine, a dip) that crowns hide from most pulses,
+   and the few pulses that reach their floor arrive far below that TIN and far from its
+   corners: at 6 degrees they stayed out and the DTM bridged the hollow.
 4. **Lower surface.** Those terms take in low vegetation too, so a ground point more than
    ``lower_offset`` (0.1 m) above a robust quadratic through its 30 nearest ground
-   neighbours (Kraus and Pfeifer's asymmetric weights) is not ground
+   neighbours (Kraus and Pfeifer's asymmetric weights) -- or, where the ground itself
+   strays from a quadratic, more than ``lower_spread`` (3) times the weighted RMS of
+   those neighbours' residuals -- is not ground (a fixed 0.1 m took the ground's own
+   microrelief, and both sides of a step, where the quadratic cannot follow it)
    (:func:`trim_above_lower_surface`), repeated on what is kept until nothing more goes
    (``lower_passes``, 3 at most): on a steep slope under shrubs the ground is seen in
    patches, and a shrub taken in whole holds itself up -- its points are each other's
@@ -93,6 +100,7 @@ EDGE_DIRECTIONS = 8  # the half-discs a point's sides are fitted on
 # the ground behind it -- a step, not the 0.3-1.1 m that vegetation stands over a bank
 # (on lidR's Topography.laz, a 1-1.5 m drop kept such vegetation: its DTM 0.125 -> 0.133 m)
 EDGE_DROP = 2.0
+EDGE_SHARE = 0.5  # of the other side's points that must lie EDGE_DROP below the plane
 
 
 @dataclass
@@ -122,6 +130,11 @@ class GroundOptions(Config):
                                   help="TIN densification: largest angle from a triangle's "
                                        "plane to a new point, seen from its nearest corner "
                                        "(0: keep the cloth's ground, no densification)")
+    densify_below: float = option(20.0, unit="deg", range="[0, 90]",
+                                  help="TIN densification: densify_angle for a point below "
+                                       "the triangle's plane (a hollow under a canopy gap "
+                                       "the seeds' TIN spans; vegetation is never below "
+                                       "the ground)")
     densify_distance: float = option(1.4, unit="m", range="(0, 10]",
                                      help="TIN densification: largest distance of a new point "
                                           "to the triangle's plane")
@@ -145,6 +158,12 @@ class GroundOptions(Config):
                                  help="after densification, a ground point more than this above "
                                       "the robust lower surface of its ground neighbours is "
                                       "not ground (low vegetation; 0: off)")
+    lower_spread: float = option(3.0, range="[0, 10]",
+                                 help="the lower-surface trim's offset is at least this "
+                                      "many times the weighted RMS of the residuals of the "
+                                      "neighbours below the surface: how far the ground "
+                                      "itself strays from a quadratic there -- microrelief, "
+                                      "a step's edges (0: lower_offset alone)")
     lower_neighbours: int = option(15, range="[6, 100]",
                                    help="the ground neighbours that surface (a quadratic) is "
                                         "fitted to")
@@ -215,7 +234,7 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                           distance=o.densify_distance, offset=o.densify_offset,
                           passes=o.densify_passes, slope_gain=o.densify_slope_gain,
                           slope_rise=o.densify_slope_rise,
-                          local=o.densify_local)
+                          local=o.densify_local, angle_below=o.densify_below)
         state = None
         for k in range(o.lower_passes if o.lower_offset > 0 else 0):
             # a cluster of points above the ground (a shrub's) holds itself up: each is
@@ -226,9 +245,9 @@ def classify_ground(points: np.ndarray, *, options: GroundOptions | None = None,
                 break
             state = _lower_fit(p, out, min(_lower_k(p, out, o), int(out.sum()) - 1),
                                prev=state, edges=o.lower_offset if o.lower_edges else 0.0)
+            base = o.lower_offset if k == 0 else max(o.lower_offset, LOWER_CERTAIN)
             trimmed = _trim(out, state["height"],
-                            offset=o.lower_offset if k == 0 else max(o.lower_offset,
-                                                                     LOWER_CERTAIN),
+                            offset=np.maximum(base, o.lower_spread * state["spread"]),
                             reach=state["reach"], within=0.0 if k == 0 else LOWER_CLUSTER)
             if np.array_equal(trimmed, out):
                 break
@@ -355,7 +374,8 @@ def _hull(p: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
                 angle: float = 6.0, distance: float = 1.4, offset: float = 0.1,
                 passes: int = 50, slope_gain: float = 0.0, slope_rise: float = 90.0,
-                local: bool = False, stats: dict | None = None) -> np.ndarray:
+                local: bool = False, angle_below: float | None = None,
+                stats: dict | None = None) -> np.ndarray:
     """Axelsson's progressive TIN densification from ``seeds``.
 
     A point of ``eligible`` inside a triangle of the current ground joins the ground when
@@ -392,6 +412,8 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     slope_rise : float
         Degrees the slope term's slope may exceed the seeds' (90: unbounded).
     local : bool
+    angle_below : float, optional
+        Degrees: the angle for a point below its triangle's plane (``angle`` when None).
     stats : dict, optional
         Filled with the work done: ``passes``, ``walks`` (point locations), ``steps``
         (triangles the walks stepped through), ``inserted`` and ``candidates``.
@@ -433,7 +455,8 @@ def densify_tin(p: np.ndarray, seeds: np.ndarray, eligible: np.ndarray, *,
     rise = float(slope_rise) if slope_gain > 0 and slope_rise < 90 else 90.0
     work = np.zeros(4, np.int64)
     densify(pc, tv, tn, g, cand, loc, float(angle), float(distance), float(offset),
-            int(passes), float(slope_gain), rise, bool(local), work)
+            int(passes), float(slope_gain), rise, bool(local),
+            float(angle if angle_below is None else angle_below), work)
     if stats is not None:
         stats.update(passes=int(work[0]), walks=int(work[1]), steps=int(work[2]),
                      inserted=int(work[3]), candidates=len(cand))
@@ -512,9 +535,11 @@ def _lower_fit(p, ground, k, *, iterations=4, prev=None, edges=0.0):
     if prev is not None and prev["k"] == k:
         rows = np.flatnonzero(~np.all(ground[prev["nb"][gi]], axis=1))
         fit, reach, nb = prev["fit"].copy(), prev["reach"].copy(), prev["nb"].copy()
+        spread = prev["spread"].copy()
     else:
         rows = np.arange(len(gi))
         fit, reach, nb = np.full(n, np.nan), np.full(n, np.inf), np.zeros((n, k), np.int64)
+        spread = np.zeros(n)
     if len(rows):
         dist, j = cKDTree(xy).query(xy[rows], k + 1, workers=-1)  # the same on any count
         nb[gi[rows]] = gi[j[:, 1:]]  # the point itself left out
@@ -522,9 +547,11 @@ def _lower_fit(p, ground, k, *, iterations=4, prev=None, edges=0.0):
         local = np.full(n, -1, np.int64)
         local[gi] = np.arange(len(gi))
         out = np.empty(len(gi))
+        sd = np.zeros(len(gi))
         lower_surface(xy, p[gi, 2], local[nb[gi]], rows, int(iterations), LOWER_CERTAIN,
-                      0.25, 1e-6, out)
+                      0.25, 1e-6, out, sd)
         fit[gi[rows]] = out[rows]
+        spread[gi[rows]] = sd[rows]
     height = p[:, 2] - fit
     edge = prev["edge"].copy() if prev is not None and prev["k"] == k else np.full(n, np.nan)
     if edges > 0:  # NaN: not measured; inf: no side
@@ -535,11 +562,12 @@ def _lower_fit(p, ground, k, *, iterations=4, prev=None, edges=0.0):
             local[gi] = np.arange(len(gi))
             out = np.full(len(gi), np.inf)
             edge_surface(xy, p[gi, 2], local[nb[gi]], todo, EDGE_DIRECTIONS,
-                         max(6, k // 4), EDGE_DROP, 0.5, int(iterations),
+                         max(6, k // 4), EDGE_DROP, EDGE_SHARE, int(iterations),
                          LOWER_CERTAIN, 0.25, 1e-6, out)
             edge[gi[todo]] = out[todo]
         height = np.minimum(height, np.nan_to_num(edge, nan=np.inf))
-    return {"fit": fit, "reach": reach, "nb": nb, "k": k, "edge": edge, "height": height}
+    return {"fit": fit, "reach": reach, "nb": nb, "k": k, "edge": edge, "height": height,
+            "spread": spread}
 
 
 def delaunay_2d(xy: np.ndarray):
