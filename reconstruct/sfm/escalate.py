@@ -62,7 +62,8 @@ from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colma
 
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
-           "epipolar_consistency", "pool_matches", "refine", "weakly_tied"]
+           "epipolar_consistency", "pool_matches", "refine", "weakly_tied",
+           "remap_in_file_order"]
 
 log = logging.getLogger(__name__)
 
@@ -604,6 +605,55 @@ def _triangulate_merged(db: Path, image_dir, out: Path, poses: dict, base, opts)
                                       refine_intrinsics=False)
     _bundle_adjust(rec)
     return rec
+
+
+def remap_in_file_order(database: str | Path, image_dir, opts: ColmapOptions, work: Path, *,
+                        overlap: int = 3) -> tuple[object, Path, dict]:
+    """The mapper again on the verified pairs of views at most ``overlap`` apart in file
+    order (the ring closed: :func:`ring_pairs`), the others' matches left out.
+
+    A scene that repeats itself (a symmetric temple, a row of equal windows) gives
+    verified matches between views that see *different* parts that look alike; the
+    mapper may then fold the set onto itself (:mod:`reconstruct.sfm.self_check`). In a
+    capture taken in order (a ring, a walk along a facade), views close in file order see
+    the same part from nearby, so their matches are the least likely to be of that kind:
+    COLMAP's sequential matching rests on the same assumption. Each rung of
+    :data:`LADDER` is tried until every view is in; the model with the most views is
+    returned with the database it used (a copy of ``database``) and what was done.
+    """
+    import pycolmap
+
+    work = Path(work)
+    work.mkdir(parents=True, exist_ok=True)
+    db = work / "ordered.db"
+    db.unlink(missing_ok=True)
+    shutil.copy2(database, db)
+    d = pycolmap.Database.open(str(db))
+    try:
+        ids = {im.name: im.image_id for im in d.read_all_images()}
+        keep = {tuple(sorted((ids[a], ids[b]))) for a, b in ring_pairs(sorted(ids), overlap)}
+        pairs, _ = d.read_two_view_geometries() if d.num_verified_image_pairs() else ([], [])
+        dropped = 0
+        for pid in pairs:
+            a, b = pycolmap.pair_id_to_image_pair(pid)
+            if tuple(sorted((a, b))) not in keep:
+                d.delete_two_view_geometry(a, b)
+                dropped += 1
+    finally:
+        d.close()
+    best, steps = None, []
+    for rung, thresholds in enumerate(LADDER):
+        t = time.perf_counter()
+        rec, step = _map_relaxed(db, image_dir, work / f"ordered_{rung}", opts, thresholds)
+        step["seconds"] = time.perf_counter() - t
+        steps.append(step)
+        if rec is not None and (best is None or rec.num_reg_images() > best.num_reg_images()):
+            best = rec
+        if best is not None and best.num_reg_images() == len(ids):
+            break
+    return best, db, {"overlap": overlap, "pairs_left_out": dropped,
+                      "pairs_kept": len(pairs) - dropped, "steps": steps,
+                      "registered": best.num_reg_images() if best is not None else 0}
 
 
 def _db_images(db: Path) -> list:
