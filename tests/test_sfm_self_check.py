@@ -117,3 +117,4 @@ def test_bad_options_are_named():
         check_model({}, {}, {}, explained_px=0.0)
     with pytest.raises(ValueError, match="max_contradicted"):
         check_model({}, {}, {}, max_contradicted=2.0)
+

@@ -444,6 +444,8 @@ def epipolar_consistency(rec, database: str | Path, max_error: float = 4.0) -> f
     its distance: MSAC's score). NaN when no match is between registered views."""
     import pycolmap
 
+    from reconstruct.sfm.self_check import sampson_distance
+
     db = pycolmap.Database.open(str(database))
     try:
         names = {im.image_id: im.name for im in db.read_all_images()}
@@ -465,12 +467,8 @@ def epipolar_consistency(rec, database: str | Path, max_error: float = 4.0) -> f
         k1 = np.linalg.inv(im1.camera.calibration_matrix())
         k2 = np.linalg.inv(im2.camera.calibration_matrix())
         F = k2.T @ E @ k1
-        x1 = np.c_[keypoints[a][matches[:, 0]], np.ones(len(matches))]
-        x2 = np.c_[keypoints[b][matches[:, 1]], np.ones(len(matches))]
-        fx1, ftx2 = x1 @ F.T, x2 @ F
-        den = fx1[:, 0] ** 2 + fx1[:, 1] ** 2 + ftx2[:, 0] ** 2 + ftx2[:, 1] ** 2
-        sampson = np.sum(x2 * fx1, axis=1) ** 2 / np.maximum(den, 1e-300)
-        errors.append(np.minimum(sampson, max_error ** 2))
+        d = sampson_distance(F, keypoints[a][matches[:, 0]], keypoints[b][matches[:, 1]])
+        errors.append(np.minimum(d * d, max_error ** 2))
     return float(np.mean(np.concatenate(errors))) if errors else float("nan")
 
 
