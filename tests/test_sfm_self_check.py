@@ -118,3 +118,12 @@ def test_bad_options_are_named():
     with pytest.raises(ValueError, match="max_contradicted"):
         check_model({}, {}, {}, max_contradicted=2.0)
 
+
+
+def test_no_pair_between_registered_views_passes_without_a_share():
+    cams = _ring()
+    poses, K = _model(cams)
+    check = check_model(poses, K, {("0000.png", "unregistered.png"): (np.zeros((5, 2)),
+                                                                       np.zeros((5, 2)))})
+    assert check.ok and check.pairs == 0 and check.explained_share is None
+    assert check.to_dict()["explained_share"] is None

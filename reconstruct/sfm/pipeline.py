@@ -559,7 +559,8 @@ def _self_check(rec, database: Path, upright, opts, tmp: Path):
             before, after = check_reconstruction(rec, db2), check_reconstruction(other, db2)
             step["before_on_close_pairs"] = before.to_dict()
             step["after_on_close_pairs"] = after.to_dict()
-            if after.explained_share > before.explained_share + 0.05 and \
+            if after.pairs and before.pairs and \
+                    after.explained_share > before.explained_share + 0.05 and \
                     len(after.contradicted) < len(before.contradicted):
                 step["kept"] = True
                 out["warnings"].append(

@@ -55,8 +55,8 @@ class SelfCheck:
     ----------
     pairs : int
         Verified pairs between registered views (with at least one inlier match).
-    explained_share : float
-        Of all their inlier matches, the share the model explains (NaN without pairs).
+    explained_share : float or None
+        Of all their inlier matches, the share the model explains (None without pairs).
     contradicted : list of (str, str, int, float)
         The pairs with less than half their inliers explained: names, inliers, share.
     coincident : list of (str, str)
@@ -68,7 +68,7 @@ class SelfCheck:
     """
 
     pairs: int
-    explained_share: float
+    explained_share: float | None
     contradicted: list = field(default_factory=list)
     coincident: list = field(default_factory=list)
     ok: bool = True
@@ -151,8 +151,7 @@ def check_model(cam_from_world: Mapping[str, np.ndarray], K: Mapping[str, np.nda
             contradicted.append((a, b, len(ok), share))
     contradicted.sort(key=lambda c: (c[3], -c[2]))
     coincident = _coincident(cam_from_world, coincide)
-    check = SelfCheck(pairs, explained / total if total else float("nan"), contradicted,
-                      coincident)
+    check = SelfCheck(pairs, explained / total if total else None, contradicted, coincident)
     check.ok = pairs == 0 or len(contradicted) <= max_contradicted * pairs
     if not check.ok:
         worst = ", ".join(f"{a} / {b} ({n} inliers, {100 * s:.0f} % explained)"
