@@ -63,7 +63,7 @@ from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colma
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
            "epipolar_consistency", "pool_matches", "refine", "weakly_tied",
-           "remap_in_file_order"]
+           "remap_in_file_order", "ORDERED_OVERLAP"]
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +72,9 @@ log = logging.getLogger(__name__)
 LADDER = ((50, 8.0, 15, 0.15), (30, 4.0, 12, 0.10))
 #: absolute-pose settings of the re-localization: min inliers, min inlier ratio, max error px
 RELOCALIZE = (8, 0.05, 12.0)
+#: how far apart in file order two views may be for :func:`remap_in_file_order` to keep
+#: their matches (a ring of 12-16 views: neighbours up to 45-90 degrees apart)
+ORDERED_OVERLAP = 3
 
 
 @dataclass
@@ -606,7 +609,7 @@ def _triangulate_merged(db: Path, image_dir, out: Path, poses: dict, base, opts)
 
 
 def remap_in_file_order(database: str | Path, image_dir, opts: ColmapOptions, work: Path, *,
-                        overlap: int = 3) -> tuple[object, Path, dict]:
+                        overlap: int = ORDERED_OVERLAP) -> tuple[object, Path, dict]:
     """The mapper again on the verified pairs of views at most ``overlap`` apart in file
     order (the ring closed: :func:`ring_pairs`), the others' matches left out.
 

@@ -542,13 +542,13 @@ def _self_check(rec, database: Path, upright, opts, tmp: Path):
     when it contradicts them, the mapper again on the pairs close in file order
     (:func:`reconstruct.sfm.escalate.remap_in_file_order`), and the model those pairs
     agree with more kept. Returns the model, its database and the report."""
-    from reconstruct.sfm.escalate import remap_in_file_order
+    from reconstruct.sfm.escalate import ORDERED_OVERLAP, remap_in_file_order
     from reconstruct.sfm.self_check import check_reconstruction
 
     check = check_reconstruction(rec, database)
     out = {"model": check.to_dict(), "recovery": None, "warnings": []}
     n = rec.num_reg_images()
-    overlap = 3
+    overlap = ORDERED_OVERLAP
     if not check.ok and len(rec.images) > 2 * overlap + 1:
         t = time.perf_counter()
         other, db2, step = remap_in_file_order(database, upright.path, opts,
