@@ -34,6 +34,8 @@ _EXPORTS = {
     "compare_cameras": "camera_poses",
     "read_estimated_cameras": "camera_poses",
     "robust_umeyama": "sim3",
+    "joint_similarity": "sim3",
+    "relative_rotation_errors": "camera_poses",
     "compare_scan_poses": "scan_poses",
 }
 __all__ = sorted(_EXPORTS)

@@ -2,7 +2,8 @@
 write them, and the pipeline (sparse, then the dense stage of :mod:`reconstruct.mvs`).
 
 Modules: ``colmap``, ``escalate`` (the stronger steps for the views the default leaves
-out), ``photo_set``, ``pipeline``.
+out), ``photo_set``, ``pipeline``, ``principal_point``, ``self_check`` (a sparse model
+against its own verified matches).
 
 Every name below is importable from the room (``from reconstruct.sfm import NAME``), loaded
 on first use.
@@ -24,6 +25,10 @@ _EXPORTS = {
     "merge_models": "escalate",
     "ring_pairs": "escalate",
     "similarity_from_common_views": "escalate",
+    "remap_in_file_order": "escalate",
+    "SelfCheck": "self_check",
+    "check_model": "self_check",
+    "check_reconstruction": "self_check",
     "CAMERA_MODES": "photo_set",
     "CameraGroup": "photo_set",
     "camera_groups": "photo_set",

@@ -62,7 +62,8 @@ from reconstruct.sfm.colmap import ColmapOptions, _extract_cameras, _quiet_colma
 
 __all__ = ["EscalationOptions", "escalate", "LADDER", "RELOCALIZE", "merge_models",
            "similarity_from_common_views", "pair_inliers", "ring_pairs",
-           "epipolar_consistency", "pool_matches", "refine", "weakly_tied"]
+           "epipolar_consistency", "pool_matches", "refine", "weakly_tied",
+           "remap_in_file_order", "ORDERED_OVERLAP"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +72,9 @@ log = logging.getLogger(__name__)
 LADDER = ((50, 8.0, 15, 0.15), (30, 4.0, 12, 0.10))
 #: absolute-pose settings of the re-localization: min inliers, min inlier ratio, max error px
 RELOCALIZE = (8, 0.05, 12.0)
+#: how far apart in file order two views may be for :func:`remap_in_file_order` to keep
+#: their matches (a ring of 12-16 views: neighbours up to 45-90 degrees apart)
+ORDERED_OVERLAP = 3
 
 
 @dataclass
@@ -443,6 +447,8 @@ def epipolar_consistency(rec, database: str | Path, max_error: float = 4.0) -> f
     its distance: MSAC's score). NaN when no match is between registered views."""
     import pycolmap
 
+    from reconstruct.sfm.self_check import sampson_distance
+
     db = pycolmap.Database.open(str(database))
     try:
         names = {im.image_id: im.name for im in db.read_all_images()}
@@ -464,12 +470,8 @@ def epipolar_consistency(rec, database: str | Path, max_error: float = 4.0) -> f
         k1 = np.linalg.inv(im1.camera.calibration_matrix())
         k2 = np.linalg.inv(im2.camera.calibration_matrix())
         F = k2.T @ E @ k1
-        x1 = np.c_[keypoints[a][matches[:, 0]], np.ones(len(matches))]
-        x2 = np.c_[keypoints[b][matches[:, 1]], np.ones(len(matches))]
-        fx1, ftx2 = x1 @ F.T, x2 @ F
-        den = fx1[:, 0] ** 2 + fx1[:, 1] ** 2 + ftx2[:, 0] ** 2 + ftx2[:, 1] ** 2
-        sampson = np.sum(x2 * fx1, axis=1) ** 2 / np.maximum(den, 1e-300)
-        errors.append(np.minimum(sampson, max_error ** 2))
+        d = sampson_distance(F, keypoints[a][matches[:, 0]], keypoints[b][matches[:, 1]])
+        errors.append(np.minimum(d * d, max_error ** 2))
     return float(np.mean(np.concatenate(errors))) if errors else float("nan")
 
 
@@ -604,6 +606,55 @@ def _triangulate_merged(db: Path, image_dir, out: Path, poses: dict, base, opts)
                                       refine_intrinsics=False)
     _bundle_adjust(rec)
     return rec
+
+
+def remap_in_file_order(database: str | Path, image_dir, opts: ColmapOptions, work: Path, *,
+                        overlap: int = ORDERED_OVERLAP) -> tuple[object, Path, dict]:
+    """The mapper again on the verified pairs of views at most ``overlap`` apart in file
+    order (the ring closed: :func:`ring_pairs`), the others' matches left out.
+
+    A scene that repeats itself (a symmetric temple, a row of equal windows) gives
+    verified matches between views that see *different* parts that look alike; the
+    mapper may then fold the set onto itself (:mod:`reconstruct.sfm.self_check`). In a
+    capture taken in order (a ring, a walk along a facade), views close in file order see
+    the same part from nearby, so their matches are the least likely to be of that kind:
+    COLMAP's sequential matching rests on the same assumption. Each rung of
+    :data:`LADDER` is tried until every view is in; the model with the most views is
+    returned with the database it used (a copy of ``database``) and what was done.
+    """
+    import pycolmap
+
+    work = Path(work)
+    work.mkdir(parents=True, exist_ok=True)
+    db = work / "ordered.db"
+    db.unlink(missing_ok=True)
+    shutil.copy2(database, db)
+    d = pycolmap.Database.open(str(db))
+    try:
+        ids = {im.name: im.image_id for im in d.read_all_images()}
+        keep = {tuple(sorted((ids[a], ids[b]))) for a, b in ring_pairs(sorted(ids), overlap)}
+        pairs, _ = d.read_two_view_geometries() if d.num_verified_image_pairs() else ([], [])
+        dropped = 0
+        for pid in pairs:
+            a, b = pycolmap.pair_id_to_image_pair(pid)
+            if tuple(sorted((a, b))) not in keep:
+                d.delete_two_view_geometry(a, b)
+                dropped += 1
+    finally:
+        d.close()
+    best, steps = None, []
+    for rung, thresholds in enumerate(LADDER):
+        t = time.perf_counter()
+        rec, step = _map_relaxed(db, image_dir, work / f"ordered_{rung}", opts, thresholds)
+        step["seconds"] = time.perf_counter() - t
+        steps.append(step)
+        if rec is not None and (best is None or rec.num_reg_images() > best.num_reg_images()):
+            best = rec
+        if best is not None and best.num_reg_images() == len(ids):
+            break
+    return best, db, {"overlap": overlap, "pairs_left_out": dropped,
+                      "pairs_kept": len(pairs) - dropped, "steps": steps,
+                      "registered": best.num_reg_images() if best is not None else 0}
 
 
 def _db_images(db: Path) -> list:

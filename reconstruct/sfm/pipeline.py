@@ -124,6 +124,14 @@ class SfmConfig(Config):
                                        "try stronger features, guided matching, relaxed "
                                        "mapping, model merging and re-localization on "
                                        "them (reconstruct.sfm.escalate)")
+    self_check: bool = option(True, help="check the sparse model against its own verified "
+                                         "matches (reconstruct.sfm.self_check: a scene that "
+                                         "repeats itself can fold the views onto each "
+                                         "other); when the model contradicts them, map "
+                                         "again from the pairs of views close in file "
+                                         "order and keep the model those pairs agree "
+                                         "with more; the findings go to report.json and "
+                                         "the log")
 
     def __post_init__(self):
         super().__post_init__()
@@ -501,6 +509,18 @@ def _sparse(config, inp, opts, groups, upright: _Upright, tmp: Path, out_dir: Pa
             "escalation": escalation}
     if diagnosis:
         part["diagnosis"] = diagnosis
+    if known is None and config.self_check and rec is not None and len(registered) >= 3:
+        t_check = time.perf_counter()
+        rec, database, part["self_check"] = _self_check(rec, database, upright, opts, tmp)
+        registered = sorted(im.name for im in rec.images.values() if im.has_pose)
+        part.update(registered=len(registered),
+                    registered_fraction=len(registered) / len(inp.names))
+        if part["self_check"]["recovery"] and part["self_check"]["recovery"]["kept"]:
+            part["failed_images"], _ = _failures(database, inp.names, set(registered),
+                                                 config.min_keypoints)
+        if part["self_check"]["warnings"]:
+            part["warnings"] = list(part["self_check"]["warnings"])
+        seconds += time.perf_counter() - t_check
     t_pp = time.perf_counter()
     if rec is not None and len(registered) >= 3 and _principal_point_free(config, inp):
         from reconstruct.sfm.principal_point import decisions_report, refine_principal_point
@@ -515,6 +535,49 @@ def _sparse(config, inp, opts, groups, upright: _Upright, tmp: Path, out_dir: Pa
     if rec is not None and len(registered) >= 3:
         out["views"] = _sparse_outputs(rec, inp, tmp, out_dir, part)
     return out
+
+
+def _self_check(rec, database: Path, upright, opts, tmp: Path):
+    """The model checked against its verified matches (:mod:`reconstruct.sfm.self_check`);
+    when it contradicts them, the mapper again on the pairs close in file order
+    (:func:`reconstruct.sfm.escalate.remap_in_file_order`), and the model those pairs
+    agree with more kept. Returns the model, its database and the report."""
+    from reconstruct.sfm.escalate import ORDERED_OVERLAP, remap_in_file_order
+    from reconstruct.sfm.self_check import check_reconstruction
+
+    check = check_reconstruction(rec, database)
+    out = {"model": check.to_dict(), "recovery": None, "warnings": []}
+    n = rec.num_reg_images()
+    overlap = ORDERED_OVERLAP
+    if not check.ok and len(rec.images) > 2 * overlap + 1:
+        t = time.perf_counter()
+        other, db2, step = remap_in_file_order(database, upright.path, opts,
+                                               tmp / "colmap" / "self_check", overlap=overlap)
+        step["kept"] = False
+        if other is not None and other.num_reg_images() >= 3:
+            # both models judged on the same evidence: the pairs close in file order
+            before, after = check_reconstruction(rec, db2), check_reconstruction(other, db2)
+            step["before_on_close_pairs"] = before.to_dict()
+            step["after_on_close_pairs"] = after.to_dict()
+            if after.pairs and before.pairs and \
+                    after.explained_share > before.explained_share + 0.05 and \
+                    len(after.contradicted) < len(before.contradicted):
+                step["kept"] = True
+                out["warnings"].append(
+                    f"the model from every verified pair contradicted {len(check.contradicted)}"
+                    f" of its {check.pairs} pairs; mapped again from the {step['pairs_kept']}"
+                    f" pairs at most {overlap} apart in file order ({step['pairs_left_out']} "
+                    f"left out), which it explains better ({100 * after.explained_share:.0f}"
+                    f" % of their matches against {100 * before.explained_share:.0f} %): "
+                    f"{other.num_reg_images()} of {n} views")
+                rec, database, check = other, db2, after
+        step["seconds"] = time.perf_counter() - t
+        out["recovery"] = step
+    out["final"] = check.to_dict()
+    out["warnings"] += check.warnings
+    for w in out["warnings"]:
+        log.warning("sparse self-check: %s", w)
+    return rec, database, out
 
 
 def _principal_point_free(config: SfmConfig, inp: _Input) -> bool:
@@ -561,7 +624,8 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
                              "principal_point": config.principal_point,
                              "hold_intrinsics": config.hold_intrinsics,
                              "min_keypoints": config.min_keypoints,
-                             "escalate": config.escalate})
+                             "escalate": config.escalate,
+                             "self_check": config.self_check})
     report.update(sparse["report"])
     report["timings"].update({"extract": feats["seconds"], "match": matches["seconds"],
                               "map" if inp.known is None else "triangulate":
@@ -580,6 +644,10 @@ def _sparse_stages(st, config, inp, groups, opts, upright, tmp, out_dir, report)
         return False, (f"SfM did not register: {report['registered']} of {n} images"
                        + (f": {diag}" if diag else "")
                        + f" (see {out_dir / 'report.json'} for each image)"), None
+    check = sparse["report"].get("self_check")
+    if check and not check["final"]["ok"]:
+        return True, "ok, but the sparse self-check failed: " + check["final"]["warnings"][0], \
+            sparse["views"]
     return True, "ok", sparse["views"]
 
 
