@@ -204,3 +204,70 @@ def test_a_sun_crown_passes_beer_lambert_on_its_columns_and_stops_rays_higher():
         z = 50.0 - R[obj > 0]
         high[ratio] = np.mean(z >= 14.0)
     assert high[3.0] > high[1.0] + 0.1
+
+
+def _cell_discs(i, j, k, lam, radius):
+    """The leaves of lattice cell ``(i, j, k)`` drawn from its hash, unpruned (the
+    kernel's draws, read in Python): centres ``(m, 3)`` and unit normals ``(m, 3)``."""
+    from acquire.lidar import _kernels
+    from acquire.lidar.medium import SHOOT_CELL as c
+
+    h = np.uint64(_kernels._cell_hash(i, j, k, 0))
+    u, p, n = _kernels._uniform(h, 0), np.exp(-lam), 0
+    acc = p
+    while u > acc and n < 256:
+        n += 1
+        p *= lam / n
+        acc += p
+    q = np.array([[_kernels._uniform(h, 1 + 5 * m + e) for e in range(5)] for m in range(n)])
+    if not n:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    cen = np.column_stack([(i + q[:, 0]) * c, (j + q[:, 1]) * c,
+                           k * c + radius + (c - 2 * radius) * q[:, 2]])
+    z, phi = 2 * q[:, 3] - 1, 2 * np.pi * q[:, 4]
+    s = np.sqrt(np.maximum(0.0, 1 - z * z))
+    return cen, np.column_stack([s * np.cos(phi), s * np.sin(phi), z])
+
+
+def test_the_leaf_walk_meets_the_nearest_leaf_of_every_cell_near_the_ray():
+    """The leaf kernel reads only the cells whose leaves may reach a ray (a box for steep
+    stretches, a cell walk for long ones) and passes over far leaves early: its hits equal,
+    bit for bit, those of every leaf of every cell around the ray, read one by one."""
+    from acquire.lidar import _kernels
+    from acquire.lidar.medium import LEAF_AREA, SHOOT_CELL
+
+    rng = np.random.default_rng(7)
+    n = 60
+    zen = np.concatenate([rng.uniform(0, 0.6, n // 3), rng.uniform(0.6, 1.5, n // 3),
+                          np.full(n - 2 * (n // 3), np.pi / 2)])       # steep, oblique, level
+    az = rng.uniform(0, 2 * np.pi, n)
+    d = np.column_stack([np.sin(zen) * np.cos(az), np.sin(zen) * np.sin(az), -np.cos(zen)])
+    o = np.column_stack([rng.uniform(-5, 5, (n, 2)), rng.uniform(1, 3, n)])
+    t0 = rng.uniform(0.0, 0.5, n)
+    t1 = t0 + rng.uniform(0.2, 1.2, n)
+    lad = np.full(n, 4.0)
+    t_out, mu_out = np.empty(n), np.empty(n)
+    _kernels.leaf_hits(o, d, t0, t1, lad, SHOOT_CELL, LEAF_AREA, 0, t_out, mu_out)
+    radius = np.sqrt(LEAF_AREA / np.pi)
+    lam = 4.0 * SHOOT_CELL ** 3 / LEAF_AREA
+    for r in range(n):
+        a, b = o[r] + t0[r] * d[r], o[r] + t1[r] * d[r]
+        lo = np.floor((np.minimum(a, b) - SHOOT_CELL) / SHOOT_CELL).astype(int)
+        hi = np.floor((np.maximum(a, b) + SHOOT_CELL) / SHOOT_CELL).astype(int)
+        cen, nrm = zip(*[_cell_discs(i, j, k, lam, radius)
+                         for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)
+                         for k in range(lo[2], hi[2] + 1)], strict=True)
+        cen, nrm = np.vstack(cen), np.vstack(nrm)
+        den = nrm @ d[r]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.einsum("ij,ij->i", cen - o[r], nrm) / den
+        hit = o[r] + t[:, None] * d[r] - cen
+        ok = (np.abs(den) >= 1e-12) & (t >= t0[r]) & (t <= t1[r]) & (
+            np.einsum("ij,ij->i", hit, hit) <= radius ** 2)
+        if not ok.any():
+            assert t_out[r] == np.inf
+            continue
+        m = np.flatnonzero(ok)[np.argmin(t[ok])]
+        assert t_out[r] == pytest.approx(t[m], abs=1e-9)
+        assert mu_out[r] == pytest.approx(abs(den[m]), abs=1e-9)
+    assert 0.2 < np.mean(np.isfinite(t_out)) < 1.0       # hits and misses both tested
