@@ -418,7 +418,7 @@ def _points_on(faces: np.ndarray, a: np.ndarray, tri: np.ndarray, n: int = 20_00
     return (tri[faces][pick] * w[:, :, None]).sum(axis=1)
 
 
-def _footprint_ground(up, n, a, tri, cos_g) -> tuple[float, float]:
+def _footprint_ground(up, n, a, tri, cos_g, everything=None) -> tuple[float, float]:
     """The shares of the scene's footprint (the surface seen along ``up``, in cells of
     1 / :data:`FOOTPRINT_CELLS` of its longer side) covered by level surface in the lowest
     and in the highest :data:`BAND` of its height. A ground spans the scene under what
@@ -430,14 +430,17 @@ def _footprint_ground(up, n, a, tri, cos_g) -> tuple[float, float]:
     own points, so a cover measures where the surface lies and not how much of the area
     it is: a ground that is a tenth of the area under a dense canopy covers its gaps as
     fully as a bare one. The cells are laid along the footprint's principal axes, centred
-    on its middle, so the measure turns with the scene and not with its frame."""
+    on its middle, so the measure turns with the scene and not with its frame.
+    ``everything``: the footprint's points when drawn already (:func:`_points_on` over
+    every face)."""
     h = tri @ up
     lo_h, span = float(h.min()), float(np.ptp(h))
     if span <= 0:
         return 0.0, 0.0
     hc = h.mean(axis=1)
     level = np.abs(n @ up) > cos_g
-    everything = _points_on(np.ones(len(a), bool), a, tri, 40_000)
+    if everything is None:
+        everything = _points_on(np.ones(len(a), bool), a, tri, 40_000)
     # the plane across up, its axes the footprint's principal ones (a fixed frame of the
     # scene, whatever frame the file is in)
     flat = everything - np.outer(everything @ up, up)
@@ -450,21 +453,23 @@ def _footprint_ground(up, n, a, tri, cos_g) -> tuple[float, float]:
         return 0.0, 0.0
     cell = size / FOOTPRINT_CELLS
 
-    def cells(pts):
-        ij = np.floor((pts - np.outer(pts @ up, up) - mid) @ plane / cell).astype(np.int64)
-        return set(map(tuple, ij))
+    def cells(pts):  # each point's cell as one integer (the footprint is 48 cells across)
+        ij = np.floor((pts - np.outer(pts @ up, up) - mid) @ plane / cell).astype(np.int64) \
+            + 4 * FOOTPRINT_CELLS
+        return np.unique(ij[:, 0] * 8 * FOOTPRINT_CELLS + ij[:, 1])
 
     foot = cells(everything)
-    low = cells(_points_on(level & (hc <= lo_h + BAND * span), a, tri)) & foot
-    high = cells(_points_on(level & (hc >= lo_h + (1 - BAND) * span), a, tri)) & foot
+    low = np.intersect1d(cells(_points_on(level & (hc <= lo_h + BAND * span), a, tri)), foot)
+    high = np.intersect1d(cells(_points_on(level & (hc >= lo_h + (1 - BAND) * span), a, tri)),
+                          foot)
     return len(low) / len(foot), len(high) / len(foot)
 
 
-def _head_ground(up, n, a, tri, cos_g) -> float:
+def _head_ground(up, n, a, tri, cos_g, everything=None) -> float:
     """How much more of the footprint the level surface at the top end of ``up`` covers
     than that at its bottom end (:func:`_footprint_ground`), 0 when less: a ground seen
     overhead, the scene upside down."""
-    low, high = _footprint_ground(up, n, a, tri, cos_g)
+    low, high = _footprint_ground(up, n, a, tri, cos_g, everything)
     return max(high - low, 0.0)
 
 
@@ -476,8 +481,10 @@ def _rest_weight(scored, rest, n, a, tri, cos_g) -> tuple[float, list[RestPose]]
     walls can outweigh its area, not its cover)."""
     ground = max(st["low"] - st["high"] for _, st in scored)
     rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
+    everything = _points_on(np.ones(len(a), bool), a, tri, 40_000)
     return rest_w, [RestPose(r.up, r.probability, r.contact, r.share * max(
-        1.0 - _head_ground(r.up, n, a, tri, cos_g) / GROUND_COVER, 0.0)) for r in rest]
+        1.0 - _head_ground(r.up, n, a, tri, cos_g, everything) / GROUND_COVER, 0.0))
+        for r in rest]
 
 
 def _cameras_above(up, tri, a, centres) -> float:
