@@ -3,7 +3,9 @@ random rotations and either winding, with the true up known by construction: a c
 domes on hidden stems over a ground seen only in the gaps (the crowns' leaf area outweighs
 the ground's, and such a canopy touches a floor at a few crown tops only: as an object it
 would rest upside down), and a roofed colonnade on steps, with no ground, seen from above
-(the roof hides the columns' feet; its open mesh has no closed volume)."""
+(the roof hides the columns' feet; its open mesh has no closed volume); and the ground's
+cover of the footprint, which tells a ground from the tops of things, where it is known
+exactly: half a footprint under a steep roof and a forest of fins."""
 
 import numpy as np
 import open3d as o3d
@@ -12,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from core.meshes import make_mesh, merge_meshes, mesh_arrays
 from data_synth.fixtures import ring_of_eyes, seen_triangles
-from reconstruct.surface.up import rest_poses, up_from_mesh
+from reconstruct.surface.up import _footprint_ground, rest_poses, up_from_mesh
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -120,3 +122,46 @@ def test_up_of_a_scene_seen_from_above_whatever_the_winding(request, scene, seed
         est = up_from_mesh(v @ R.T, tris)
         assert _angle(est.up, R @ Z) < 10.0, (scene, seed, est.detail)
         assert est.decision["runner_up"] is not None
+
+
+def _half_ground_under_fins():
+    """A 60 x 40 m footprint: a flat ground over its half x < 0 (z = 0), a sawtooth roof
+    of 59-degree slopes over all of it (z 10-20, no level face) and 60 vertical fins
+    40 m long, 8.5 m tall between them: the ground is under 5 % of the area, and covers
+    exactly half the footprint."""
+    quads = [[(-30, -20, 0), (0, -20, 0), (0, 20, 0), (-30, 20, 0)]]
+    run = 6.0  # a 10 m rise over 6 m: 59 degrees
+    for x in np.arange(-30.0, 30.0, 2 * run):
+        quads.append([(x, -20, 10), (x + run, -20, 20), (x + run, 20, 20), (x, 20, 10)])
+        quads.append([(x + run, -20, 20), (x + 2 * run, -20, 10), (x + 2 * run, 20, 10),
+                      (x + run, 20, 20)])
+    for x in np.linspace(-29.5, 29.5, 60):
+        quads.append([(x, -20, 0.5), (x, 20, 0.5), (x, 20, 9.0), (x, -20, 9.0)])
+    q = np.asarray(quads, np.float64)
+    v = q.reshape(-1, 3)
+    i = 4 * np.arange(len(q))[:, None]
+    f = np.concatenate([i + [0, 1, 2], i + [0, 2, 3]])
+    return v, f
+
+
+def test_a_grounds_cover_is_where_it_lies_not_how_much_of_the_area_it_is():
+    v, f = _half_ground_under_fins()
+    tri, a, level = _faces(v, f)
+    assert a[level].sum() / a.sum() < 0.05  # one draw over the area puts ~1 000 points on it
+    assert np.all(tri[level][:, :, 2] == 0.0)  # the roof and the fins have no level face
+    ups = {}
+    for seed in range(3):
+        R = Rotation.random(random_state=seed).as_matrix()
+        for tris in (f, f[:, ::-1]):
+            tri = (v @ R.T)[tris]
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            area = 0.5 * np.linalg.norm(n, axis=1)
+            n /= 2.0 * area[:, None]
+            cos_g = np.cos(np.radians(20.0))
+            low, high = _footprint_ground(R @ Z, n, area, tri, cos_g)
+            # half the footprint, give or take its cells along the ground's edge (1/31)
+            assert abs(low - 0.5) < 0.04 and high == 0.0, (seed, low, high)
+            assert _footprint_ground(-R @ Z, n, area, tri, cos_g) == (high, low)
+            ups[seed, tris is f] = low
+    # the cells follow the footprint's axes: the cover does not turn with the frame
+    assert np.ptp(list(ups.values())) < 0.01

@@ -409,35 +409,67 @@ CUES = {"area": "ground and wall area (the largest level part is the ground)",
                 "probability), touching the floor little"}
 
 
-def _footprint_ground(up, pts, normals, cos_g) -> tuple[float, float]:
-    """The shares of the scene's footprint (its points seen along ``up``, in
-    :data:`FOOTPRINT_CELLS` cells across) covered by level surface in the lowest and in the
-    highest :data:`BAND` of its height. A ground spans the scene under what stands on it:
-    seen along up it covers most of the footprint at the bottom, however much area trees
-    or furniture add above it. An object's flat side covers part of it, and the tops of
-    things at the other end leave the gaps between them."""
-    h = pts @ up
+def _points_on(faces: np.ndarray, a: np.ndarray, tri: np.ndarray, n: int = 20_000) -> np.ndarray:
+    """``n`` points spread by area over the faces selected by ``faces`` (a mask), a fixed
+    draw; none when the selection has no area."""
+    if not faces.any() or float(a[faces].sum()) <= 0:
+        return np.empty((0, 3))
+    pick, w = _area_draw(a[faces], n)
+    return (tri[faces][pick] * w[:, :, None]).sum(axis=1)
+
+
+def _footprint_ground(up, n, a, tri, cos_g, everything=None) -> tuple[float, float]:
+    """The shares of the scene's footprint (the surface seen along ``up``, in cells of
+    1 / :data:`FOOTPRINT_CELLS` of its longer side) covered by level surface in the lowest
+    and in the highest :data:`BAND` of its height. A ground spans the scene under what
+    stands on it: seen along up it covers most of the footprint at the bottom, however
+    much area trees or furniture add above it. An object's flat side covers part of it,
+    and the tops of things at the other end leave the gaps between them.
+
+    Each of the three (the footprint, the level surface at either end) is drawn with its
+    own points, so a cover measures where the surface lies and not how much of the area
+    it is: a ground that is a tenth of the area under a dense canopy covers its gaps as
+    fully as a bare one. The cells are laid along the footprint's principal axes, centred
+    on its middle, so the measure turns with the scene and not with its frame.
+    ``everything``: the footprint's points when drawn already (:func:`_points_on` over
+    every face)."""
+    h = tri @ up
     lo_h, span = float(h.min()), float(np.ptp(h))
-    e1 = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    xy = np.stack([pts @ e1, pts @ np.cross(up, e1)], axis=1)
-    lo, size = xy.min(axis=0), float(np.ptp(xy, axis=0).max())
-    if size <= 0 or span <= 0:
+    if span <= 0:
         return 0.0, 0.0
-    cell = np.minimum((xy - lo) / size * FOOTPRINT_CELLS, FOOTPRINT_CELLS - 1).astype(np.int64)
-    key = cell[:, 0] * FOOTPRINT_CELLS + cell[:, 1]
-    level = np.abs(normals @ up) > cos_g
-    cells = len(np.unique(key))
-    low = len(np.unique(key[level & (h <= lo_h + BAND * span)])) / cells
-    high = len(np.unique(key[level & (h >= lo_h + (1 - BAND) * span)])) / cells
-    return float(low), float(high)
+    hc = h.mean(axis=1)
+    level = np.abs(n @ up) > cos_g
+    if everything is None:
+        everything = _points_on(np.ones(len(a), bool), a, tri, 40_000)
+    # the plane across up, its axes the footprint's principal ones (a fixed frame of the
+    # scene, whatever frame the file is in)
+    flat = everything - np.outer(everything @ up, up)
+    mid = flat.mean(axis=0)
+    _, vec = np.linalg.eigh((flat - mid).T @ (flat - mid))
+    plane = vec[:, 1:]  # the two largest: the smallest is along up
+    xy = (flat - mid) @ plane
+    size = float(np.abs(xy).max()) * 2.0
+    if size <= 0:
+        return 0.0, 0.0
+    cell = size / FOOTPRINT_CELLS
+
+    def cells(pts):  # each point's cell as one integer (the footprint is 48 cells across)
+        ij = np.floor((pts - np.outer(pts @ up, up) - mid) @ plane / cell).astype(np.int64) \
+            + 4 * FOOTPRINT_CELLS
+        return np.unique(ij[:, 0] * 8 * FOOTPRINT_CELLS + ij[:, 1])
+
+    foot = cells(everything)
+    low = np.intersect1d(cells(_points_on(level & (hc <= lo_h + BAND * span), a, tri)), foot)
+    high = np.intersect1d(cells(_points_on(level & (hc >= lo_h + (1 - BAND) * span), a, tri)),
+                          foot)
+    return len(low) / len(foot), len(high) / len(foot)
 
 
-def _head_ground(up, pts, normals, cos_g) -> float:
+def _head_ground(up, n, a, tri, cos_g, everything=None) -> float:
     """How much more of the footprint the level surface at the top end of ``up`` covers
     than that at its bottom end (:func:`_footprint_ground`), 0 when less: a ground seen
     overhead, the scene upside down."""
-    low, high = _footprint_ground(up, pts, normals, cos_g)
+    low, high = _footprint_ground(up, n, a, tri, cos_g, everything)
     return max(high - low, 0.0)
 
 
@@ -449,10 +481,10 @@ def _rest_weight(scored, rest, n, a, tri, cos_g) -> tuple[float, list[RestPose]]
     walls can outweigh its area, not its cover)."""
     ground = max(st["low"] - st["high"] for _, st in scored)
     rest_w = REST_WEIGHT * max(1.0 - ground / GROUND_SHARE, 0.0)
-    pick, w = _area_draw(a)
-    pts, pts_n = (tri[pick] * w[:, :, None]).sum(axis=1), n[pick]
+    everything = _points_on(np.ones(len(a), bool), a, tri, 40_000)
     return rest_w, [RestPose(r.up, r.probability, r.contact, r.share * max(
-        1.0 - _head_ground(r.up, pts, pts_n, cos_g) / GROUND_COVER, 0.0)) for r in rest]
+        1.0 - _head_ground(r.up, n, a, tri, cos_g, everything) / GROUND_COVER, 0.0))
+        for r in rest]
 
 
 def _cameras_above(up, tri, a, centres) -> float:
