@@ -120,7 +120,7 @@ def main(bench: Path):
         if (rec / "mesh.ply").is_file():
             views = sorted(json.loads((rec / "report.json").read_text())["dense"]["views"])
             figure(rec, real / "strecha" / name / "images",
-                   [views[len(views) // 2], views[0]], img / f"mvs_strecha_{name}.png", h=240)
+                   [views[len(views) // 2], views[0]], img / f"mvs_strecha_{name}.png", h=200)
 
 
 if __name__ == "__main__":
