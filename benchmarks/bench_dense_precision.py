@@ -4,8 +4,9 @@ the same depth maps with one stage switched at a time, scored against silhouette
     python benchmarks/bench_dense_precision.py temple|dino DIR
 
 DIR is a reconstruction from true cameras with the default options that
-`bench_mvs.py temple` or `dino` wrote (`temple_cameras`, `dino_patchmatch`; MVS_BENCH_DIR
-keeps them; the temple's capture is the input folder's parent): its depth maps are
+`bench_mvs.py temple` or `dino` wrote (`temple_cameras`, `temple_turntable`,
+`dino_patchmatch`; MVS_BENCH_DIR keeps them; the temple's capture is the input folder's
+parent): its depth maps are
 reused, only fusion and the surface run again. For each variant: the mesh's pixels inside
 the silhouettes (the temple's true ones, the dino's by a threshold on its black
 background), the silhouettes covered, and the truth-free precision the dense stage
@@ -34,6 +35,7 @@ VARIANTS = {
     "fusion: 2 views agree": {"min_views": 2},
     "density trim 20 %": {"density_quantile": 0.2},
     "free space: every depth": {"free_space": "all"},
+    "static match 6 px": {"static_match": 6.0},
 }
 
 

@@ -32,7 +32,7 @@ import numpy as np
 from core.io.raster import Raster
 from core.validate import check_positive, check_range, check_rng
 
-__all__ = ["sfm_capture", "seen_triangles", "SlopedTile", "sloped_tile"]
+__all__ = ["sfm_capture", "turntable_backdrop", "seen_triangles", "SlopedTile", "sloped_tile"]
 
 
 def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: int = 12,
@@ -85,6 +85,57 @@ def ring_of_eyes(vertices, n: int = 12, elevations_deg=(15.0, 45.0), seed: int =
     el = np.radians(np.random.default_rng(seed).uniform(*elevations_deg, n))
     az = 2 * np.pi * np.arange(n) / n
     return c + r * np.stack([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)], 1)
+
+
+def turntable_backdrop(capture_dir: str | os.PathLike, out: str | os.PathLike, *,
+                       rng: np.random.Generator, level: float = 14.0,
+                       contrast: float = 7.0, scale: float = 24.0,
+                       vignetting: float = 0.6) -> Path:
+    """A copy of an SfM capture of an object on black, as a turntable would photograph it:
+    behind the object, one dim textured backdrop (a cloth: grey ``level`` of 255, with
+    ``contrast`` grey levels rms of texture in three octaves from ``scale`` px down,
+    darker toward the corners by ``1 / (1 + vignetting r^2)``, r = 1 at the middle of a
+    side) at the *same pixels in every view*: the camera and the cloth stand still, the
+    object turns.
+
+    The object is composited over it through its true silhouette (the rendered depth > 0,
+    softened by 0.7 px), so the truth (``gt/``, ``capture.json``) holds unchanged. A
+    pattern fixed to the image matches itself at the same pixels in every pair of views,
+    and the rays of one pixel in a ring of views meet beside the object: stereo finds a
+    consistent surface there that is in no scene.
+    """
+    import shutil
+
+    import cv2
+
+    from core.io.image import read_image, write_image
+
+    check_positive(scale, "scale")
+    check_rng(rng)
+    src, dst = Path(capture_dir), Path(out)
+    if (dst / "capture.json").is_file():
+        return dst
+    tmp = dst.with_name(dst.name + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(src, tmp)
+    images = sorted((tmp / "images").glob("*.png"))
+    h, w = read_image(images[0]).shape[:2]
+    tex = np.zeros((h, w))
+    for s, a in ((scale, 1.0), (scale / 2, 0.5), (scale / 4, 0.25)):
+        g = rng.normal(size=(int(h / s) + 2, int(w / s) + 2))
+        tex += a * cv2.resize(g, (w, h), interpolation=cv2.INTER_CUBIC)
+    tex = (tex - tex.mean()) / max(tex.std(), 1e-12)
+    yy, xx = np.mgrid[:h, :w]
+    r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / (w / 2) ** 2
+    back = np.clip(level + contrast * tex, 0.0, None) / (1.0 + vignetting * r2)
+    for i, path in enumerate(images):
+        img = read_image(path).astype(np.float64)
+        sil = (np.load(tmp / "gt" / f"depth_{i:04d}.npy") > 0).astype(np.float64)
+        bg = (1.0 - cv2.GaussianBlur(sil, (0, 0), 0.7)) * back
+        img = img + (bg[..., None] if img.ndim == 3 else bg)
+        write_image(path, np.clip(np.rint(img), 0, 255).astype(np.uint8))
+    tmp.rename(dst)
+    return dst
 
 
 def seen_triangles(vertices, triangles, eyes, *, target=None, fov_deg: float = 60.0,

@@ -6,10 +6,13 @@ writes ``docs/img/mvs_monstree.png`` and ``docs/img/mvs_dino.png`` (photo | mesh
 from that photo's camera, shaded, in its colours | a second view) and
 ``docs/img/mvs_depth.png`` (a photo beside its depth, normal and confidence maps), and
 ``docs/img/mvs_columns.png`` (the rendered scene of thin columns and steps: a render and
-the mesh from two of its cameras).
+the mesh from two of its cameras), and ``docs/img/mvs_strecha_SET.png`` for each Strecha
+set that ``bench_mvs.py strecha`` reconstructed from its true cameras (a photo and the
+mesh from two of the benchmark's cameras).
 """
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -94,7 +97,7 @@ def depth_figure(rec: Path, images: Path, name: str, out: Path, h=360):
 def main(bench: Path):
     img = ROOT / "docs" / "img"
     img.mkdir(exist_ok=True)
-    real = ROOT.parent / "shared" / "data" / "real"
+    real = Path(os.environ.get("SCANAMP_REAL_DATA") or ROOT.parent / "shared" / "data" / "real")
     mt = bench / "monstree_patchmatch"
     if (mt / "mesh.ply").is_file():
         views = list(json.loads((mt / "report.json").read_text())["dense"]["views"])
@@ -112,6 +115,12 @@ def main(bench: Path):
         names = sorted(f"images/{p.name}" for p in (bench / "columns24" / "images").glob("*.png"))
         figure(cols, bench / "columns24", [names[0], names[len(names) // 3]],
                img / "mvs_columns.png")
+    for name in ("fountain-P11", "Herz-Jesu-P8", "entry-P10"):
+        rec = bench / f"strecha_{name}"
+        if (rec / "mesh.ply").is_file():
+            views = sorted(json.loads((rec / "report.json").read_text())["dense"]["views"])
+            figure(rec, real / "strecha" / name / "images",
+                   [views[len(views) // 2], views[0]], img / f"mvs_strecha_{name}.png", h=200)
 
 
 if __name__ == "__main__":

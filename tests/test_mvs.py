@@ -640,3 +640,39 @@ def test_a_view_without_sources_is_skipped_with_a_warning(tmp_path, caplog):
     assert len(v) > 100 and np.percentile(np.abs(v[:, 2]), 90) < 0.01  # the plane z = 0
     for n in names:
         assert (tmp_path / "dense" / f"{n}.preview.png").is_file()
+
+
+def test_a_turntable_backdrop_is_the_same_pattern_at_the_same_pixels_in_every_view(
+        capture, tmp_path):
+    """The turntable test bed: the object's pixels are untouched, and behind it every view
+    gains one dim textured pattern at the same pixels (the cloth behind a turntable), of
+    the asked level and contrast; the truth is copied as it was."""
+    import cv2
+
+    from core.io.image import read_image
+    from data_synth.fixtures import turntable_backdrop
+
+    out = turntable_backdrop(capture, tmp_path / "tt", rng=np.random.default_rng(0),
+                             level=20.0, contrast=6.0, scale=8.0, vignetting=0.0)
+    assert turntable_backdrop(capture, out, rng=np.random.default_rng(0)) == out  # once
+    names = sorted(p.name for p in (capture / "images").glob("*.png"))
+    k = np.ones((7, 7), np.uint8)
+    diffs, backs = [], []
+    for i, n in enumerate(names):
+        a = read_image(capture / "images" / n).astype(float)
+        b = read_image(out / "images" / n).astype(float)
+        sil = (np.load(capture / "gt" / f"depth_{i:04d}.npy") > 0).astype(np.uint8)
+        inner = cv2.erode(sil, k) > 0
+        back = cv2.dilate(sil, k) == 0
+        assert np.abs(a - b)[inner].max() <= 1.0  # the object, as rendered
+        diffs.append((b - a).mean(axis=2) if b.ndim == 3 else b - a)
+        brightest = a.max(axis=2) if a.ndim == 3 else a
+        backs.append(back & (brightest < 200))  # not clipped at 255
+        assert np.array_equal(np.load(out / "gt" / f"depth_{i:04d}.npy"),
+                              np.load(capture / "gt" / f"depth_{i:04d}.npy"))
+    common = np.logical_and.reduce(backs)
+    assert common.mean() > 0.2
+    pattern = np.median([d[common] for d in diffs], axis=0)
+    assert abs(pattern.mean() - 20.0) < 2.0 and abs(pattern.std() - 6.0) < 1.5
+    for d in diffs:  # the same pattern in every view (rounding only)
+        assert np.abs(d[common] - pattern).max() <= 1.0

@@ -652,15 +652,36 @@ def _pixel_into(x, y, z, k, wfc, cfw):
             cfw[2, 0] * X0 + cfw[2, 1] * X1 + cfw[2, 2] * X2 + cfw[2, 3])
 
 
+@nb.njit(cache=True, inline="always")
+def static_offset(x, y, u, v, u2, v2):
+    """How far (px) the pixel (u, v) where a point of pixel (x, y) falls in another view
+    lies from (x, y) itself along the epipolar line, whose direction (u2, v2) - (u, v)
+    gives (the point a little deeper); inf when the line is a point. Near 0, the match is
+    the one a pattern fixed to the image makes (a backdrop behind a turntable, an overlay,
+    a dirty lens): the same content at the same pixels, whatever the depth.
+
+    >>> round(static_offset(10.0, 5.0, 12.0, 5.5, 13.0, 5.5), 3)
+    -2.0
+    """
+    du, dv = u2 - u, v2 - v
+    n = np.sqrt(du * du + dv * dv)
+    if n < 1e-9:
+        return np.inf
+    return ((x - u) * du + (y - v) * dv) / n
+
+
 @nb.njit(parallel=True, cache=True, fastmath=True)
 def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, ocfw,
-                 depth_tol, max_reproj, cos_max):
+                 depth_tol, max_reproj, cos_max, static_px):
     """``count[y, x] += 1`` where another view's depth map agrees with this view's depth at
     (x, y): the test of :func:`reconstruct.mvs.fusion.fuse_points` with a relative depth
     tolerance. The point of (x, y) falls on the other view's nearest pixel; that pixel's
     depth gives back a point that must reproject within ``max_reproj`` px of (x, y), at a
     depth within ``depth_tol`` (relative to the other view's), with normals (camera
-    frames; ``wfc``, ``cfw``: world_from_cam, cam_from_world 4x4) within ``cos_max``."""
+    frames; ``wfc``, ``cfw``: world_from_cam, cam_from_world 4x4) within ``cos_max``.
+    With ``static_px`` > 0 a match at the same pixel does not count: the point falls
+    within ``static_px`` of (x, y) along its epipolar line in the other view
+    (:func:`static_offset`)."""
     h, w = depth.shape
     oh, ow = odepth.shape
     for y in nb.prange(h):
@@ -671,10 +692,18 @@ def agree_counts(count, depth, normal, k, wfc, cfw, odepth, onormal, ok, owfc, o
             Y0, Y1, Y2 = _pixel_into(x, y, z, k, wfc, ocfw)
             if Y2 <= 1e-12:
                 continue
-            uo = int(np.rint(ok[0, 0] * Y0 / Y2 + ok[0, 2]))
-            vo = int(np.rint(ok[1, 1] * Y1 / Y2 + ok[1, 2]))
+            uf = ok[0, 0] * Y0 / Y2 + ok[0, 2]
+            vf = ok[1, 1] * Y1 / Y2 + ok[1, 2]
+            uo = int(np.rint(uf))
+            vo = int(np.rint(vf))
             if uo < 0 or vo < 0 or uo >= ow or vo >= oh:
                 continue
+            if static_px > 0.0:
+                W0, W1, W2 = _pixel_into(x, y, 1.01 * z, k, wfc, ocfw)
+                if W2 > 1e-12 and abs(static_offset(
+                        x, y, uf, vf, ok[0, 0] * W0 / W2 + ok[0, 2],
+                        ok[1, 1] * W1 / W2 + ok[1, 2])) < static_px:
+                    continue
             d = odepth[vo, uo]
             if d <= 0.0 or abs(Y2 - d) / d > depth_tol:
                 continue

@@ -54,6 +54,12 @@ class FusionOptions(Config):
                                      help="forward-backward reprojection agreement")
     max_normal_deg: float = option(30.0, unit="deg", range="(0, 180]",
                                    help="normal agreement")
+    static_match: float = option(0.0, unit="px", range="[0, inf)",
+                                 help="an agreement at the same pixel does not count: the "
+                                      "point falls within this many pixels of its own pixel "
+                                      "along the other view's epipolar line (what a pattern "
+                                      "fixed to the image makes, at any depth: a backdrop "
+                                      "behind a turntable, an overlay; 0: off)")
     edge_erosion: int = option(4, unit="px", range="[0, 20]",
                                help="depths this close to the edge of a depth map's valid "
                                     "region are not fused (windows straddling an occlusion "
@@ -191,13 +197,13 @@ def fuse_points(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         n_ref = normals[i][v, u].astype(np.float64) @ R_wc.T
         if opt.disparity_tol == 0:  # the same test, compiled, over the whole map
             count = _agree_counts(i, cameras, depths, normals, neighbours[i], opt,
-                                  cos_max)[v, u]
+                                  cos_max, opt.static_match)[v, u]
         else:
             count = np.zeros(len(u), np.int32)
             for j in neighbours[i]:
                 if j != i:
                     count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j],
-                                    opt, cos_max)
+                                    opt, cos_max, opt.static_match)
         keep = count >= opt.min_views
         mask = np.zeros(depths[i].shape, bool)
         mask[v[keep], u[keep]] = True
@@ -222,7 +228,7 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
     cos_max = np.cos(np.radians(opt.max_normal_deg))
     out = []
     if opt.disparity_tol == 0:  # the same test, compiled
-        return [_agree_counts(i, cameras, depths, normals, neighbours[i], opt, cos_max)
+        return [_agree_counts(i, cameras, depths, normals, neighbours[i], opt, cos_max, 0.0)
                 >= opt.min_views for i in range(len(cameras))]
     for i, cam in enumerate(cameras):
         u, v, pc = _backproject(cam, depths[i])
@@ -233,7 +239,7 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
         for j in neighbours[i]:
             if j != i:
                 count += _agree(X, n_ref, u, v, cam, cameras[j], depths[j], normals[j], opt,
-                                cos_max)
+                                cos_max, 0.0)
         mask = np.zeros(depths[i].shape, bool)
         keep = count >= opt.min_views
         mask[v[keep], u[keep]] = True
@@ -243,10 +249,11 @@ def confirmed_depths(cameras: Sequence[Camera], depths: Sequence[np.ndarray],
 
 def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray],
                   normals: Sequence[np.ndarray], neighbours: Sequence[int], opt: FusionOptions,
-                  cos_max: float) -> np.ndarray:
+                  cos_max: float, static_px: float) -> np.ndarray:
     """(H, W) int32: how many of ``neighbours`` agree with each depth of view i, by the
     test of :func:`_agree` with a relative depth tolerance, compiled
-    (:func:`reconstruct.mvs._patchmatch_kernels.agree_counts`)."""
+    (:func:`reconstruct.mvs._patchmatch_kernels.agree_counts`); matches at the same pixel
+    (within ``static_px`` along the epipolar line, 0: off) do not count."""
     from reconstruct.mvs import _patchmatch_kernels as pk
 
     cam = cameras[i]
@@ -256,16 +263,22 @@ def _agree_counts(i: int, cameras: Sequence[Camera], depths: Sequence[np.ndarray
             o = cameras[j]
             pk.agree_counts(count, depths[i], normals[i], cam.K, cam.world_from_cam,
                             cam.cam_from_world, depths[j], normals[j], o.K, o.world_from_cam,
-                            o.cam_from_world, opt.depth_tol, opt.max_reprojection, cos_max)
+                            o.cam_from_world, opt.depth_tol, opt.max_reprojection, cos_max,
+                            float(static_px))
     return count
 
 
-def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max):
-    """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0."""
+def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_max,
+           static_px: float = 0.0):
+    """1 where ``other``'s depth map agrees with the points X of ``cam``, else 0 (and 0
+    where the point falls within ``static_px`` of its own pixel along the epipolar line:
+    :func:`reconstruct.mvs._patchmatch_kernels.static_offset`)."""
     out = np.zeros(len(X), np.int32)
     idx, uo, vo, z = pixel_lookup(other, X)
     d = depth[vo, uo].astype(np.float64)
     has = d > 0
+    if static_px > 0:
+        has &= np.abs(_static_offsets(X[idx], u[idx], v[idx], cam, other)) >= static_px
     idx, uo, vo, d = idx[has], uo[has], vo[has], d[has]
     # the other view's point at that pixel, back in the reference image
     pc = np.stack([(uo - other.cx) / other.fx * d, (vo - other.cy) / other.fy * d, d], 1)
@@ -286,6 +299,25 @@ def _agree(X, n_ref, u, v, cam: Camera, other: Camera, depth, normal, opt, cos_m
     good = (err <= opt.max_reprojection) & near & (cosang >= cos_max)
     out[idx[good]] = 1
     return out
+
+
+def _static_offsets(X: np.ndarray, u: np.ndarray, v: np.ndarray, cam: Camera,
+                    other: Camera) -> np.ndarray:
+    """Per point X of pixel (u, v) of ``cam``: how far (px) it falls in ``other`` from that
+    same pixel along its epipolar line (the kernels' ``static_offset``, vectorised)."""
+    C = cam.world_from_cam[:3, 3]
+
+    def project(P):
+        Y = other.to_camera(P)
+        z = np.maximum(Y[:, 2], 1e-12)
+        return other.fx * Y[:, 0] / z + other.cx, other.fy * Y[:, 1] / z + other.cy
+
+    pu, pv = project(X)
+    qu, qv = project(C + 1.01 * (X - C))
+    du, dv = qu - pu, qv - pv
+    n = np.hypot(du, dv)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(n > 1e-9, ((u - pu) * du + (v - pv) * dv) / n, np.inf)
 
 
 def poisson_surface(fused: FusedPoints, cameras: Sequence[Camera],
