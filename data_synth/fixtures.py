@@ -32,7 +32,8 @@ import numpy as np
 from core.io.raster import Raster
 from core.validate import check_positive, check_range, check_rng
 
-__all__ = ["sfm_capture", "turntable_backdrop", "seen_triangles", "SlopedTile", "sloped_tile"]
+__all__ = ["sfm_capture", "turntable_backdrop", "ring_of_eyes", "seen_triangles", "SlopedTile",
+           "sloped_tile"]
 
 
 def sfm_capture(root: str | os.PathLike, *, scene: str = "primitives", views: int = 12,
