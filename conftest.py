@@ -8,8 +8,8 @@ The check: the session (the xdist controller, before it starts its workers) poin
 tests, the library and their subprocesses put "in the temporary directory" lands there and
 nothing of anyone else's does; at the end a non-empty folder fails the session, naming what
 was left, and is removed; a folder a killed session left behind (its process gone) is
-removed when the next session starts. pytest's own ``tmp_path`` folders (it keeps the last three runs
-on purpose) live under the repository's ``.cache/pytest-tmp`` instead.
+removed when the next session starts. pytest's own ``tmp_path`` folders (it keeps the last
+three runs on purpose) live under the repository's ``.cache/pytest-tmp`` instead.
 """
 
 import os
