@@ -128,6 +128,11 @@ def _quiet_colmap(level: int) -> Iterator[None]:
 
     old = pycolmap.logging.minloglevel
     pycolmap.logging.logtostderr = True  # never glog's files in the temporary directory
+    # an empty destination turns glog's files off outright: pycolmap.bundle_adjustment
+    # logs its INFO lines to a file in the temporary directory with the two flags above
+    # set (seen with pycolmap 4.2)
+    for severity in (pycolmap.logging.INFO, pycolmap.logging.WARNING, pycolmap.logging.ERROR):
+        pycolmap.logging.set_log_destination(severity, "")
     pycolmap.logging.minloglevel = level
     try:
         yield

@@ -104,8 +104,15 @@ def _adjust(rec, refine_pp: bool, num_threads: int) -> None:
     opt.refine_principal_point = refine_pp
     opt.print_summary = False
     opt.ceres.solver_options.num_threads = num_threads
-    with _quiet_colmap(2):  # COLMAP's INFO lines: errors only, as the mapper's
+    from core.io.mesh import native_output
+
+    said: list[str] = []
+    # COLMAP's INFO lines: errors only, as the mapper's; this call prints its headings to
+    # the terminal whatever glog's level, so they go to the log instead
+    with _quiet_colmap(2), native_output(said, fds=(2,), open3d=False):
         pycolmap.bundle_adjustment(rec, opt)
+    if said:
+        log.debug("COLMAP bundle adjustment: %s", " ".join(said))
 
 
 def _principal_points(rec, ids) -> dict:
