@@ -13,7 +13,6 @@ three runs on purpose) live under the repository's ``.cache/pytest-tmp`` instead
 """
 
 import os
-import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -28,10 +27,6 @@ import cv2  # noqa: E402,F401  (cv2 before pycolmap: see DESIGN.md)
 import pytest  # noqa: E402
 
 _ROOT = Path(__file__).resolve().parent
-# glog's own log files (``.HOST.USER.log.SEVERITY.DATE-TIME.PID``): COLMAP writes them when
-# pycolmap loaded before GLOG_logtostderr was set in that process; one such process in the
-# suite is not yet found, so they are removed with the folder and not counted as ours
-_GLOG_FILE = re.compile(r"^.*\.log\.(INFO|WARNING|ERROR|FATAL)\.\d{8}-\d{6}\.\d+$")
 _PRIVATE = "SCANAMP_TEST_TMPDIR"  # set by the controller, inherited by the workers
 
 
@@ -66,8 +61,7 @@ def pytest_sessionfinish(session, exitstatus):
     private = getattr(session.config, "_scanamp_tmp", None)
     if private is None:
         return
-    left = sorted(p.name for p in private.iterdir()
-                  if not _GLOG_FILE.match(p.name)) if private.is_dir() else []
+    left = sorted(p.name for p in private.iterdir()) if private.is_dir() else []
     shutil.rmtree(private, ignore_errors=True)
     if left:
         shown = ", ".join(left[:20]) + (f" (and {len(left) - 20} more)" if len(left) > 20 else "")
